@@ -1,0 +1,76 @@
+"""The ``navgate`` command line.
+
+Each sub-command lives in its own module and is imported only when it is run, so that
+``navgate --help`` stays fast and a sub-command's heavy dependencies (numba, Amaranth,
+Yosys) load only when needed. To add a command, add one line to ``COMMANDS``.
+
+Errors: a sub-command raises :class:`navgate.cli.common.CliError` (or a click usage
+error) and the user sees exactly one line on stderr, ``navgate <cmd>: error: ...``,
+with exit status 2 and no traceback.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import click
+
+from navgate import __version__
+from navgate.cli.common import CliError
+
+#: command name -> "module:attribute" of a click command
+COMMANDS: dict[str, str] = {
+    "fly": "navgate.cli.fly:fly",
+}
+
+
+class LazyGroup(click.Group):
+    """A click group that imports each sub-command on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        target = COMMANDS.get(name)
+        if target is None:
+            return None
+        module_name, attribute = target.split(":")
+        return getattr(importlib.import_module(module_name), attribute)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="navgate")
+def cli() -> None:
+    """navgate: GPS-denied navigation, from reference model to verified gateware."""
+
+
+def _one_line(message: str) -> str:
+    return " ".join(str(message).split())
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the group, turning every expected failure into one stderr line."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    command = args[0] if args and not args[0].startswith("-") else None
+    prefix = f"navgate {command}" if command in COMMANDS else "navgate"
+    try:
+        cli.main(args=args, prog_name="navgate", standalone_mode=False)
+    except click.exceptions.Exit as exit_:
+        sys.exit(exit_.exit_code)
+    except click.exceptions.Abort:
+        click.echo(f"{prefix}: aborted", err=True)
+        sys.exit(130)
+    except click.ClickException as error:
+        click.echo(f"{prefix}: error: {_one_line(error.format_message())}", err=True)
+        sys.exit(2)
+    except CliError as error:
+        click.echo(f"{prefix}: error: {_one_line(str(error))}", err=True)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        click.echo(f"{prefix}: interrupted", err=True)
+        sys.exit(130)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()
