@@ -22,6 +22,8 @@ from navgate.cli.common import CliError
 #: command name -> "module:attribute" of a click command
 COMMANDS: dict[str, str] = {
     "fly": "navgate.cli.fly:fly",
+    "build": "navgate.cli.build:build",
+    "report": "navgate.cli.build:report",
 }
 
 

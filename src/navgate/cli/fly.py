@@ -1,9 +1,115 @@
-"""``navgate fly``: placeholder replaced by the flight command (issue 2)."""
+"""``navgate fly``: a GPS-denied flight over real terrain, INS-only and INS+TRN side by side.
+
+Runs navgate.sim.flight.fly and writes summary.json, trajectory.csv, trn_fixes.csv,
+track.png and errors.png into ``--out``. Bad input (missing/unreadable/non-DEM files, a DEM
+too small for the route, bad option values) ends with one line on stderr and exit 2.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import replace
 
 import click
 
+from navgate.cli.common import CliError, prepare_out_dir, write_summary
+
+
+def _positive_float(ctx, param, value):
+    if value is None:
+        return value
+    if not (math.isfinite(value) and value > 0):
+        raise click.BadParameter(f"must be a positive number, got {value}")
+    return value
+
 
 @click.command()
-def fly() -> None:
-    """Run a GPS-denied flight (being written)."""
-    raise SystemExit(0)
+@click.option("--dem", "dem_path", type=click.Path(dir_okay=True), default=None,
+              help="DEM file (GeoTIFF, DTED .dt0/.dt1/.dt2, SRTM .hgt; geographic CRS). "
+                   "Default: the embedded Jacksboro fault DEM.")
+@click.option("--duration", type=float, default=600.0, show_default=True,
+              callback=_positive_float, help="Flight duration after GPS loss (s).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="navgate-out",
+              show_default=True, help="Output directory.")
+@click.option("--ideal-sensors", is_flag=True, help="No sensor errors and no quantisation.")
+@click.option("--no-trn", is_flag=True, help="Run INS-only (with baro) and skip TRN.")
+@click.option("--imu-rate", type=float, default=400.0, show_default=True,
+              callback=_positive_float, help="IMU rate (Hz).")
+@click.option("--ranger", type=click.Choice(["long-range", "tf-luna"]), default="long-range",
+              show_default=True, help="AGL ranger preset.")
+@click.option("--speed", type=float, default=60.0, show_default=True, callback=_positive_float,
+              help="Cruise speed (m/s).")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, ranger, speed, quiet):
+    """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from navgate.sim import flight, report
+    from navgate.trn.dem import Dem, DemError
+
+    console = Console(stderr=True, quiet=quiet)
+    if duration > 4 * 3600:
+        raise CliError(f"--duration {duration:g} s is longer than the 4 h this command supports")
+    if not 50 <= imu_rate <= 4000:
+        raise CliError(f"--imu-rate must be between 50 and 4000 Hz, got {imu_rate:g}")
+    if not 5 <= speed <= 400:
+        raise CliError(f"--speed must be between 5 and 400 m/s, got {speed:g}")
+    if seed < 0:
+        raise CliError(f"--seed must be non-negative, got {seed}")
+    try:
+        dem = Dem.default() if dem_path is None else Dem.from_file(dem_path)
+    except DemError as error:
+        raise CliError(str(error)) from None
+    out = prepare_out_dir(out_dir)
+    cfg = flight.FlightConfig(duration_s=duration, imu_rate_hz=imu_rate, seed=seed,
+                              ideal_sensors=ideal_sensors, trn=not no_trn, ranger=ranger,
+                              speed_mps=speed)
+    if cfg.ranger == "tf-luna":
+        cfg = replace(cfg, clearance_m=6.0, climb_m=0.0)
+    console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
+                  f"({dem.shape[0]} x {dem.shape[1]} posts), seed {seed}"
+                  + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors"))
+    console.print("first run compiles the Numba kernels (cached afterwards)", style="dim")
+    runs = 1 if no_trn else 2
+    total = runs * int(round(duration * imu_rate))
+    start = time.perf_counter()
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                  TimeElapsedColumn(), console=console, disable=quiet, transient=False) as bar:
+        task = bar.add_task("planning route", total=total)
+        try:
+            result = flight.fly(
+                dem, cfg, progress=lambda n: bar.advance(task, n),
+                stage=lambda s: bar.update(task, description=s))
+        except flight.RouteError as error:
+            raise CliError(str(error)) from None
+        bar.update(task, description="writing report", completed=total)
+        summary = result.summary()
+        summary["wall_time_s"] = time.perf_counter() - start
+        files = report.write_report(result, out)
+    summary_path = write_summary(out, summary)
+    _print_table(console if not quiet else Console(), summary)
+    click.echo(f"wrote {summary_path} and {', '.join(p.name for p in files.values())} in {out}")
+
+
+def _print_table(console, s):
+    from rich.table import Table
+
+    table = Table(title=f"GPS-denied flight: {s['duration_s']:.0f} s, {s['route']['distance_km']:.1f} km")
+    table.add_column("solution")
+    for col in ("final error (m)", "RMS error (m)", "RMS 2nd half (m)", "NEES mean (2 dof)",
+                "TRN fixes acc/rej"):
+        table.add_column(col, justify="right")
+    for name, label in (("ins_only", "INS only (+baro)"), ("trn_aided", "INS + TRN")):
+        if name not in s:
+            continue
+        r = s[name]
+        fixes = f"{r['fixes_accepted']}/{r['fixes_rejected']}" if name == "trn_aided" else "-"
+        table.add_row(label, f"{r['final_horizontal_error_m']:.1f}",
+                      f"{r['rms_horizontal_error_m']:.1f}",
+                      f"{r['rms_horizontal_error_second_half_m']:.1f}",
+                      f"{r['nees_position_mean']:.2f}", fixes)
+    console.print(table)
+    console.print(f"wall time {s['wall_time_s']:.1f} s")

@@ -1,0 +1,139 @@
+"""Shared building blocks for the float32 gateware cores.
+
+The number format follows IEEE 754 binary32 with the navgate restrictions
+(see ``navgate.numerics.fp32`` and docs/gateware-fp32.md): subnormal inputs are
+read as zero of the same sign, results are rounded to nearest (ties to even) to
+24 significant bits as if the exponent range were unbounded and then flushed to
+a signed zero below 2**-126 or overflowed to a signed infinity at 2**128 and
+above; every NaN result is the quiet NaN 0x7FC00000.
+
+Pipelines here stall as a whole: all stage registers share one clock enable,
+``en = ~o.valid | o.ready``, and ``i.ready = en``.  Valid bits ride along the
+stages, so bubbles cost nothing when the output is ready.
+"""
+
+from amaranth.hdl import C, Cat, Module, Mux, Signal, Value, signed
+
+__all__ = ["QNAN", "Pipe", "unpack", "leading_zeros", "round_pack"]
+
+QNAN = 0x7FC00000
+
+
+class Pipe:
+    """Helper that registers values behind one shared clock enable.
+
+    ``reg(value)`` returns a reset-less register loaded from ``value`` whenever
+    the pipeline advances.  ``finish()`` emits the enable logic, the valid shift
+    register and the stream handshake; call it once at the end of elaborate.
+    """
+
+    def __init__(self, m: Module, i, o, stages: int):
+        self.m = m
+        self.i = i
+        self.o = o
+        self.stages = stages
+        self.en = Signal(name="pipe_en")
+        self._stmts = []
+        self._count = 0
+
+    def reg(self, value, name=None, shape=None):
+        self._count += 1
+        value = Value.cast(value) if shape is None else value
+        if shape is None:
+            shape = value.shape()
+        sig = Signal(shape, name=name or f"p{self._count}", reset_less=True)
+        self._stmts.append(sig.eq(value))
+        return sig
+
+    def finish(self):
+        m = self.m
+        valid = Signal(self.stages, name="pipe_valid")
+        m.d.comb += [
+            self.en.eq(~self.o.valid | self.o.ready),
+            self.i.ready.eq(self.en),
+            self.o.valid.eq(valid[-1]),
+        ]
+        with m.If(self.en):
+            m.d.sync += valid.eq(Cat(self.i.valid, valid[:-1]))
+            m.d.sync += self._stmts
+
+
+class Unpacked:
+    """Fields and classification of one float32 operand (flush-to-zero)."""
+
+    def __init__(self, m: Module, x, name: str):
+        self.sign = Signal(name=f"{name}_sign")
+        self.exp = Signal(8, name=f"{name}_exp")
+        self.frac = Signal(23, name=f"{name}_frac")
+        self.zero = Signal(name=f"{name}_zero")  # zero or subnormal
+        self.inf = Signal(name=f"{name}_inf")
+        self.nan = Signal(name=f"{name}_nan")
+        self.mant = Signal(24, name=f"{name}_mant")  # hidden bit included, 0 when zero
+        m.d.comb += [
+            self.sign.eq(x[31]),
+            self.exp.eq(x[23:31]),
+            self.frac.eq(x[0:23]),
+            self.zero.eq(self.exp == 0),
+            self.inf.eq((self.exp == 0xFF) & (self.frac == 0)),
+            self.nan.eq((self.exp == 0xFF) & (self.frac != 0)),
+            self.mant.eq(Mux(self.exp == 0, 0, Cat(self.frac, C(1, 1)))),
+        ]
+
+
+def unpack(m: Module, x, name: str) -> Unpacked:
+    return Unpacked(m, x, name)
+
+
+def leading_zeros(v):
+    """Leading-zero count of ``v`` as a balanced tree; returns (all_zero, count).
+
+    ``len(v)`` is padded with ones at the bottom to a power of two, so for a
+    non-zero ``v`` the count is exact and for ``v == 0`` ``all_zero`` is 0 only
+    because of the padding (callers test ``v == 0`` separately where needed).
+    """
+    n = len(v)
+    size = 1
+    while size < n:
+        size *= 2
+    if size > n:
+        v = Cat(C((1 << (size - n)) - 1, size - n), v)
+    return _lzc(v)
+
+
+def _lzc(v):
+    n = len(v)
+    if n == 1:
+        return ~v[0], C(0, 0)
+    if n == 2:
+        return ~v[1] & ~v[0], ~v[1]
+    lo, hi = v[: n // 2], v[n // 2 :]
+    zh, ch = _lzc(hi)
+    zl, cl = _lzc(lo)
+    return zh & zl, Mux(zh, Cat(cl, C(1, 1)), Cat(ch, C(0, 1)))
+
+
+def round_pack(m: Module, sign, exp, mant, rnd, sticky, name="rp"):
+    """Round-to-nearest-even and pack.
+
+    ``mant`` is the 24-bit significand (hidden bit set), ``exp`` the signed
+    biased exponent of that significand, ``rnd`` the first discarded bit and
+    ``sticky`` the OR of all further discarded bits.  Returns the packed word
+    with underflow (biased exponent <= 0 -> signed zero)
+    and overflow (>= 255 -> signed infinity) applied.
+    """
+    inc = rnd & (sticky | mant[0])
+    mant_r = Signal(25, name=f"{name}_mant_r")
+    exp_r = Signal(signed(len(exp) + 1), name=f"{name}_exp_r")
+    m.d.comb += mant_r.eq(mant + inc)
+    carry = mant_r[24]
+    m.d.comb += exp_r.eq(exp.as_signed() + carry)
+    out = Signal(32, name=f"{name}_out")
+    # On carry the rounded significand is exactly 2.0: fraction 0, exponent + 1.
+    frac = Mux(carry, 0, mant_r[0:23])
+    with m.If(exp_r <= 0):
+        m.d.comb += out.eq(Cat(C(0, 31), sign))
+    with m.Elif(exp_r >= 255):
+        m.d.comb += out.eq(Cat(C(0, 23), C(0xFF, 8), sign))
+    with m.Else():
+        m.d.comb += out.eq(Cat(frac, exp_r[0:8], sign))
+    return out

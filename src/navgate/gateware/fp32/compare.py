@@ -1,0 +1,61 @@
+"""Float32 comparison (one result per cycle, latency 1).
+
+Implements ``navgate.numerics.fp32.fp32_compare`` bit for bit: IEEE ordering
+after the input flush (a subnormal equals zero, -0 == +0); a NaN operand
+makes the pair unordered and clears ``lt``, ``eq`` and ``gt``.  Exactly one
+output bit is set per result.
+"""
+
+from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from ._common import Pipe, unpack
+
+__all__ = ["Fp32Compare"]
+
+
+class Fp32Compare(wiring.Component):
+    """Compare ``a`` with ``b``; input ``{a, b}``, output ``{lt, equal, gt, unordered}``.
+
+    The model's ``eq`` is called ``equal`` here: a layout field named ``eq``
+    would shadow ``View.eq``.
+    """
+
+    LATENCY = 1
+    THROUGHPUT = 1.0
+    IN_LAYOUT = data.StructLayout({"a": unsigned(32), "b": unsigned(32)})
+    OUT_LAYOUT = data.StructLayout({"lt": unsigned(1), "equal": unsigned(1), "gt": unsigned(1),
+                                    "unordered": unsigned(1)})
+
+    def __init__(self):
+        super().__init__({
+            "i": In(stream.Signature(self.IN_LAYOUT)),
+            "o": Out(stream.Signature(self.OUT_LAYOUT)),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        p = Pipe(m, self.i, self.o, self.LATENCY)
+        x, y = self.i.payload.a, self.i.payload.b
+        a = unpack(m, x, "a")
+        b = unpack(m, y, "b")
+        unordered = a.nan | b.nan
+        # Magnitudes with flushed subnormals; signs of zeros do not matter.
+        mag_a = Mux(a.zero, 0, x[0:31])
+        mag_b = Mux(b.zero, 0, y[0:31])
+        neg_a = a.sign & ~a.zero
+        neg_b = b.sign & ~b.zero
+        mag_lt = Signal()
+        mag_eq = Signal()
+        m.d.comb += [mag_lt.eq(mag_a < mag_b), mag_eq.eq(mag_a == mag_b)]
+        eq = mag_eq & (neg_a == neg_b)
+        # Different signs: the negative one is smaller (both non-zero or one zero).
+        lt = Mux(neg_a != neg_b, neg_a, Mux(neg_a, ~mag_lt & ~mag_eq, mag_lt))
+        lt_o = ~unordered & lt & ~eq
+        eq_o = ~unordered & eq
+        gt_o = ~unordered & ~lt & ~eq
+        res = p.reg(Cat(lt_o, eq_o, gt_o, unordered), "res")
+        m.d.comb += self.o.payload.as_value().eq(res)
+        p.finish()
+        return m

@@ -1,0 +1,175 @@
+"""Float32 <-> signed integer / fixed-point (Q format) converters, pipelined.
+
+Implement ``navgate.numerics.fp32.fp32_from_fixed`` / ``fp32_from_int`` and
+``fp32_to_fixed`` / ``fp32_to_int`` bit for bit (docs/gateware-fp32.md):
+
+* fixed -> float: the exact value ``x * 2**-frac_bits`` rounded to nearest even
+  to 24 bits, flushed to a signed zero below 2**-126 (0 -> +0);
+* float -> fixed: ``round_ties_even(value * 2**frac_bits)`` saturated to the
+  signed ``width``-bit range; ``overflow`` is set when the value saturated
+  (including infinities) or the input was NaN (value 0).  Subnormal inputs
+  read as zero.
+
+One result per cycle.  Widths from 2 to 64 bits are supported.
+"""
+
+from amaranth.hdl import C, Cat, Module, Mux, Signal, signed, unsigned
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from ._common import Pipe, leading_zeros, round_pack, unpack
+
+__all__ = ["Fp32FromFixed", "Fp32FromInt", "Fp32ToFixed", "Fp32ToInt"]
+
+
+def _check(width, frac_bits):
+    if not isinstance(width, int) or not 2 <= width <= 64:
+        raise ValueError(f"width must be an integer in [2, 64], got {width!r}")
+    if not isinstance(frac_bits, int) or not -256 <= frac_bits <= 256:
+        raise ValueError(f"frac_bits must be an integer in [-256, 256], got {frac_bits!r}")
+
+
+class Fp32FromFixed(wiring.Component):
+    """Signed Q value ``x`` (``width`` bits, ``frac_bits`` fraction bits) -> float32.
+
+    Input ``{x}``, output ``{r}``.  Stages: magnitude, normalise (leading-zero
+    count and shift), round and pack.
+    """
+
+    LATENCY = 3
+    THROUGHPUT = 1.0
+
+    def __init__(self, width: int = 32, frac_bits: int = 16):
+        _check(width, frac_bits)
+        self.width = width
+        self.frac_bits = frac_bits
+        super().__init__({
+            "i": In(stream.Signature(data.StructLayout({"x": signed(width)}))),
+            "o": Out(stream.Signature(data.StructLayout({"r": unsigned(32)}))),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        w = self.width
+        p = Pipe(m, self.i, self.o, self.LATENCY)
+        x = self.i.payload.x
+        neg = x[w - 1]
+        mag = Signal(w)
+        m.d.comb += mag.eq(Mux(neg, -x, x))
+        s1_mag = p.reg(mag, "s1_mag")
+        s1_neg = p.reg(neg, "s1_neg")
+
+        _, lz = leading_zeros(s1_mag)
+        norm = Signal(w)
+        m.d.comb += norm.eq(s1_mag << lz)
+        s2_norm = p.reg(norm, "s2_norm")
+        s2_lz = p.reg(lz, "s2_lz")
+        s2_zero = p.reg(s1_mag == 0, "s2_zero")
+        s2_neg = p.reg(s1_neg, "s2_neg")
+
+        # value = norm * 2**(w - 1 - lz - frac_bits - (w - 1)), msb of norm set.
+        if w >= 25:
+            mant = s2_norm[w - 24:w]
+            rnd = s2_norm[w - 25]
+            sticky = s2_norm[0:w - 25] != 0 if w > 25 else C(0, 1)
+        else:
+            mant = Cat(C(0, 24 - w), s2_norm)
+            rnd = C(0, 1)
+            sticky = C(0, 1)
+        exp = Signal(signed(12))
+        m.d.comb += exp.eq(w - 1 - self.frac_bits + 127 - s2_lz)
+        rounded = round_pack(m, s2_neg, exp, mant, rnd, sticky)
+        r = p.reg(Mux(s2_zero, 0, rounded), "s3_r", unsigned(32))
+        m.d.comb += self.o.payload.r.eq(r)
+        p.finish()
+        return m
+
+
+class Fp32FromInt(Fp32FromFixed):
+    """Signed ``width``-bit integer -> float32 (``Fp32FromFixed`` with no fraction bits)."""
+
+    def __init__(self, width: int = 32):
+        super().__init__(width=width, frac_bits=0)
+
+
+class Fp32ToFixed(wiring.Component):
+    """Float32 -> signed Q value (``width`` bits, ``frac_bits`` fraction bits).
+
+    Input ``{a}``, output ``{r, overflow}``.  Stages: unpack and shift amount,
+    shift (with round and sticky bits), round, saturate and negate.
+    """
+
+    LATENCY = 4
+    THROUGHPUT = 1.0
+
+    def __init__(self, width: int = 32, frac_bits: int = 16):
+        _check(width, frac_bits)
+        self.width = width
+        self.frac_bits = frac_bits
+        super().__init__({
+            "i": In(stream.Signature(data.StructLayout({"a": unsigned(32)}))),
+            "o": Out(stream.Signature(data.StructLayout({"r": signed(width),
+                                                         "overflow": unsigned(1)}))),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        w = self.width
+        p = Pipe(m, self.i, self.o, self.LATENCY)
+        a = unpack(m, self.i.payload.a, "a")
+        # value = mant * 2**sh; t = mant * 2**(sh + 2) keeps a round bit and one
+        # more bit below the integer point, the rest goes to sticky.
+        sh = Signal(signed(11))
+        m.d.comb += sh.eq(a.exp - 150 + self.frac_bits)
+        # value >= 2**(23 + sh) > 2**w whenever sh > w - 23: always saturates.
+        big = sh > w - 23
+        left = Signal(range(max(2, w - 20)))  # sh + 2 in [0, w - 21] (0 if w < 21)
+        right = Signal(range(27))         # -(sh + 2) clamped to 26 (t = 0 then)
+        m.d.comb += [
+            left.eq(Mux((sh + 2 >= 0) & ~big, sh + 2, 0)),
+            right.eq(Mux(sh + 2 >= 0, 0, Mux(-(sh + 2) > 26, 26, -(sh + 2)))),
+        ]
+        s1_m = p.reg(a.mant, "s1_m")
+        s1_left = p.reg(left, "s1_left")
+        s1_right = p.reg(right, "s1_right")
+        s1_neg = p.reg(a.sign, "s1_neg")
+        s1_kind = p.reg(Cat(a.nan, a.inf | big & ~a.nan, a.zero), "s1_kind")
+
+        tw = max(w + 3, 24)  # t < 2**(24 + w - 21), or < 2**24 for small w
+        t = Signal(tw)
+        m.d.comb += t.eq((s1_m << s1_left) >> s1_right)
+        # Bits shifted out on the right: mant[0:right] has a one iff the count of
+        # trailing zeros of mant is below right.
+        _, tz = leading_zeros(s1_m[::-1])
+        lost = tz < s1_right
+        s2_t = p.reg(t, "s2_t")
+        s2_lost = p.reg(lost, "s2_lost")
+        s2_neg = p.reg(s1_neg, "s2_neg")
+        s2_kind = p.reg(s1_kind, "s2_kind")
+
+        q = s2_t[2:]
+        inc = s2_t[1] & (s2_t[0] | s2_lost | q[0])
+        mag = Signal(tw - 1)
+        m.d.comb += mag.eq(q + inc)
+        s3_mag = p.reg(mag, "s3_mag")
+        s3_neg = p.reg(s2_neg, "s3_neg")
+        s3_kind = p.reg(s2_kind, "s3_kind")
+
+        limit = Mux(s3_neg, C(1 << (w - 1), w), C((1 << (w - 1)) - 1, w))
+        nan, sat_in, zero = s3_kind[0], s3_kind[1], s3_kind[2]
+        over = ~nan & ~zero & (sat_in | (s3_mag > limit))
+        mag_c = Mux(nan | zero, 0, Mux(over, limit, s3_mag))
+        value = Signal(w)
+        m.d.comb += value.eq(Mux(s3_neg, -mag_c, mag_c))
+        r = p.reg(value, "s4_r")
+        flag = p.reg(over | nan, "s4_flag")
+        m.d.comb += [self.o.payload.r.eq(r), self.o.payload.overflow.eq(flag)]
+        p.finish()
+        return m
+
+
+class Fp32ToInt(Fp32ToFixed):
+    """Float32 -> signed ``width``-bit integer (``Fp32ToFixed`` with no fraction bits)."""
+
+    def __init__(self, width: int = 32):
+        super().__init__(width=width, frac_bits=0)

@@ -1,0 +1,114 @@
+"""Pipelined float32 square root: radix-2 restoring digit recurrence, unrolled.
+
+Implements ``navgate.numerics.fp32.fp32_sqrt`` bit for bit (correctly rounded,
+flush-to-zero input, sqrt(-0) = -0, sqrt(negative nonzero) = QNAN;
+docs/gateware-fp32.md).
+
+Algorithm (Ercegovac & Lang, "Digital Arithmetic", 2004, ch. 6; the classic
+bit-pair "digit-by-digit" integer square root): the exponent is made even by
+doubling the significand when it is odd, so the radicand ``v`` lies in
+[1, 4) and its root in [1, 2).  With ``N = v * 2**48`` (an integer), 25 root
+bits (hidden bit, 23 fraction bits, round bit) are produced one per pipeline
+stage: bring down the next bit pair, ``rem = 4*rem + pair``; if
+``rem >= 4*root + 1`` subtract it and append a 1, else append a 0.  The final
+remainder is non-zero exactly when the root has a non-zero tail, giving the
+sticky bit for round-to-nearest-even.
+
+Latency 27 cycles (1 unpack + 25 recurrence + 1 round), one result per cycle.
+"""
+
+from amaranth.hdl import C, Cat, Module, Signal, signed, unsigned
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from ._common import QNAN, Pipe, round_pack, unpack
+
+__all__ = ["Fp32Sqrt"]
+
+
+class Fp32Sqrt(wiring.Component):
+    """Float32 square root ``r = sqrt(a)``; input ``{a}``, output ``{r}``."""
+
+    ROOT_BITS = 25
+    LATENCY = ROOT_BITS + 2
+    THROUGHPUT = 1.0
+    IN_LAYOUT = data.StructLayout({"a": unsigned(32)})
+    OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
+
+    def __init__(self):
+        super().__init__({
+            "i": In(stream.Signature(self.IN_LAYOUT)),
+            "o": Out(stream.Signature(self.OUT_LAYOUT)),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        p = Pipe(m, self.i, self.o, self.LATENCY)
+
+        # ---- stage 1: unpack, even exponent ---------------------------------------
+        a = unpack(m, self.i.payload.a, "a")
+        nan = a.nan | (a.sign & ~a.zero)
+        inf = a.inf
+        zero = a.zero
+        odd = ~a.exp[0]  # unbiased exponent ea - 127 is odd when ea is even
+        e_unb = Signal(signed(10))
+        m.d.comb += e_unb.eq(a.exp - 127)
+        exp = Signal(signed(10))
+        m.d.comb += exp.eq((e_unb >> 1) + 127)
+        # Radicand bits N = v * 2**48 = m_adj * 2**25, m_adj = mant << odd (25 bits);
+        # its bit pairs from the top are m_adj[23:25], m_adj[21:23], ..., {m_adj[0], 0},
+        # then zeros.  Pad one zero below m_adj so the pairs align: 26 bits, 13 pairs.
+        rest = p.reg(Cat(C(0, 1), a.mant << odd), "s1_rest", unsigned(26))
+        e = p.reg(exp, "s1_exp")
+        s = p.reg(a.sign, "s1_sign")
+        kind = p.reg(Cat(nan, inf, zero), "s1_kind")
+        rem = C(0, 1)
+        root = C(0, 1)
+
+        # ---- stages 2..26: one root bit per stage -----------------------------------------
+        for k in range(self.ROOT_BITS):
+            if len(rest) >= 2:
+                pair = rest[-2:]
+                rest_next = rest[:-2]
+            else:
+                pair = C(0, 2)
+                rest_next = None
+            rem2 = Cat(pair, rem)                       # 4*rem + pair
+            trial = Cat(C(1, 2), root)                  # 4*root + 1
+            w = max(len(rem2), len(trial)) + 1
+            diff = Signal(w, name=f"r{k}_diff")
+            m.d.comb += diff.eq(rem2 - trial)
+            bit = ~diff[w - 1]
+            # rem <= 2*root holds after every step, so rem fits in len(root)+2 bits.
+            rw = len(root) + 2
+            nrem = Signal(rw, name=f"r{k}_rem")
+            with m.If(bit):
+                m.d.comb += nrem.eq(diff)
+            with m.Else():
+                m.d.comb += nrem.eq(rem2)
+            root = p.reg(Cat(bit, root) if k else bit, f"r{k}_root")
+            rem = p.reg(nrem, f"r{k}_remr")
+            if rest_next is not None and len(rest_next):
+                rest = p.reg(rest_next, f"r{k}_rest")
+            else:
+                rest = C(0, 0)
+            e = p.reg(e, f"r{k}_exp")
+            s = p.reg(s, f"r{k}_sign")
+            kind = p.reg(kind, f"r{k}_kind")
+
+        # ---- last stage: round (a root never overflows or underflows), pack ----------------
+        rounded = round_pack(m, s, e, root[1:25], root[0], rem != 0)
+        result = Signal(32)
+        with m.If(kind[0]):
+            m.d.comb += result.eq(QNAN)
+        with m.Elif(kind[1]):
+            m.d.comb += result.eq(Cat(C(0, 23), C(0xFF, 8), s))
+        with m.Elif(kind[2]):
+            m.d.comb += result.eq(Cat(C(0, 31), s))
+        with m.Else():
+            m.d.comb += result.eq(rounded)
+        out = p.reg(result, "out_r")
+        m.d.comb += self.o.payload.r.eq(out)
+
+        p.finish()
+        return m

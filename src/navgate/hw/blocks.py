@@ -1,0 +1,107 @@
+"""The block registry: every gateware core that ``navgate build`` and ``navgate report`` know.
+
+A block is a name, a zero-argument factory that returns an Amaranth ``wiring.Component``, and a
+one-line description. The factories are named as ``"module:attribute"`` strings and imported
+only when a block is built, so that ``navgate build --list`` stays fast and one broken core
+cannot hide the others.
+
+Adding a block is one line in :data:`REGISTRY`. The float32 cores are merged in from
+``navgate.gateware.fp32.BLOCKS`` (a ``name -> class`` dict kept by that package), their
+description being the first line of the class docstring.
+
+Every component built from here documents ``LATENCY`` (cycles from an accepted input to its
+result being valid, with the output ready) and ``THROUGHPUT`` (results per cycle at steady
+state, e.g. ``1`` for a pipeline, ``1/18`` for an iterative core); both may be class or
+instance attributes.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+#: name -> ("module:attribute" of a zero-argument factory, one-line description)
+REGISTRY: dict[str, tuple[str, str]] = {
+    "cordic_atan2": (
+        "navgate.gateware.cordic:CordicAtan2",
+        "CORDIC vectoring atan2 + magnitude, unrolled pipeline (one result per cycle)",
+    ),
+    "cordic_atan2_iter": (
+        "navgate.gateware.cordic:CordicAtan2Iterative",
+        "CORDIC vectoring atan2 + magnitude, iterative (one result per ~iterations cycles)",
+    ),
+    "cordic_sincos": (
+        "navgate.gateware.cordic:CordicSinCos",
+        "CORDIC rotation mode: cos and sin of a binary angle, pipelined",
+    ),
+    "goldschmidt_div": (
+        "navgate.gateware.goldschmidt:GoldschmidtDivider",
+        "Goldschmidt fixed-point divider (seed 004), pipelined",
+    ),
+    "fixed_mul": (
+        "navgate.gateware.fixed:FixedMul",
+        "signed Q-format multiplier: full product, truncated/saturated result, overflow flag",
+    ),
+}
+
+#: where the float32 cores keep their own registry (name -> class)
+FP32_MODULE = "navgate.gateware.fp32"
+
+
+@dataclass(frozen=True)
+class Block:
+    """One buildable block."""
+
+    name: str
+    factory: Callable[[], Any]
+    description: str
+
+
+def _first_line(doc: str | None) -> str:
+    for line in (doc or "").strip().splitlines():
+        if line.strip():
+            return line.strip().rstrip(".")
+    return "(no description)"
+
+
+def _lazy_factory(target: str) -> Callable[[], Any]:
+    module_name, attribute = target.split(":")
+
+    def factory() -> Any:
+        return getattr(importlib.import_module(module_name), attribute)()
+
+    factory.__qualname__ = factory.__name__ = attribute
+    return factory
+
+
+def _fp32_blocks() -> dict[str, Block]:
+    try:
+        module = importlib.import_module(FP32_MODULE)
+    except ModuleNotFoundError as error:
+        # Only the absence of the fp32 package itself is tolerated; a broken import inside
+        # it is a real error and propagates.
+        if error.name is not None and FP32_MODULE.startswith(error.name):
+            return {}
+        raise
+    return {
+        name: Block(name, cls, _first_line(getattr(cls, "__doc__", None)))
+        for name, cls in getattr(module, "BLOCKS", {}).items()
+    }
+
+
+def all_blocks() -> dict[str, Block]:
+    """Every registered block, sorted by name (fp32 cores merged in)."""
+    found: dict[str, Block] = dict(_fp32_blocks())
+    for name, (target, description) in REGISTRY.items():
+        found[name] = Block(name, _lazy_factory(target), description)
+    return {name: found[name] for name in sorted(found)}
+
+
+def get_block(name: str) -> Block:
+    """The block called ``name``; ``KeyError`` with the known names if there is none."""
+    blocks = all_blocks()
+    if name not in blocks:
+        raise KeyError(f"unknown block {name!r}; known blocks: {', '.join(blocks)}")
+    return blocks[name]

@@ -1,0 +1,162 @@
+"""Writing a flight's report: trajectory CSV, TRN fix log, track and error plots.
+
+- ``trajectory.csv``: at the log rate, truth and both solutions (latitude/longitude in
+  degrees, north/east metres in the DEM's local frame, height), horizontal errors and the
+  filters' 1-sigma north/east position uncertainty;
+- ``trn_fixes.csv``: every TRN attempt with its outcome and reason;
+- ``track.png``: hillshaded terrain with the truth, INS-only and INS+TRN tracks and the
+  accepted / rejected fixes;
+- ``errors.png``: horizontal error against time with each filter's 3-sigma bound
+  (3 sqrt(lambda_max) of the 2x2 horizontal position covariance).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+
+import numpy as np
+
+from navgate.nav.earth import LocalTangent
+
+
+def _tangent(result):
+    return LocalTangent(*result.dem.center, 0.0)
+
+
+def write_trajectory_csv(result, path: Path) -> Path:
+    truth = result.data.truth
+    tan = _tangent(result)
+    idx = np.minimum(np.arange(next(iter(result.runs.values())).t.size) * result.log_every,
+                     len(truth) - 1)
+    tn, te = tan.to_ned(truth.lat[idx], truth.lon[idx])
+    cols = {
+        "t_s": truth.t[idx],
+        "truth_lat_deg": np.degrees(truth.lat[idx]), "truth_lon_deg": np.degrees(truth.lon[idx]),
+        "truth_h_m": truth.h[idx], "truth_north_m": tn, "truth_east_m": te,
+    }
+    for name, run in result.runs.items():
+        n, e = tan.to_ned(run.nav[:, 0], run.nav[:, 1])
+        cols[f"{name}_lat_deg"] = np.degrees(run.nav[:, 0])
+        cols[f"{name}_lon_deg"] = np.degrees(run.nav[:, 1])
+        cols[f"{name}_h_m"] = run.nav[:, 2]
+        cols[f"{name}_north_m"] = n
+        cols[f"{name}_east_m"] = e
+        cols[f"{name}_horizontal_error_m"] = result.scores[name].horizontal_error
+        cols[f"{name}_sigma_north_m"] = run.sigma[:, 0]
+        cols[f"{name}_sigma_east_m"] = run.sigma[:, 1]
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(cols.keys())
+        for row in zip(*cols.values(), strict=True):
+            w.writerow([f"{v:.9g}" for v in row])
+    return path
+
+
+def write_fixes_csv(result, path: Path) -> Path:
+    run = result.runs.get("trn_aided")
+    rows = run.fixes if run is not None else []
+    keys = ["time_s", "lag_s", "applied", "reason", "nis", "shift_north_m", "shift_east_m",
+            "sigma_north_m", "sigma_east_m", "fix_north_m", "fix_east_m", "msd_best_m2",
+            "ambiguity_ratio", "roughness_m", "search_half_width_m", "samples"]
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{r[k]:.6g}" if isinstance(r.get(k), float) else r.get(k))
+                        for k in keys})
+    return path
+
+
+def horizontal_sigma_bound(run, k=3.0):
+    """k * sqrt(largest eigenvalue) of the 2x2 horizontal position covariance."""
+    a = run.sigma[:, 0] ** 2
+    c = run.sigma[:, 1] ** 2
+    b = run.p_ne
+    lam = 0.5 * (a + c) + np.sqrt(np.maximum(0.25 * (a - c) ** 2 + b**2, 0.0))
+    return k * np.sqrt(lam)
+
+
+def plot_track(result, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    dem = result.dem
+    tan = _tangent(result)
+    shade = dem.hillshade()
+    north_top, east_left = tan.to_ned(dem.lat_north, dem.lon_west)
+    north_bottom, east_right = tan.to_ned(dem.lat_south, dem.lon_east)
+    extent = [east_left / 1000, east_right / 1000, north_bottom / 1000, north_top / 1000]
+    fig, ax = plt.subplots(figsize=(9, 8.5), dpi=110)
+    ax.imshow(dem.heights, cmap="terrain", extent=extent, origin="upper", alpha=0.85)
+    ax.imshow(shade, cmap="gray", extent=extent, origin="upper", alpha=0.35)
+    truth = result.data.truth
+    tn, te = tan.to_ned(truth.lat[::40], truth.lon[::40])
+    ax.plot(te / 1000, tn / 1000, "k-", lw=2.0, label="truth")
+    styles = {"ins_only": ("tab:red", "INS only"), "trn_aided": ("tab:blue", "INS + TRN")}
+    for name, run in result.runs.items():
+        n, e = tan.to_ned(run.nav[:, 0], run.nav[:, 1])
+        color, label = styles.get(name, ("tab:gray", name))
+        ax.plot(e / 1000, n / 1000, "-", color=color, lw=1.4, label=label)
+    run = result.runs.get("trn_aided")
+    if run is not None:
+        acc = [f for f in run.fixes if f["applied"]]
+        rej = [f for f in run.fixes if not f["applied"] and math.isfinite(f["fix_north_m"])]
+        if acc:
+            ax.plot([f["fix_east_m"] / 1000 for f in acc], [f["fix_north_m"] / 1000 for f in acc],
+                    "o", ms=4, mfc="white", mec="tab:green", label=f"TRN fix accepted ({len(acc)})")
+        if rej:
+            ax.plot([f["fix_east_m"] / 1000 for f in rej], [f["fix_north_m"] / 1000 for f in rej],
+                    "x", ms=6, color="tab:orange", label=f"TRN fix rejected ({len(rej)})")
+    ax.set_xlabel("east (km)")
+    ax.set_ylabel("north (km)")
+    ax.set_title(f"GPS-denied flight over {dem.name}")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.set_aspect("equal")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def plot_errors(result, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    styles = {"ins_only": ("tab:red", "INS only"), "trn_aided": ("tab:blue", "INS + TRN")}
+    fig, axes = plt.subplots(len(result.runs), 1, figsize=(9, 3.2 * len(result.runs)), dpi=110,
+                             squeeze=False)
+    for ax, (name, run) in zip(axes[:, 0], result.runs.items(), strict=True):
+        color, label = styles.get(name, ("tab:gray", name))
+        err = result.scores[name].horizontal_error
+        ax.plot(run.t, err, color=color, lw=1.2, label=f"{label}: horizontal error")
+        ax.plot(run.t, horizontal_sigma_bound(run), "k--", lw=1.0, label="filter 3-sigma")
+        if name == "trn_aided":
+            for f in run.fixes:
+                if f["applied"]:
+                    ax.axvline(f["time_s"], color="tab:green", lw=0.4, alpha=0.5)
+        ax.set_ylabel("m")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+        ax.legend(loc="upper left", fontsize=8)
+    axes[-1, 0].set_xlabel("time since GPS loss (s)")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def write_report(result, out_dir: Path) -> dict:
+    """Write every report file; returns name -> path."""
+    out_dir = Path(out_dir)
+    return {
+        "trajectory_csv": write_trajectory_csv(result, out_dir / "trajectory.csv"),
+        "fixes_csv": write_fixes_csv(result, out_dir / "trn_fixes.csv"),
+        "track_png": plot_track(result, out_dir / "track.png"),
+        "errors_png": plot_errors(result, out_dir / "errors.png"),
+    }

@@ -1,0 +1,220 @@
+"""Digital elevation model on a geographic grid: loading, bilinear height, gradients, voids.
+
+A :class:`Dem` holds heights (m, float64, NaN for voids) at posts on a regular latitude /
+longitude grid: row 0 is the northern row, column 0 the western column, post (i, j) at
+``lat = lat_north - i dlat``, ``lon = lon_west + j dlon`` (post centres: a GeoTIFF's
+pixel-is-area transform is shifted by half a pixel; DTED and SRTM .hgt are read by GDAL
+with the same convention, so one rule serves all).
+
+Loading: anything GDAL reads, through rasterio (GeoTIFF, DTED .dt0/.dt1/.dt2, SRTM .hgt),
+provided the raster is in geographic coordinates (EPSG:4326 or another lat/lon CRS). The
+raster's nodata value and the SRTM void marker -32768 become NaN voids. The embedded
+default is the real 3 arc-second DEM that matplotlib ships
+(``sample_data/jacksboro_fault_dem.npz``: 344 x 403 posts, about 31 x 31 km of the
+Jacksboro fault ridge-and-valley terrain in Tennessee).
+
+Bilinear interpolation returns NaN when any of the four surrounding posts is a void or the
+point lies outside the grid; callers treat NaN as "no terrain here" (TRN pauses, it never
+propagates a NaN into the filter). The kernels are Numba-compiled for the correlator.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from navgate.nav.earth import radii
+
+SRTM_VOID = -32768
+
+
+class DemError(ValueError):
+    """A file that cannot serve as a DEM (missing, unreadable, not geographic, empty)."""
+
+
+@njit(cache=True)
+def bilinear(heights, lat_north, lon_west, dlat, dlon, lat, lon):
+    """Bilinear height at (lat, lon) in rad; NaN outside the grid or next to a void."""
+    fi = (lat_north - lat) / dlat
+    fj = (lon - lon_west) / dlon
+    nrow, ncol = heights.shape
+    if not (fi >= 0.0 and fj >= 0.0 and fi <= nrow - 1 and fj <= ncol - 1):
+        return math.nan
+    i = min(int(fi), nrow - 2)
+    j = min(int(fj), ncol - 2)
+    u = fi - i
+    v = fj - j
+    h00 = heights[i, j]
+    h01 = heights[i, j + 1]
+    h10 = heights[i + 1, j]
+    h11 = heights[i + 1, j + 1]
+    return (h00 * (1.0 - u) * (1.0 - v) + h01 * (1.0 - u) * v
+            + h10 * u * (1.0 - v) + h11 * u * v)
+
+
+@njit(cache=True)
+def bilinear_many(heights, lat_north, lon_west, dlat, dlon, lat, lon):
+    out = np.empty(lat.shape[0])
+    for k in range(lat.shape[0]):
+        out[k] = bilinear(heights, lat_north, lon_west, dlat, dlon, lat[k], lon[k])
+    return out
+
+
+@dataclass
+class Dem:
+    """Heights on a geographic grid (angles stored in rad)."""
+
+    heights: np.ndarray
+    lat_north: float
+    lon_west: float
+    dlat: float
+    dlon: float
+    name: str = "dem"
+
+    def __post_init__(self):
+        h = np.ascontiguousarray(self.heights, dtype=np.float64)
+        if h.ndim != 2 or h.shape[0] < 2 or h.shape[1] < 2:
+            raise DemError(f"{self.name}: a DEM needs at least 2 x 2 posts, got shape {h.shape}")
+        if not (self.dlat > 0 and self.dlon > 0):
+            raise DemError(f"{self.name}: post spacing must be positive")
+        if not np.any(np.isfinite(h)):
+            raise DemError(f"{self.name}: the DEM holds no valid heights (all voids)")
+        h[~np.isfinite(h)] = np.nan
+        self.heights = h
+
+    # -- construction ---------------------------------------------------------------------
+    @classmethod
+    def default(cls) -> Dem:
+        """The embedded real DEM: matplotlib's Jacksboro fault sample (3 arc-second posts)."""
+        from matplotlib.cbook import get_sample_data
+
+        data = get_sample_data("jacksboro_fault_dem.npz")
+        elevation = np.asarray(data["elevation"], dtype=np.float64)
+        dx = float(data["dx"])
+        dy = float(data["dy"])
+        # xmin/xmax and ymin/ymax are cell edges; "ymin" is the northern edge in this file
+        north_edge = max(float(data["ymin"]), float(data["ymax"]))
+        west_edge = min(float(data["xmin"]), float(data["xmax"]))
+        return cls(elevation, math.radians(north_edge - dy / 2), math.radians(west_edge + dx / 2),
+                   math.radians(dy), math.radians(dx), name="jacksboro_fault_dem (matplotlib)")
+
+    @classmethod
+    def from_file(cls, path) -> Dem:
+        """Load a GeoTIFF / DTED / SRTM .hgt (anything GDAL reads) through rasterio."""
+        path = Path(path)
+        if not path.exists():
+            raise DemError(f"DEM file not found: {path}")
+        if path.is_dir():
+            raise DemError(f"DEM path is a directory, not a file: {path}")
+        try:
+            import rasterio
+            from rasterio.errors import RasterioIOError
+        except ImportError as error:  # pragma: no cover - rasterio is a dependency
+            raise DemError(f"rasterio is needed to read {path}: {error}") from None
+        try:
+            with rasterio.open(path) as src:
+                if src.count < 1:
+                    raise DemError(f"{path}: raster has no bands")
+                crs = src.crs
+                if crs is None or not crs.is_geographic:
+                    raise DemError(
+                        f"{path}: DEM must be in geographic (lat/lon) coordinates, got "
+                        f"{crs.to_string() if crs else 'no CRS'}")
+                t = src.transform
+                if t.b != 0 or t.d != 0:
+                    raise DemError(f"{path}: rotated rasters are not supported")
+                data = src.read(1, masked=True)
+                heights = np.ma.filled(data.astype(np.float64), np.nan)
+                nodata = src.nodata
+        except DemError:
+            raise
+        except (RasterioIOError, OSError, ValueError) as error:
+            raise DemError(f"{path}: not a readable DEM ({' '.join(str(error).split())})") from None
+        heights[heights == SRTM_VOID] = np.nan
+        if nodata is not None and np.isfinite(nodata):
+            heights[heights == nodata] = np.nan
+        dlon = t.a
+        dlat = -t.e
+        if dlat < 0:  # south-up raster: flip to north-up
+            heights = heights[::-1]
+            lat_north = t.f + dlat * (heights.shape[0] - 0.5)
+            dlat = -dlat
+        else:
+            lat_north = t.f - dlat / 2
+        lon_west = t.c + dlon / 2
+        return cls(heights, math.radians(lat_north), math.radians(lon_west),
+                   math.radians(dlat), math.radians(dlon), name=path.name)
+
+    # -- geometry ---------------------------------------------------------------------------
+    @property
+    def shape(self):
+        return self.heights.shape
+
+    @property
+    def lat_south(self) -> float:
+        return self.lat_north - (self.shape[0] - 1) * self.dlat
+
+    @property
+    def lon_east(self) -> float:
+        return self.lon_west + (self.shape[1] - 1) * self.dlon
+
+    @property
+    def center(self):
+        return 0.5 * (self.lat_north + self.lat_south), 0.5 * (self.lon_west + self.lon_east)
+
+    def post_spacing_m(self):
+        """(north, east) post spacing in metres at the DEM's centre latitude."""
+        lat, _ = self.center
+        rn, re = radii(lat)
+        return self.dlat * rn, self.dlon * re * math.cos(lat)
+
+    def valid_bounds(self):
+        """(lat_south, lat_north, lon_west, lon_east) of the rows/columns that hold data."""
+        valid = np.isfinite(self.heights)
+        rows = np.flatnonzero(valid.any(axis=1))
+        cols = np.flatnonzero(valid.any(axis=0))
+        return (self.lat_north - rows[-1] * self.dlat, self.lat_north - rows[0] * self.dlat,
+                self.lon_west + cols[0] * self.dlon, self.lon_west + cols[-1] * self.dlon)
+
+    def void_fraction(self) -> float:
+        return float(np.mean(~np.isfinite(self.heights)))
+
+    # -- queries --------------------------------------------------------------------------------
+    def height(self, lat, lon):
+        """Bilinear height(s) (m) at lat, lon (rad); NaN off the map or next to a void."""
+        lat_a = np.atleast_1d(np.asarray(lat, float)).ravel()
+        lon_a = np.atleast_1d(np.asarray(lon, float)).ravel()
+        lat_a, lon_a = np.broadcast_arrays(lat_a, lon_a)
+        out = bilinear_many(self.heights, self.lat_north, self.lon_west, self.dlat, self.dlon,
+                            np.ascontiguousarray(lat_a), np.ascontiguousarray(lon_a))
+        if np.ndim(lat) == 0 and np.ndim(lon) == 0:
+            return float(out[0])
+        return out.reshape(np.broadcast_shapes(np.shape(lat), np.shape(lon)))
+
+    def gradient(self, lat, lon, step_m: float | None = None):
+        """(dh/dnorth, dh/deast) (m/m) by central differences of the bilinear surface."""
+        lat = np.asarray(lat, float)
+        lon = np.asarray(lon, float)
+        rn, re = radii(float(np.mean(lat)))
+        sn, se = self.post_spacing_m()
+        step = step_m if step_m is not None else 0.5 * min(sn, se)
+        dlat = step / rn
+        dlon = step / (re * math.cos(float(np.mean(lat))))
+        gn = (self.height(lat + dlat, lon) - self.height(lat - dlat, lon)) / (2 * step)
+        ge = (self.height(lat, lon + dlon) - self.height(lat, lon - dlon)) / (2 * step)
+        return gn, ge
+
+    def hillshade(self, azimuth_deg=315.0, altitude_deg=45.0):
+        """Shaded-relief image (0..1) for plots, voids as NaN."""
+        from matplotlib.colors import LightSource
+
+        sn, se = self.post_spacing_m()
+        filled = np.where(np.isfinite(self.heights), self.heights, np.nanmean(self.heights))
+        ls = LightSource(azdeg=azimuth_deg, altdeg=altitude_deg)
+        shade = ls.hillshade(filled, vert_exag=1.0, dx=se, dy=sn)
+        shade[~np.isfinite(self.heights)] = np.nan
+        return shade

@@ -1,0 +1,130 @@
+"""Altitude profile buffer (seed 000 "Altitude Profile Buffer", module altitude_profile_manager).
+
+Terrain elevation samples for TRN correlation: ``h_terrain = h_baro - h_agl`` with the
+seed's validity checks, kept in a 64-entry circular buffer whose entries are
+``(h_terrain, pos_n, pos_e, time, valid)`` (seed: 32-bit h, pos_n, pos_e, 24-bit time,
+1-bit valid; this float64 model keeps the fields, not the packing).
+
+Validity checks (seed 000 lists: baro valid, lidar valid (in range, good SNR), "altitude
+change > threshold (moving)"):
+
+- the barometric altitude is finite;
+- the ranger returned a measurement (in range, no dropout);
+- the beam is near nadir: |roll| and |pitch| at most ``max_tilt`` (the AGL is the slant
+  range times cos(roll) cos(pitch), exact over locally flat terrain only, so steep banks
+  are skipped);
+- the vehicle has moved at least ``min_spacing_m`` horizontally since the last stored
+  sample. The seed's "moving" check is read as along-track spacing, which is what makes
+  successive entries independent terrain samples.
+
+Each rejection reason is counted. ``pos_n``/``pos_e`` are INS positions (metres, in the TRN
+map frame); when the filter corrects the INS position, :meth:`ProfileBuffer.shift` moves the
+stored positions by the same correction so that the profile track stays self-consistent.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+PROFILE_DEPTH = 64
+
+ACCEPTED = "accepted"
+REJECT_BARO = "baro invalid"
+REJECT_RANGER = "ranger invalid"
+REJECT_TILT = "tilt too large"
+REJECT_NOT_MOVING = "not moved far enough"
+
+
+@dataclass
+class ProfileSnapshot:
+    """The buffer's valid entries, oldest first."""
+
+    h_terrain: np.ndarray
+    pos_n: np.ndarray
+    pos_e: np.ndarray
+    time: np.ndarray
+
+    def __len__(self):
+        return self.h_terrain.size
+
+    @property
+    def track_length_m(self) -> float:
+        if len(self) < 2:
+            return 0.0
+        return float(np.sum(np.hypot(np.diff(self.pos_n), np.diff(self.pos_e))))
+
+
+@dataclass
+class ProfileBuffer:
+    depth: int = PROFILE_DEPTH
+    min_spacing_m: float = 30.0
+    max_tilt_rad: float = math.radians(20.0)
+    counts: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.depth < 2:
+            raise ValueError("profile depth must be at least 2")
+        self.h_terrain = np.zeros(self.depth)
+        self.pos_n = np.zeros(self.depth)
+        self.pos_e = np.zeros(self.depth)
+        self.time = np.zeros(self.depth)
+        self.valid = np.zeros(self.depth, dtype=bool)
+        self.write_ptr = 0
+        self._last = None
+
+    def _count(self, reason):
+        self.counts[reason] = self.counts.get(reason, 0) + 1
+        return reason
+
+    def add(self, *, time, h_baro, slant_range, range_valid, roll, pitch, pos_n, pos_e) -> str:
+        """Offer one sample; returns ACCEPTED or the rejection reason."""
+        if not math.isfinite(h_baro):
+            return self._count(REJECT_BARO)
+        if not range_valid or not math.isfinite(slant_range):
+            return self._count(REJECT_RANGER)
+        if abs(roll) > self.max_tilt_rad or abs(pitch) > self.max_tilt_rad:
+            return self._count(REJECT_TILT)
+        if self._last is not None and math.hypot(pos_n - self._last[0],
+                                                 pos_e - self._last[1]) < self.min_spacing_m:
+            return self._count(REJECT_NOT_MOVING)
+        h_agl = slant_range * math.cos(roll) * math.cos(pitch)
+        i = self.write_ptr
+        self.h_terrain[i] = h_baro - h_agl
+        self.pos_n[i] = pos_n
+        self.pos_e[i] = pos_e
+        self.time[i] = time
+        self.valid[i] = True
+        self.write_ptr = (i + 1) % self.depth
+        self._last = (pos_n, pos_e)
+        return self._count(ACCEPTED)
+
+    def shift(self, d_north, d_east, d_vnorth=0.0, d_veast=0.0, now=None):
+        """Apply an INS correction to the stored positions.
+
+        The INS position now moved by (d_north, d_east) and its velocity by
+        (d_vnorth, d_veast); a position stored dt seconds ago moves by d - dt * d_v (the
+        same first-order error model as the filter's lagged TRN measurement).
+        """
+        valid = self.valid
+        lag = (now - self.time[valid]) if now is not None else 0.0
+        self.pos_n[valid] += d_north - d_vnorth * lag
+        self.pos_e[valid] += d_east - d_veast * lag
+        if self._last is not None:
+            self._last = (self._last[0] + d_north, self._last[1] + d_east)
+
+    def clear(self):
+        self.valid[:] = False
+        self._last = None
+
+    @property
+    def count(self) -> int:
+        return int(np.count_nonzero(self.valid))
+
+    def snapshot(self) -> ProfileSnapshot:
+        order = (np.arange(self.depth) + self.write_ptr) % self.depth
+        order = order[self.valid[order]]
+        return ProfileSnapshot(self.h_terrain[order].copy(), self.pos_n[order].copy(),
+                               self.pos_e[order].copy(), self.time[order].copy())
