@@ -126,9 +126,12 @@ def test_wide_formats_random(fmt):
     """int64 path (32 bits) and the Python-int object path (products beyond 62 bits)."""
     rng = np.random.default_rng(fmt.width)
     n = 3000
-    a = [int(x) for x in rng.integers(-(2**62), 2**62, n)]
-    a = [x >> (63 - fmt.width) for x in a]
-    b = [x >> (63 - fmt.width) for x in rng.integers(-(2**62), 2**62, n).tolist()]
+    def draw():  # uniform over the signed fmt.width-bit range
+        hi = rng.integers(-(2**62), 2**62, n).tolist()
+        lo = rng.integers(0, 2, n).tolist()
+        return [((h << 1) | b) >> (64 - fmt.width) for h, b in zip(hi, lo, strict=True)]
+
+    a, b = draw(), draw()
     a[0], b[0] = fmt.min_int, fmt.min_int  # (-2^(N-1))^2: the only full-product extreme
     A = np.array(a, dtype=object)
     B = np.array(b, dtype=object)
@@ -163,7 +166,7 @@ def test_neg_abs_saturate_wrap():
 
 def test_quantize_and_to_float():
     f = QFormat(20, 10)
-    x = np.array([1.5, -1.5, 2.0**-11, -(2.0**-11), 3 * 2.0**-11, 511.9995, 600.0, -600.0,
+    x = np.array([1.5, -1.5, 2.0**-11, -(2.0**-11), 3 * 2.0**-11, 511.9996, 600.0, -600.0,
                   np.inf, -np.inf, -512.0])
     v, o = quantize(x, f)  # nearest: ties toward +inf
     np.testing.assert_array_equal(v, [1536, -1536, 1, 0, 2, 2**19 - 1, 2**19 - 1, -(2**19),

@@ -455,7 +455,8 @@ def test_to_int_directed():
         (1.5, 32, 2, False), (-0.5, 32, 0, False), (2.0**31, 32, 2**31 - 1, True),
         (-(2.0**31), 32, -(2**31), False), (2147483520.0, 32, 2147483520, False),
         (32767.5, 16, 32767, True), (-32768.5, 16, -32768, False),
-        (-32769.0, 16, -32768, True), (1e30, 64, 2**63 - 1, True), (-(2.0**63), 64, -(2**63), False),
+        (-32769.0, 16, -32768, True), (1e30, 64, 2**63 - 1, True),
+        (-(2.0**63), 64, -(2**63), False),
     ]
     for x, w, want, flag in cases:
         v, f = fp32_to_int(h(x), w)
@@ -519,3 +520,15 @@ def test_helpers():
     np.testing.assert_array_equal(is_nan(b), [1, 0, 0, 0, 0])
     np.testing.assert_array_equal(is_inf(b), [0, 1, 0, 0, 0])
     np.testing.assert_array_equal(is_subnormal(b), [0, 0, 1, 0, 0])
+
+
+def test_neg_abs():
+    from navgate.numerics.fp32 import fp32_abs, fp32_neg
+
+    b = np.array([ONE, 0xBF800000, 0x00000000, 0x80000000, 0x00000001, 0x80000001, QNAN,
+                  0xFFC00001, POS_INF], dtype=np.uint32)
+    np.testing.assert_array_equal(
+        fp32_neg(b), [0xBF800000, ONE, NEG_ZERO, 0x00000000, NEG_ZERO, 0x00000000, QNAN,
+                      QNAN, NEG_INF])
+    np.testing.assert_array_equal(
+        fp32_abs(b), [ONE, ONE, 0, 0, 0, 0, QNAN, QNAN, POS_INF])

@@ -22,6 +22,7 @@ from navgate.cli.common import CliError
 #: command name -> "module:attribute" of a click command
 COMMANDS: dict[str, str] = {
     "fly": "navgate.cli.fly:fly",
+    "ahrs": "navgate.cli.ahrs:ahrs",
     "build": "navgate.cli.build:build",
     "report": "navgate.cli.build:report",
 }

@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
-
 import click
 
 from navgate.cli.common import CliError, prepare_out_dir, write_summary
@@ -63,12 +61,14 @@ def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, rang
         dem = Dem.default() if dem_path is None else Dem.from_file(dem_path)
     except DemError as error:
         raise CliError(str(error)) from None
-    out = prepare_out_dir(out_dir)
     cfg = flight.FlightConfig(duration_s=duration, imu_rate_hz=imu_rate, seed=seed,
                               ideal_sensors=ideal_sensors, trn=not no_trn, ranger=ranger,
                               speed_mps=speed)
-    if cfg.ranger == "tf-luna":
-        cfg = replace(cfg, clearance_m=6.0, climb_m=0.0)
+    try:
+        route = flight.plan_route(dem, cfg)
+    except flight.RouteError as error:
+        raise CliError(str(error)) from None
+    out = prepare_out_dir(out_dir)
     console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
                   f"({dem.shape[0]} x {dem.shape[1]} posts), seed {seed}"
                   + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors"))
@@ -78,13 +78,9 @@ def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, rang
     start = time.perf_counter()
     with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
                   TimeElapsedColumn(), console=console, disable=quiet, transient=False) as bar:
-        task = bar.add_task("planning route", total=total)
-        try:
-            result = flight.fly(
-                dem, cfg, progress=lambda n: bar.advance(task, n),
-                stage=lambda s: bar.update(task, description=s))
-        except flight.RouteError as error:
-            raise CliError(str(error)) from None
+        task = bar.add_task("simulating sensors", total=total)
+        result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
+                            stage=lambda s: bar.update(task, description=s), route=route)
         bar.update(task, description="writing report", completed=total)
         summary = result.summary()
         summary["wall_time_s"] = time.perf_counter() - start

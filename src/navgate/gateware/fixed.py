@@ -31,7 +31,14 @@ from amaranth.hdl import Mux, Value
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-__all__ = ["FixedMul", "StreamPipeline", "saturate_value"]
+__all__ = ["FixedMul", "StreamPipeline", "saturate_value", "invalid_parameter"]
+
+
+def invalid_parameter(component: object, message: str) -> ValueError:
+    """A ``ValueError`` for a rejected constructor parameter; the half-built component is
+    marked so that Amaranth does not also warn that it was "created but never used"."""
+    component._MustUse__silence = True  # type: ignore[attr-defined]
+    return ValueError(message)
 
 
 class StreamPipeline:
@@ -80,9 +87,9 @@ class FixedMul(wiring.Component):
 
     def __init__(self, width: int = 20, frac: int = 10):
         if not 2 <= width <= 64:
-            raise ValueError(f"width must be in [2, 64], got {width}")
+            raise invalid_parameter(self, f"width must be in [2, 64], got {width}")
         if not 0 <= frac <= 2 * width:
-            raise ValueError(f"frac must be in [0, 2*width], got {frac}")
+            raise invalid_parameter(self, f"frac must be in [0, 2*width], got {frac}")
         self.width = width
         self.frac = frac
         super().__init__({

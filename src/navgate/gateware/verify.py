@@ -471,7 +471,7 @@ def _build_model(verilog_text: str, top: str) -> Path:
             runner = get_runner("verilator")
             try:
                 runner.build(
-                    verilog_sources=[src],
+                    sources=[src],
                     hdl_toplevel=top,
                     build_dir=tmp,
                     build_args=VERILATOR_BUILD_WAIVERS,

@@ -125,7 +125,7 @@ def parameters(component: wiring.Component) -> dict[str, Any]:
 
 def throughput_fraction(component: Any) -> Fraction:
     """``THROUGHPUT`` (results per cycle) as an exact fraction."""
-    value = getattr(component, "THROUGHPUT")
+    value = component.THROUGHPUT
     if isinstance(value, float):
         return Fraction(value).limit_denominator(1 << 16)
     return Fraction(value)
@@ -150,7 +150,7 @@ def describe_block(
         "top_module": name,
         "description": description,
         "class": f"{type(component).__module__}.{type(component).__qualname__}",
-        "latency_cycles": int(getattr(component, "LATENCY")),
+        "latency_cycles": int(component.LATENCY),
         "throughput_per_cycle": float(throughput),
         "throughput": format_throughput(throughput),
         "initiation_interval_cycles": _plain_number(1 / throughput) if throughput else None,

@@ -130,9 +130,10 @@ def cordic_vectoring(x, y, width: int, iterations: int, angle_bits: int = 16,
     """atan2(y, x) and magnitude by vectoring CORDIC -> ``(magnitude, angle)``.
 
     ``angle`` is a signed ``angle_bits``-bit binary angle (full circle 2**angle_bits).
-    ``magnitude`` is ``K_n * |(x, y)|`` floored to input units (``compensate=False``) or
-    the gain-compensated ``|(x, y)|`` (``compensate=True``); it needs ``width + 1`` bits
-    (``width + 2`` uncompensated). Both int64 arrays (scalars for scalar inputs).
+    ``magnitude`` (>= 0) is ``K_n * |(x, y)|`` floored to input units
+    (``compensate=False``; < K sqrt(2) 2**(width-1) < 2**(width+1): unsigned ``width + 1``
+    bits) or the gain-compensated ``|(x, y)|`` (``compensate=True``; < 2**width: unsigned
+    ``width`` bits). Both int64 arrays (scalars for scalar inputs).
     """
     _check(width, iterations, angle_bits, guard_bits)
     scalar = np.ndim(x) == 0 and np.ndim(y) == 0

@@ -439,12 +439,14 @@ class FlightResult:
         return out
 
 
-def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None) -> FlightResult:
+def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None
+        ) -> FlightResult:
     """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done."""
     start = _time.perf_counter()
-    if stage:
-        stage("planning route")
-    route = plan_route(dem, cfg)
+    if route is None:
+        if stage:
+            stage("planning route")
+        route = plan_route(dem, cfg)
     if stage:
         stage("simulating sensors")
     data = simulate_sensors(route, dem, cfg)

@@ -42,6 +42,15 @@ def bilinear(heights, lat_north, lon_west, dlat, dlon, lat, lon):
     fi = (lat_north - lat) / dlat
     fj = (lon - lon_west) / dlon
     nrow, ncol = heights.shape
+    # points within rounding (1e-9 post) of the outer posts count as on the grid
+    if fi < 0.0 and fi > -1e-9:
+        fi = 0.0
+    if fj < 0.0 and fj > -1e-9:
+        fj = 0.0
+    if fi > nrow - 1 and fi < nrow - 1 + 1e-9:
+        fi = nrow - 1.0
+    if fj > ncol - 1 and fj < ncol - 1 + 1e-9:
+        fj = ncol - 1.0
     if not (fi >= 0.0 and fj >= 0.0 and fi <= nrow - 1 and fj <= ncol - 1):
         return math.nan
     i = min(int(fi), nrow - 2)

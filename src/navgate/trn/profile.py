@@ -17,6 +17,10 @@ change > threshold (moving)"):
   sample. The seed's "moving" check is read as along-track spacing, which is what makes
   successive entries independent terrain samples.
 
+A gap longer than ``max_gap_s`` between accepted samples (a steep turn, dropouts, a DEM
+void) restarts the profile: older samples would stretch the profile over a time in which
+the INS error is no longer a near-constant offset.
+
 Each rejection reason is counted. ``pos_n``/``pos_e`` are INS positions (metres, in the TRN
 map frame); when the filter corrects the INS position, :meth:`ProfileBuffer.shift` moves the
 stored positions by the same correction so that the profile track stays self-consistent.
@@ -36,6 +40,7 @@ REJECT_BARO = "baro invalid"
 REJECT_RANGER = "ranger invalid"
 REJECT_TILT = "tilt too large"
 REJECT_NOT_MOVING = "not moved far enough"
+RESTARTED = "profile restarted after a gap"
 
 
 @dataclass
@@ -62,6 +67,7 @@ class ProfileBuffer:
     depth: int = PROFILE_DEPTH
     min_spacing_m: float = 30.0
     max_tilt_rad: float = math.radians(20.0)
+    max_gap_s: float = 5.0
     counts: dict = field(default_factory=dict)
 
     def __post_init__(self):
@@ -74,6 +80,7 @@ class ProfileBuffer:
         self.valid = np.zeros(self.depth, dtype=bool)
         self.write_ptr = 0
         self._last = None
+        self._last_time = None
 
     def _count(self, reason):
         self.counts[reason] = self.counts.get(reason, 0) + 1
@@ -90,6 +97,10 @@ class ProfileBuffer:
         if self._last is not None and math.hypot(pos_n - self._last[0],
                                                  pos_e - self._last[1]) < self.min_spacing_m:
             return self._count(REJECT_NOT_MOVING)
+        if self._last_time is not None and time - self._last_time > self.max_gap_s:
+            # a gap (turn, dropouts, void): the old samples belong to another profile
+            self.clear()
+            self._count(RESTARTED)
         h_agl = slant_range * math.cos(roll) * math.cos(pitch)
         i = self.write_ptr
         self.h_terrain[i] = h_baro - h_agl
@@ -99,6 +110,7 @@ class ProfileBuffer:
         self.valid[i] = True
         self.write_ptr = (i + 1) % self.depth
         self._last = (pos_n, pos_e)
+        self._last_time = time
         return self._count(ACCEPTED)
 
     def shift(self, d_north, d_east, d_vnorth=0.0, d_veast=0.0, now=None):
@@ -118,6 +130,7 @@ class ProfileBuffer:
     def clear(self):
         self.valid[:] = False
         self._last = None
+        self._last_time = None
 
     @property
     def count(self) -> int:

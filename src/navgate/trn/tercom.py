@@ -94,10 +94,10 @@ class TercomConfig:
     min_half_width_m: float = 300.0
     max_half_width_m: float = 2500.0
     min_roughness_m: float = 8.0
-    ambiguity_ratio: float = 2.0
+    ambiguity_ratio: float = 3.0
     exclusion_radius_m: float | None = None  #: default: 2.5 DEM posts
     min_valid_fraction: float = 0.5
-    cov_inflation: float = 2.0
+    cov_inflation: float = 1.5
 
 
 @dataclass

@@ -1,0 +1,5 @@
+"""``python -m navgate.cli``: the same as the ``navgate`` console command."""
+
+from navgate.cli import main
+
+main()

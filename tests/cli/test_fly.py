@@ -1,0 +1,84 @@
+"""`navgate fly` as a user runs it: outputs, summary keys, and one-line errors (exit 2)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import rasterio
+from rasterio.transform import from_origin
+
+
+def navgate(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "navgate.cli", *args], capture_output=True,
+                          text=True, cwd=cwd, timeout=600)
+
+
+def assert_one_line_error(proc, needle):
+    assert proc.returncode == 2, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("navgate fly: error:") and needle in lines[0], lines[0]
+    assert "Traceback" not in proc.stderr + proc.stdout
+
+
+def test_short_flight_writes_every_output(tmp_path):
+    out = tmp_path / "run"
+    proc = navgate("fly", "--duration", "90", "--seed", "3", "--out", str(out), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    for name in ("summary.json", "trajectory.csv", "trn_fixes.csv", "track.png", "errors.png"):
+        assert (out / name).stat().st_size > 0, name
+    s = json.loads((out / "summary.json").read_text())
+    for key in ("duration_s", "imu_rate_hz", "wall_time_s"):
+        assert key in s
+    for key in ("final_horizontal_error_m", "rms_horizontal_error_m"):
+        assert np.isfinite(s["ins_only"][key])
+    for key in ("final_horizontal_error_m", "rms_horizontal_error_m",
+                "rms_horizontal_error_second_half_m", "fixes_accepted", "fixes_rejected",
+                "nees_position_mean"):
+        assert key in s["trn_aided"]
+    assert s["duration_s"] == 90.0 and s["seed"] == 3
+    header = (out / "trajectory.csv").read_text().splitlines()[0].split(",")
+    assert {"truth_north_m", "ins_only_north_m", "trn_aided_north_m",
+            "trn_aided_sigma_north_m"} <= set(header)
+
+
+def test_no_trn_and_ideal_sensors(tmp_path):
+    proc = navgate("fly", "--duration", "30", "--no-trn", "--ideal-sensors", "--out",
+                   str(tmp_path), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert "trn_aided" not in s and s["ideal_sensors"] is True
+    assert s["ins_only"]["final_horizontal_error_m"] < 0.01
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--duration", "-5"], "--duration"),
+    (["--duration", "abc"], "--duration"),
+    (["--imu-rate", "10"], "--imu-rate"),
+    (["--seed", "-1"], "--seed"),
+    (["--ranger", "sonar"], "--ranger"),
+    (["--bogus"], "--bogus"),
+])
+def test_bad_option_values(tmp_path, args, needle):
+    assert_one_line_error(navgate("fly", *args, "--out", str(tmp_path)), needle)
+
+
+def test_bad_dem_files(tmp_path):
+    assert_one_line_error(navgate("fly", "--dem", str(tmp_path / "nope.tif")), "not found")
+    junk = tmp_path / "junk.dt1"
+    junk.write_bytes(b"\x00garbage" * 10)
+    assert_one_line_error(navgate("fly", "--dem", str(junk)), "not a readable DEM")
+    small = tmp_path / "small.tif"
+    with rasterio.open(small, "w", driver="GTiff", width=40, height=40, count=1, dtype="float32",
+                       crs="EPSG:4326", transform=from_origin(-84.0, 36.5, 1 / 1200, 1 / 1200)) as d:
+        d.write(np.random.default_rng(0).uniform(200, 600, (40, 40)).astype("float32"), 1)
+    assert_one_line_error(navgate("fly", "--dem", str(small)), "DEM too small")
+
+
+def test_unwritable_output_directory(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    assert_one_line_error(navgate("fly", "--duration", "10", "--out", str(blocker / "sub")),
+                          "output directory")
