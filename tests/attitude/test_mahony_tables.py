@@ -3,8 +3,9 @@ model (Modelsim column), with the seed's inputs, to the printed digits.
 
 Printed digits: the seed prints 4-6 significant digits, mostly rounded but sometimes
 truncated (table 4-2 prints 4.828427 as 4.82842 and -8.047379 as -8.04738); a value "matches"
-when rounding *or* truncating ours to the printed number of decimals gives the printed string. Exceptions are stated where they
-occur (table 4-4's and 4-7's Modelsim columns, table 4-6's yaw; docs/seed003-attitude.md).
+when rounding *or* truncating ours to the printed number of decimals gives the printed string.
+Exceptions are stated where they occur (table 4-4's and 4-7's Modelsim columns, table 4-6's
+yaw; docs/seed003-attitude.md).
 """
 
 import math

@@ -77,20 +77,15 @@ __all__ = [
 # -Wno-<code> when compiling for simulation (where -Wno-fatal additionally keeps
 # any new warning from aborting the build) and filtered from lint reports.
 VERILATOR_LINT_WAIVERS: dict[str, str] = {
-    "DECLFILENAME": "module names follow the block, files are named by the harness",
-    "UNUSEDSIGNAL": "Amaranth keeps unused bits of sliced intermediates "
-                    "(e.g. carry bits, unused fields of struct ports)",
-    "UNUSEDPARAM": "not emitted by Amaranth today; waived for future versions",
-    "WIDTHEXPAND": "Amaranth widens operands explicitly by its own rules; the "
-                   "implicit zero/sign extension Verilator flags is intended",
-    "WIDTHTRUNC": "Amaranth truncates results of wider arithmetic on assignment, "
-                  "which is the intended modular behaviour",
-    "UNOPTFLAT": "combinational signals split by Amaranth into bit slices look "
-                 "like loops to Verilator's scheduler; performance only",
-    "PROCASSINIT": "Amaranth gives initial values to variables assigned in "
-                   "always blocks (its reset values); harmless in simulation",
-    "CASEINCOMPLETE": "Amaranth's switch lowering relies on default assignments "
-                      "before the case statement",
+    "UNUSEDSIGNAL": "Amaranth emits every named intermediate and keeps unused bits "
+                    "of slices (discarded carries, fields not read)",
+    "WIDTHEXPAND": "Amaranth's own width rules extend operands explicitly in the "
+                   "netlist semantics; Verilog's implicit zero/sign extension of "
+                   "the narrower operand is exactly what Amaranth means",
+    "WIDTHTRUNC": "Amaranth writes reduce-to-bool as the logical not of a vector "
+                  "(!x) and truncates wider results on assignment; both intended",
+    "PROCASSINIT": "Amaranth initialises signals assigned in always blocks with "
+                   "their reset/init value; harmless for simulation and synthesis",
 }
 VERILATOR_BUILD_WAIVERS: list[str] = ["-Wno-fatal"] + [
     f"-Wno-{code}" for code in VERILATOR_LINT_WAIVERS
