@@ -86,7 +86,8 @@ def main():
 def pyins_rows(traj, args):
     try:
         import pandas as pd
-        from pyins import filters, measurements, sim, strapdown as pstrap
+        from pyins import filters, measurements, sim
+        from pyins import strapdown as pstrap
     except ImportError:
         print("pyins (python-ins) not installed: skipping the comparison "
               "(pip install -e '.[bench]')")

@@ -71,8 +71,9 @@ def test_bad_dem_files(tmp_path):
     junk.write_bytes(b"\x00garbage" * 10)
     assert_one_line_error(navgate("fly", "--dem", str(junk)), "not a readable DEM")
     small = tmp_path / "small.tif"
+    transform = from_origin(-84.0, 36.5, 1 / 1200, 1 / 1200)
     with rasterio.open(small, "w", driver="GTiff", width=40, height=40, count=1, dtype="float32",
-                       crs="EPSG:4326", transform=from_origin(-84.0, 36.5, 1 / 1200, 1 / 1200)) as d:
+                       crs="EPSG:4326", transform=transform) as d:
         d.write(np.random.default_rng(0).uniform(200, 600, (40, 40)).astype("float32"), 1)
     assert_one_line_error(navgate("fly", "--dem", str(small)), "DEM too small")
 

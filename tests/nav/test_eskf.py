@@ -38,7 +38,7 @@ def test_error_dynamics_match_perturbed_mechanization(turning_flight):
     k0, n = 4000, 400
     x0 = traj.states[k0].copy()
 
-    def run(nav, ba=np.zeros(3), bg=np.zeros(3)):
+    def run(nav, ba=None, bg=None):
         f = eskf.ErrorStateFilter(nav, np.eye(15), QUIET, bias_a0=ba, bias_g0=bg)
         f.propagate(gyro, accel, k0, k0 + n, propagate_p=False)
         return f

@@ -84,7 +84,8 @@ def test_flight_off_the_map_pauses_trn(dem):
     data = flight.simulate_sensors(route, dem, cfg)
     # the navigator only has the western third of the map: the route leaves it
     cols = dem.shape[1] // 3
-    west = Dem(dem.heights[:, :cols].copy(), dem.lat_north, dem.lon_west, dem.dlat, dem.dlon, "west")
+    west = Dem(dem.heights[:, :cols].copy(), dem.lat_north, dem.lon_west, dem.dlat, dem.dlon,
+               "west")
     init = flight.initial_estimate(data, cfg)
     run = flight.run_navigation(data, west, cfg, init, use_trn=True, name="trn_aided")
     reasons = {f["reason"] for f in run.fixes}

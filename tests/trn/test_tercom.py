@@ -32,7 +32,7 @@ def test_recovers_known_offset_within_reported_covariance(dem):
     corr = TercomCorrelator(dem, tangent)
     rng = np.random.default_rng(4)
     nees = []
-    for trial in range(12):
+    for _trial in range(12):
         start = rng.uniform(-8000, 6000, 2)
         offset = rng.uniform(-150, 150, 2)
         prof = make_profile(dem, tangent, *start, rng.uniform(0, 2 * math.pi), offset, 2.0, rng)

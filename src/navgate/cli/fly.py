@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+
 import click
 
 from navgate.cli.common import CliError, prepare_out_dir, write_summary
@@ -76,7 +77,9 @@ def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, rang
     runs = 1 if no_trn else 2
     total = runs * int(round(duration * imu_rate))
     start = time.perf_counter()
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+    columns = (TextColumn("{task.description}"), BarColumn(),
+               TextColumn("{task.percentage:>3.0f}%"))
+    with Progress(*columns,
                   TimeElapsedColumn(), console=console, disable=quiet, transient=False) as bar:
         task = bar.add_task("simulating sensors", total=total)
         result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
@@ -93,7 +96,8 @@ def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, rang
 def _print_table(console, s):
     from rich.table import Table
 
-    table = Table(title=f"GPS-denied flight: {s['duration_s']:.0f} s, {s['route']['distance_km']:.1f} km")
+    title = f"GPS-denied flight: {s['duration_s']:.0f} s, {s['route']['distance_km']:.1f} km"
+    table = Table(title=title)
     table.add_column("solution")
     for col in ("final error (m)", "RMS error (m)", "RMS 2nd half (m)", "NEES mean (2 dof)",
                 "TRN fixes acc/rej"):

@@ -51,7 +51,7 @@ import numpy as np
 from numba import njit
 
 from navgate.nav import strapdown
-from navgate.nav.earth import A, E2
+from navgate.nav.earth import E2, A
 from navgate.nav.rotations import quat_from_rotvec, quat_multiply
 
 N_STATES = 15

@@ -39,7 +39,7 @@ import math
 import numpy as np
 from numba import njit
 
-from navgate.nav.earth import A, E2, F, GAMMA_E, M_RATIO, OMEGA_IE, SOMIGLIANA_K
+from navgate.nav.earth import E2, GAMMA_E, M_RATIO, OMEGA_IE, SOMIGLIANA_K, A, F
 from navgate.nav.rotations import SMALL_ANGLE_RAD
 
 NAV_SIZE = 10

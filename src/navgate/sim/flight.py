@@ -302,8 +302,9 @@ def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialE
         elif kind == 1 and use_trn:
             roll, pitch, _ = _euler(filt.nav[6:10])
             pn, pe = tangent.to_ned(filt.nav[0], filt.nav[1])
-            h_baro = data.baro.altitude[min(np.searchsorted(data.baro_index, k, "right") - 1,
-                                            len(data.baro_index) - 1)] if k >= data.baro_index[0] else np.nan
+            # the newest barometer sample at or before this ranger sample
+            jb = int(np.searchsorted(data.baro_index, k, "right")) - 1
+            h_baro = data.baro.altitude[jb] if jb >= 0 else np.nan
             status = buffer.add(time=t_now, h_baro=float(h_baro),
                                 slant_range=float(data.ranger.slant_range[j]),
                                 range_valid=bool(data.ranger.valid[j]), roll=roll, pitch=pitch,

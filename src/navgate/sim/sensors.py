@@ -10,7 +10,8 @@ interval-average readings:
     raw = M_true (x + b_turn_on + b_in_run(t) + n(t)) + b_factory
 
 where ``M_true = I + diag(scale) + misalignment`` and ``b_factory`` are the factory
-calibration the seed-000 calibration block removes (:class:`navgate.nav.calibration.ImuCalibration`),
+calibration the seed-000 calibration block removes
+(:class:`navgate.nav.calibration.ImuCalibration`),
 ``b_turn_on`` is a random constant per run, ``b_in_run`` a first-order Gauss-Markov process
 whose standard deviation is the in-run bias stability, and ``n`` white noise from the
 angle/velocity random walk: per-sample sigma = ARW / sqrt(dt).
@@ -147,8 +148,10 @@ class ImuModel:
         fb_accel = rng.standard_normal(3) * spec.factory_accel_bias_sigma
         turn_on_g = rng.standard_normal(3) * spec.gyro_turn_on_sigma
         turn_on_a = rng.standard_normal(3) * spec.accel_turn_on_sigma
-        bias_g = turn_on_g + _gauss_markov(rng, n, spec.gyro_bias_instability, spec.gyro_bias_tau, dt)
-        bias_a = turn_on_a + _gauss_markov(rng, n, spec.accel_bias_instability, spec.accel_bias_tau, dt)
+        bias_g = turn_on_g + _gauss_markov(rng, n, spec.gyro_bias_instability,
+                                           spec.gyro_bias_tau, dt)
+        bias_a = turn_on_a + _gauss_markov(rng, n, spec.accel_bias_instability,
+                                           spec.accel_bias_tau, dt)
         noise_g = rng.standard_normal((n, 3)) * (spec.gyro_arw / math.sqrt(dt))
         noise_a = rng.standard_normal((n, 3)) * (spec.accel_vrw / math.sqrt(dt))
         raw_g = (gyro + bias_g + noise_g) @ m_gyro.T + fb_gyro

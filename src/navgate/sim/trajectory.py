@@ -184,7 +184,8 @@ def generate(segments, *, lat0: float, lon0: float, h0: float, heading0: float,
     t = np.arange(n) / rate_hz
     turn_rate, vz, speed = command_profiles(segs, t, speed0)
     dt = 1.0 / rate_hz
-    heading = heading0 + np.concatenate([[0.0], np.cumsum(0.5 * (turn_rate[1:] + turn_rate[:-1]) * dt)])
+    increments = 0.5 * (turn_rate[1:] + turn_rate[:-1]) * dt
+    heading = heading0 + np.concatenate([[0.0], np.cumsum(increments)])
     gamma = np.arcsin(np.clip(vz / speed, -1.0, 1.0))
     v_ned = np.column_stack([
         speed * np.cos(gamma) * np.cos(heading),

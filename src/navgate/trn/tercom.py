@@ -121,7 +121,8 @@ class TercomResult:
 
     def as_row(self) -> dict:
         return {
-            "time_s": self.time, "lag_s": self.lag_s, "accepted": self.accepted, "reason": self.reason,
+            "time_s": self.time, "lag_s": self.lag_s, "accepted": self.accepted,
+            "reason": self.reason,
             "fix_north_m": self.fix_n, "fix_east_m": self.fix_e,
             "shift_north_m": self.shift_n, "shift_east_m": self.shift_e,
             "sigma_north_m": math.sqrt(self.cov[0, 0]) if np.isfinite(self.cov[0, 0]) else math.nan,
