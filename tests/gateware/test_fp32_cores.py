@@ -80,11 +80,12 @@ def _concat(a, b):
 def test_verilator(name, tmp_path):
     case = CASES[name]
     ins = _concat(case.directed(), case.random(20_000, seed=2000))
-    res = verify(case.make(), case.model, ins, backend="verilator", formatters=case.formatters,
+    dut = case.make()
+    res = verify(dut, case.model, ins, backend="verilator", formatters=case.formatters,
                  name=name, seed=3, valid_prob=0.95, ready_prob=0.9, work_dir=tmp_path,
                  top=name if name != "fp32_sub" else "fp32_add")
     _check(res)
-    assert res.latency == case.make().LATENCY
+    assert res.latency == dut.LATENCY
 
 
 @pytest.mark.slow

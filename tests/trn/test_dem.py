@@ -92,3 +92,31 @@ def test_shared_geotiff_dem_loads(shared_data):
     d = Dem.from_file(path)
     assert d.shape == (359, 367)
     assert 140 < np.nanmin(d.heights) and np.nanmax(d.heights) < 300
+
+
+@pytest.mark.parametrize("driver, name, posts", [("DTED", "n36w084.dt0", 121),
+                                                 ("SRTMHGT", "N36W084.hgt", 1201)])
+def test_dted_and_srtm_hgt_load_through_gdal(tmp_path, driver, name, posts):
+    """Write a 1 x 1 deg cell with GDAL's own DTED / SRTM writers, read it back as a Dem."""
+    import rasterio.shutil
+    from rasterio.io import MemoryFile
+
+    h = np.random.default_rng(0).integers(100, 500, (posts, posts)).astype("int16")
+    res = 1.0 / (posts - 1)
+    transform = from_origin(-84.0 - res / 2, 37.0 + res / 2, res, res)
+    profile = dict(driver="GTiff", width=posts, height=posts, count=1, dtype="int16",
+                   crs="EPSG:4326", transform=transform)
+    with MemoryFile() as mem:
+        with mem.open(**profile) as src:
+            src.write(h, 1)
+        with mem.open() as src:
+            rasterio.shutil.copy(src, tmp_path / name, driver=driver)
+    d = Dem.from_file(tmp_path / name)
+    assert d.shape == (posts, posts)
+    assert np.array_equal(d.heights, h.astype(float))
+    # post (0, 0) sits on the cell's north-west corner, 37 N 84 W
+    assert math.degrees(d.lat_north) == pytest.approx(37.0, abs=1e-9)
+    assert math.degrees(d.lon_west) == pytest.approx(-84.0, abs=1e-9)
+    # the centre post; the geotransform in degrees -> radians leaves ~1e-9 post of rounding
+    centre = h[(posts - 1) // 2, (posts - 1) // 2]
+    assert d.height(math.radians(36.5), math.radians(-83.5)) == pytest.approx(centre, abs=1e-6)
