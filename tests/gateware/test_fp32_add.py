@@ -56,8 +56,8 @@ def test_model_matches_hand_derived(a, b, sub, expected, why):
 
 
 def test_gateware_matches_hand_derived():
-    a, b, sub, expected, why = (np.array(c) for c in zip(*CASES))
+    a, b, sub, expected, why = (np.array(c) for c in zip(*CASES, strict=True))
     out, _ = simulate(Fp32Add(), {"a": a, "b": b, "sub": sub})
-    bad = [(w, hex(int(g)), hex(int(e))) for w, g, e in zip(why, out["r"], expected)
+    bad = [(w, hex(int(g)), hex(int(e))) for w, g, e in zip(why, out["r"], expected, strict=True)
            if int(g) != int(e)]
     assert bad == []

@@ -33,9 +33,9 @@ def test_model_matches_hand_derived():
 
 
 def test_gateware_matches_hand_derived():
-    a, b, outcome, why = (np.array(c) for c in zip(*CASES))
+    a, b, outcome, why = (np.array(c) for c in zip(*CASES, strict=True))
     out, run = simulate(Fp32Compare(), {"a": a, "b": b})
-    for j, (o, w) in enumerate(zip(outcome, why)):
+    for j, (o, w) in enumerate(zip(outcome, why, strict=True)):
         got = [k for k, field in KEYS.items() if out[field][j]]
         assert got == [o], w
     assert run.latency == 1

@@ -46,7 +46,8 @@ FROM_Q16 = [
 TO_Q16 = [
     (0x3FC00000, 98304, 0, "1.5"),
     (0x37000000, 0, 0, "2^-17 = half an LSB: tie, even is 0"),
-    (0x37400000, 2, 0, "3*2^-17 = 1.5 LSB: tie, even is 2"),
+    (0x37C00000, 2, 0, "1.5*2^-16 = 1.5 LSB: tie, even is 2"),
+    (0x38200000, 2, 0, "2.5*2^-16 = 2.5 LSB: tie, even is 2"),
     (0x47000000, I32_MAX, 1, "32768 saturates"),
     (0xC7000000, I32_MIN, 0, "-32768 fits"),
 ]
@@ -68,14 +69,14 @@ def test_to_int_model(a, value, flag, why):
 
 
 def test_from_int_gateware():
-    x, expected, why = zip(*FROM_INT)
+    x, expected, why = zip(*FROM_INT, strict=True)
     out, run = _run(Fp32FromInt(), {"x": np.array(x, dtype=np.int64)})
     assert [hex(int(v)) for v in out["r"]] == [hex(e) for e in expected]
     assert run.latency == Fp32FromInt.LATENCY
 
 
 def test_to_int_gateware():
-    a, value, flag, why = zip(*TO_INT)
+    a, value, flag, why = zip(*TO_INT, strict=True)
     out, run = _run(Fp32ToInt(), {"a": np.array(a, dtype=np.uint32)})
     assert list(out["r"]) == list(value)
     assert list(out["overflow"]) == list(flag)
@@ -83,16 +84,17 @@ def test_to_int_gateware():
 
 
 def test_q16_16_both_directions():
-    x, expected, _ = zip(*FROM_Q16)
+    x, expected, _ = zip(*FROM_Q16, strict=True)
     assert [int(F.fp32_from_fixed(v, 16, 32)) for v in x] == list(expected)
     out, _ = _run(Fp32FromFixed(), {"x": np.array(x, dtype=np.int64)})
     assert [int(v) for v in out["r"]] == list(expected)
-    a, value, flag, _ = zip(*TO_Q16)
+    a, value, flag, _ = zip(*TO_Q16, strict=True)
     assert [int(F.fp32_to_fixed(v, 16, 32)[0]) for v in a] == list(value)
     out, _ = _run(Fp32ToFixed(), {"a": np.array(a, dtype=np.uint32)})
     assert list(out["r"]) == list(value) and list(out["overflow"]) == list(flag)
 
 
+@pytest.mark.filterwarnings("ignore:.*created but never used")
 def test_rejects_bad_parameters():
     with pytest.raises(ValueError, match="width"):
         Fp32ToFixed(width=1)

@@ -64,10 +64,10 @@ def test_random_amaranth(name, chunk, n, handshake):
 @pytest.mark.parametrize("fmt", [(16, 8, 16, 8), (8, 3, 8, 3), (64, 20, 64, 40),
                                  (24, 0, 25, 0), (12, -5, 20, 30), (40, 60, 48, -10)])
 def test_conversions_other_q_formats(fmt):
-    # 20,000 vectors per format and direction (the default Q16.16 and int32
+    # 10,000 vectors per format and direction (the default Q16.16 and int32
     # forms get the full 100,000 above).
     for name, case in conversion_cases(*fmt).items():
-        for ins in (case.directed(), case.random(20_000, seed=7)):
+        for ins in (case.directed(), case.random(10_000, seed=7)):
             _check(verify(case.make(), case.model, ins, formatters=case.formatters,
                           name=f"{name}{fmt}"))
 

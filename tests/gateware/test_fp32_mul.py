@@ -41,8 +41,8 @@ def test_model_matches_hand_derived(a, b, expected, why):
 
 
 def test_gateware_matches_hand_derived():
-    a, b, expected, why = (np.array(c) for c in zip(*CASES))
+    a, b, expected, why = (np.array(c) for c in zip(*CASES, strict=True))
     out, _ = simulate(Fp32Mul(), {"a": a, "b": b})
-    bad = [(w, hex(int(g)), hex(int(e))) for w, g, e in zip(why, out["r"], expected)
+    bad = [(w, hex(int(g)), hex(int(e))) for w, g, e in zip(why, out["r"], expected, strict=True)
            if int(g) != int(e)]
     assert bad == []

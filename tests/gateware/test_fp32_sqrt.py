@@ -35,9 +35,9 @@ def test_model_matches_hand_derived(a, expected, why):
 
 
 def test_gateware_matches_hand_derived():
-    a, expected, why = (np.array(c) for c in zip(*CASES))
+    a, expected, why = (np.array(c) for c in zip(*CASES, strict=True))
     out, run = simulate(Fp32Sqrt(), {"a": a})
-    bad = [(w, hex(int(g)), hex(int(e))) for w, g, e in zip(why, out["r"], expected)
+    bad = [(w, hex(int(g)), hex(int(e))) for w, g, e in zip(why, out["r"], expected, strict=True)
            if int(g) != int(e)]
     assert bad == []
     assert run.latency == Fp32Sqrt.LATENCY == 27

@@ -167,3 +167,22 @@ def test_singular_and_non_finite_inputs_raise():
         _filter().update_position_offset([np.nan, 0.0], np.eye(2))
     with pytest.raises(ValueError):
         eskf.ErrorStateFilter(np.zeros(5), np.eye(15), QUIET)
+
+
+def test_non_finite_imu_samples_are_held_and_counted(turning_flight):
+    traj, gyro, accel = turning_flight
+    bad_gyro, bad_accel = gyro.copy(), accel.copy()
+    bad_gyro[1000, 2] = np.nan
+    bad_accel[2000, 0] = np.inf
+    bad_accel[2001] = np.nan
+    p0 = eskf.initial_covariance(pos_sigma=5, vel_sigma=0.1, att_sigma=1e-3,
+                                 accel_bias_sigma=1e-2, gyro_bias_sigma=1e-4)
+    clean = eskf.ErrorStateFilter(traj.states[0], p0, QUIET)
+    clean.propagate(gyro, accel, 0, len(gyro))
+    f = eskf.ErrorStateFilter(traj.states[0], p0, QUIET)
+    f.propagate(bad_gyro, bad_accel, 0, len(gyro))
+    assert f.imu_samples_rejected == 3
+    assert np.all(np.isfinite(f.nav)) and np.all(np.isfinite(f.p))
+    # holding the previous reading for 3 of 8000 samples of smooth motion costs micrometres
+    rn, _ = radii(LAT0)
+    assert abs(f.nav[0] - clean.nav[0]) * rn < 1e-3

@@ -23,6 +23,7 @@ from navgate.cli.common import CliError
 COMMANDS: dict[str, str] = {
     "fly": "navgate.cli.fly:fly",
     "ahrs": "navgate.cli.ahrs:ahrs",
+    "gpsins": "navgate.cli.gpsins:gpsins",
     "build": "navgate.cli.build:build",
     "report": "navgate.cli.build:report",
 }

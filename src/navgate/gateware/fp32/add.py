@@ -107,7 +107,6 @@ class Fp32Add(wiring.Component):
         s3_e = p.reg(s2_e, "s3_e")
         s3_t = p.reg(total, "s3_t")
         s3_s = p.reg(s2_s, "s3_s")
-        s3_sub = p.reg(s2_sub, "s3_sub")
         s3_nan = p.reg(s2_nan, "s3_nan")
         s3_inf = p.reg(s2_inf, "s3_inf")
         s3_infs = p.reg(s2_infs, "s3_infs")

@@ -1,0 +1,205 @@
+"""``navgate gpsins``: seed 002's loosely coupled GPS/INS on a simulated aircraft flight with a
+GPS outage; GPS-only and GPS/INS side by side.
+
+Writes summary.json, trajectory.csv, gps.csv and errors.png into ``--out`` (same conventions
+as ``navgate fly``). Bad option values end with one line on stderr and exit 2.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import click
+import numpy as np
+
+from navgate.cli.common import CliError, prepare_out_dir, write_summary
+
+
+def _finite(ctx, param, value):
+    if value is not None and not math.isfinite(value):
+        raise click.BadParameter(f"must be a finite number, got {value}")
+    return value
+
+
+@click.command()
+@click.option("--duration", type=float, default=300.0, show_default=True, callback=_finite,
+              help="Flight duration (s); at least 250 s as in the seed.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="navgate-out",
+              show_default=True, help="Output directory.")
+@click.option("--outage-start", type=float, default=240.0, show_default=True,
+              callback=_finite, help="GPS outage start (s).")
+@click.option("--outage-length", type=float, default=30.0, show_default=True,
+              callback=_finite, help="GPS outage length (s); 0 for none.")
+@click.option("--rate", "rate_hz", type=float, default=100.0, show_default=True,
+              callback=_finite, help="INS / filter rate (Hz).")
+@click.option("--gyro-noise", type=float, default=None, callback=_finite,
+              help="Gyro white noise (deg/s/sqrt(Hz)); default the Table-1 interpretation's "
+                   "0.015 (the ADXRS652 data sheet: about 0.06).")
+@click.option("--ideal-sensors", is_flag=True,
+              help="Error-free IMU (and a filter tuned for it): the filter's own limit.")
+@click.option("--quiet", is_flag=True, help="No progress or table.")
+def gpsins(duration, seed, out_dir, outage_start, outage_length, rate_hz, gyro_noise,
+           ideal_sensors, quiet):
+    """Seed 002: 9-state GPS/INS Kalman filter vs GPS alone, with a GPS outage."""
+    from rich.console import Console
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from navgate.gpsins import scenario
+
+    console = Console(stderr=True, quiet=quiet)
+    if duration < 250:
+        raise CliError(f"--duration must be at least 250 s (seed 002's flight), got {duration:g}")
+    if duration > 3600:
+        raise CliError(f"--duration {duration:g} s is longer than the 1 h this command supports")
+    if seed < 0:
+        raise CliError(f"--seed must be non-negative, got {seed}")
+    if outage_length < 0 or outage_start < 0:
+        raise CliError("--outage-start and --outage-length must be non-negative")
+    if outage_length > 0 and outage_start + outage_length > duration:
+        raise CliError(f"the outage ({outage_start:g} s + {outage_length:g} s) must end before "
+                       f"the flight ({duration:g} s)")
+    if not 20 <= rate_hz <= 1000:
+        raise CliError(f"--rate must be between 20 and 1000 Hz, got {rate_hz:g}")
+    if gyro_noise is not None and not 0 <= gyro_noise <= 1:
+        raise CliError(f"--gyro-noise must be between 0 and 1 deg/s/sqrt(Hz), got {gyro_noise:g}")
+    if gyro_noise is not None and ideal_sensors:
+        raise CliError("--gyro-noise and --ideal-sensors exclude each other")
+    cfg = scenario.GpsInsConfig(duration_s=duration, seed=seed, outage_start_s=outage_start,
+                                outage_s=outage_length, rate_hz=rate_hz)
+    if gyro_noise is not None:
+        cfg = replace(cfg, table1=replace(cfg.table1, gyro_noise_dps_rthz=gyro_noise))
+    if ideal_sensors:
+        cfg = scenario.ideal_config(cfg)
+    out = prepare_out_dir(out_dir)
+    console.print(f"[bold]navgate gpsins[/]: {duration:g} s flight at {rate_hz:g} Hz, GPS 1 Hz "
+                  f"(20 m), outage {outage_start:g}-{outage_start + outage_length:g} s, "
+                  f"seed {seed}" + (", ideal IMU" if ideal_sensors else ", Table-1 IMU errors"))
+    console.print("first run compiles the Numba kernels (cached afterwards)", style="dim")
+    start = time.perf_counter()
+    stages = ["trajectory", "sensors", "GPS/INS", "scoring", "writing report"]
+    with Progress(TextColumn("{task.description}"), BarColumn(),
+                  TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
+                  console=console, disable=quiet) as bar:
+        task = bar.add_task(stages[0], total=len(stages))
+
+        def stage(name):
+            bar.update(task, description=name, completed=stages.index(name))
+
+        result = scenario.simulate(cfg, progress=stage)
+        stage("writing report")
+        summary = result.summary()
+        summary["wall_time_s"] = time.perf_counter() - start
+        files = [write_trajectory_csv(result, out / "trajectory.csv"),
+                 write_gps_csv(result, out / "gps.csv"),
+                 plot_errors(result, out / "errors.png")]
+        bar.update(task, completed=len(stages))
+    path = write_summary(out, summary)
+    if not quiet:
+        _print_table(Console(), summary)
+    click.echo(f"wrote {path} and {', '.join(p.name for p in files)} in {out}")
+
+
+def write_trajectory_csv(result, path: Path) -> Path:
+    t = result.truth.t
+    st = result.states
+    gi = result.gps_ins
+    cols = {
+        "t_s": t,
+        "truth_lat_deg": np.degrees(result.truth.lat), "truth_lon_deg": np.degrees(
+            result.truth.lon), "truth_h_m": result.truth.h,
+        "ins_lat_deg": np.degrees(st[:, 0]), "ins_lon_deg": np.degrees(st[:, 1]),
+        "ins_h_m": st[:, 2], "ins_vn_mps": st[:, 3], "ins_ve_mps": st[:, 4],
+        "ins_vd_mps": st[:, 5],
+        "err_north_m": gi.err_ned[:, 0], "err_east_m": gi.err_ned[:, 1],
+        "err_down_m": gi.err_ned[:, 2], "horizontal_error_m": gi.horizontal_error,
+        "sigma_north_m": gi.sigma_ned[:, 0], "sigma_east_m": gi.sigma_ned[:, 1],
+        "sigma_down_m": gi.sigma_ned[:, 2], "nees_position": gi.nees,
+        "gps_outage": result.outage_mask.astype(int),
+    }
+    step = max(1, int(round(result.cfg.rate_hz / 10.0)))  # 10 Hz log
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(cols.keys())
+        for k in range(0, len(t), step):
+            w.writerow([f"{c[k]:.10g}" for c in cols.values()])
+    return path
+
+
+def write_gps_csv(result, path: Path) -> Path:
+    g = result.gps
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["t_s", "lat_deg", "lon_deg", "h_m", "valid", "err_north_m", "err_east_m",
+                    "err_down_m"])
+        for k in range(len(g.t)):
+            w.writerow([f"{g.t[k]:.3f}", f"{math.degrees(g.lla[k, 0]):.9f}",
+                        f"{math.degrees(g.lla[k, 1]):.9f}", f"{g.lla[k, 2]:.3f}",
+                        int(g.valid[k]), f"{g.noise_ned[k, 0]:.3f}",
+                        f"{g.noise_ned[k, 1]:.3f}", f"{g.noise_ned[k, 2]:.3f}"])
+    return path
+
+
+def plot_errors(result, path: Path) -> Path:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    gi, go, cfg = result.gps_ins, result.gps_only, result.cfg
+    t = result.truth.t
+    fig, ax = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    v = result.gps.valid
+    ax[0].plot(go.t[v], go.horizontal_error[v], ".", ms=3, color="0.6", label="GPS only")
+    ax[0].plot(t, gi.horizontal_error, color="C0", lw=1.2, label="GPS/INS")
+    ax[0].plot(t, 3 * np.hypot(gi.sigma_ned[:, 0], gi.sigma_ned[:, 1]), "C3--", lw=1,
+               label="GPS/INS 3-sigma (horizontal)")
+    ax[0].set_ylabel("horizontal error (m)")
+    ax[0].set_yscale("log")
+    ax[0].legend(loc="upper left")
+    for i, name in enumerate(("north", "east")):
+        ax[1].plot(t, gi.err_ned[:, i], lw=1, color=f"C{i}", label=f"{name} error")
+        ax[1].fill_between(t, -3 * gi.sigma_ned[:, i], 3 * gi.sigma_ned[:, i], color=f"C{i}",
+                           alpha=0.12, label=f"{name} 3-sigma")
+    ax[1].set_ylabel("GPS/INS error (m)")
+    ax[1].set_xlabel("time (s)")
+    ax[1].legend(loc="upper left", ncol=2)
+    if cfg.outage_s > 0:
+        for a in ax:
+            a.axvspan(cfg.outage_start_s, cfg.outage_start_s + cfg.outage_s, color="0.85",
+                      zorder=0)
+    s = result.summary()
+    fig.suptitle(f"seed 002 GPS/INS: RMS horizontal {s['gps_ins']['rms_horizontal_error_m']:.1f}"
+                 f" m (GPS only {s['gps_only']['rms_horizontal_error_m']:.1f} m); outage shaded")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _print_table(console, s):
+    from rich.table import Table
+
+    gi, go = s["gps_ins"], s["gps_only"]
+    table = Table(title=f"seed 002 GPS/INS, {s['duration_s']:.0f} s, outage "
+                        f"{s['outage']['start_s']:.0f} s + {s['outage']['length_s']:.0f} s")
+    table.add_column("solution")
+    for col in ("RMS horiz. (m)", "RMS vert. (m)", "max horiz. in outage (m)",
+                "in 3-sigma (outage)", "NEES mean (3 dof)"):
+        table.add_column(col, justify="right")
+    table.add_row("GPS only", f"{go['rms_horizontal_error_m']:.1f}",
+                  f"{go['rms_vertical_error_m']:.1f}", "-", "-", "-")
+    outage = gi["max_horizontal_error_during_outage_m"]
+    frac = gi["outage_within_3sigma_per_axis_fraction"]
+    table.add_row("GPS/INS", f"{gi['rms_horizontal_error_m']:.1f}",
+                  f"{gi['rms_vertical_error_m']:.1f}",
+                  "-" if outage is None else f"{outage:.1f}",
+                  "-" if frac is None else f"{100 * frac:.0f} %",
+                  f"{gi['nees_position_mean']:.2f}")
+    console.print(table)
+    console.print(f"GPS/INS / GPS-only RMS ratio {gi['rms_ratio_to_gps_only']:.2f}; "
+                  f"wall time {s['wall_time_s']:.1f} s")
