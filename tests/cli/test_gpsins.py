@@ -1,0 +1,71 @@
+"""``navgate gpsins``: outputs, summary keys and values, bad options."""
+
+import csv
+import json
+
+import pytest
+
+from navgate.cli import main
+
+
+def run_cli(args, capsys):
+    code = 0
+    try:
+        main(["gpsins", *map(str, args)])
+    except SystemExit as exit_:
+        code = exit_.code
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_writes_report(tmp_path, capsys):
+    out = tmp_path / "run"
+    code, stdout, err = run_cli(["--duration", 260, "--outage-start", 220, "--seed", 1,
+                                 "--out", out, "--quiet"], capsys)
+    assert code == 0, err
+    for name in ("summary.json", "trajectory.csv", "gps.csv", "errors.png"):
+        assert (out / name).stat().st_size > 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["duration_s"] == 260 and s["seed"] == 1
+    assert s["outage"] == {"start_s": 220.0, "length_s": 30.0}
+    for key in ("rms_horizontal_error_m", "max_horizontal_error_during_outage_m",
+                "nees_position_mean"):
+        assert isinstance(s["gps_ins"][key], float)
+    assert isinstance(s["gps_only"]["rms_horizontal_error_m"], float)
+    # the outage shows in the GPS log: 30 fixes flagged invalid out of 260
+    with open(out / "gps.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 260 and sum(r["valid"] == "0" for r in rows) == 30
+    with open(out / "trajectory.csv") as fh:
+        header = fh.readline().strip().split(",")
+    assert {"t_s", "err_north_m", "sigma_north_m", "gps_outage"} <= set(header)
+    assert "wrote" in stdout
+
+
+def test_same_seed_same_numbers(tmp_path, capsys):
+    sums = []
+    for k in range(2):
+        code, _, err = run_cli(["--duration", 250, "--outage-start", 200, "--out",
+                                tmp_path / f"r{k}", "--quiet"], capsys)
+        assert code == 0, err
+        s = json.loads((tmp_path / f"r{k}" / "summary.json").read_text())
+        s.pop("wall_time_s")
+        sums.append(s)
+    assert sums[0] == sums[1]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--duration", 100], "at least 250 s"),
+    (["--outage-start", 290], "must end before the flight"),
+    (["--rate", 5], "--rate must be between"),
+    (["--seed", -1], "non-negative"),
+    (["--gyro-noise", 2], "--gyro-noise must be between"),
+    (["--duration", "nan"], "finite"),
+    (["--bogus"], "No such option"),
+])
+def test_bad_options_one_line_exit_2(tmp_path, capsys, args, message):
+    code, _, err = run_cli([*args, "--out", tmp_path / "o", "--quiet"], capsys)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("navgate gpsins: error:")
+    assert message in lines[0]
