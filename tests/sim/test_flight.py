@@ -106,3 +106,16 @@ def test_bad_configuration_rejected():
         flight.FlightConfig(ranger="sonar")
     assert replace(flight.FlightConfig(), seed=4).seed == 4
     assert math.isclose(flight.FlightConfig().speed_mps, 60.0)
+
+
+def test_flat_real_terrain_mostly_pauses_trn(shared_data):
+    """The shared Texas GeoTIFF is flat under the route: TRN must mostly decline to fix."""
+    path = shared_data / "pysheds_dem.tif"
+    if not path.exists():
+        pytest.skip("pysheds_dem.tif not present")
+    res = flight.fly(Dem.from_file(path), flight.FlightConfig(duration_s=300.0))
+    s = res.summary()["trn_aided"]
+    reasons = s["fix_rejection_reasons"]
+    correlated = s["fixes_attempted"] - reasons.get("too few samples", 0)
+    assert reasons.get("flat terrain", 0) >= 0.75 * correlated
+    assert s["fixes_accepted"] <= 3

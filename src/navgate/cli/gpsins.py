@@ -10,7 +10,6 @@ from __future__ import annotations
 import csv
 import math
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import click
@@ -72,7 +71,7 @@ def gpsins(duration, seed, out_dir, outage_start, outage_length, rate_hz, gyro_n
     cfg = scenario.GpsInsConfig(duration_s=duration, seed=seed, outage_start_s=outage_start,
                                 outage_s=outage_length, rate_hz=rate_hz)
     if gyro_noise is not None:
-        cfg = replace(cfg, table1=replace(cfg.table1, gyro_noise_dps_rthz=gyro_noise))
+        cfg = scenario.with_gyro_noise(cfg, gyro_noise)
     if ideal_sensors:
         cfg = scenario.ideal_config(cfg)
     out = prepare_out_dir(out_dir)

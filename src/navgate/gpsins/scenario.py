@@ -116,8 +116,10 @@ class GpsInsConfig:
     init_heading_sigma_deg: float = 1.0
     # filter process noise (spectral densities, per sqrt(Hz)): pessimistic, as the seed
     # prescribes for a filter without bias states (derivation in docs/seed002-gpsins.md)
-    q_accel: float = 0.005  #: m/s^2/sqrt(Hz), floor per body axis
-    q_gyro: float = 3e-4  #: rad/s/sqrt(Hz), floor per body axis
+    q_accel: float = 0.005  #: m/s^2/sqrt(Hz), floor for body x and y
+    q_accel_z: float = 0.05  #: m/s^2/sqrt(Hz), floor for body z (covers the residual offset
+    #: over an outage: 1 mg^2 * 30 s; horizontal offsets are absorbed by the tilt estimate)
+    q_gyro: float = 5e-4  #: rad/s/sqrt(Hz), floor per body axis
     q_scale_factor: float = 1.0 / 30.0  #: scale-factor sigma assumed by the filter
     q_tau_s: float = 30.0  #: correlation time that turns it into noise density
 
@@ -144,7 +146,17 @@ IDEAL_TABLE1 = Table1(accel_scale_tol_mv_per_g=0.0, gyro_scale_tol_pct=0.0,
 
 def ideal_config(cfg: GpsInsConfig) -> GpsInsConfig:
     """The same flight with an error-free IMU and a filter tuned for it."""
-    return replace(cfg, table1=IDEAL_TABLE1, q_accel=1e-3, q_gyro=1e-5, q_scale_factor=0.0)
+    return replace(cfg, table1=IDEAL_TABLE1, q_accel=1e-3, q_accel_z=1e-3, q_gyro=1e-5,
+                   q_scale_factor=0.0)
+
+
+def with_gyro_noise(cfg: GpsInsConfig, noise_dps_rthz: float) -> GpsInsConfig:
+    """Another gyro white noise; the filter's gyro floor follows it: the default floor
+    5e-4 rad/s/sqrt(Hz) is the root-sum-square of 4.4e-4 (drift and scale-factor residue)
+    and the default noise, 2.6e-4."""
+    q = math.hypot(4.4e-4, noise_dps_rthz * DEG)
+    return replace(cfg, table1=replace(cfg.table1, gyro_noise_dps_rthz=noise_dps_rthz),
+                   q_gyro=q)
 
 
 def flight_plan(cfg: GpsInsConfig):
@@ -192,10 +204,13 @@ def simulate_gps(truth: trajectory.Trajectory, cfg: GpsInsConfig, rng) -> GpsDat
 def process_noise(f_b, w_b, qa0, qg0, sf_acc, sf_gyro, tau, qa, qg):
     """Per-axis spectral densities for this step (in place into ``qa``, ``qg``):
     white-noise floor plus the scale-factor error seen as noise while the axis is excited,
-    (sf * reading)^2 * tau (a constant error over the correlation time tau has the variance
-    growth of white noise with that density)."""
+    (sf * excitation)^2 * tau (a constant error over the correlation time tau has the
+    variance growth of white noise with that density). The accelerometer's excitation is
+    its departure from the level calibration point (0, 0, -g)."""
     for i in range(3):
-        qa[i] = qa0[i] + (sf_acc * f_b[i]) ** 2 * tau
+        # the accelerometer scale error is calibrated at (0, 0, -g): it acts on the departure
+        f_dep = f_b[i] + (G0 if i == 2 else 0.0)
+        qa[i] = qa0[i] + (sf_acc * f_dep) ** 2 * tau
         qg[i] = qg0[i] + (sf_gyro * w_b[i]) ** 2 * tau
 
 
@@ -215,11 +230,18 @@ def _run(x0, P0, gyro, accel, dt, gps_idx, gps_lla, gps_valid, sigma, qa0, qg0, 
     states[0] = x
     qa = np.empty(3)
     qg = np.empty(3)
+    # the scale-factor term uses 1 s running means of the readings, so that white sensor
+    # noise does not masquerade as excitation
+    lp = min(1.0, dt / 1.0)
+    f_avg = accel[0].copy()
+    w_avg = gyro[0].copy()
     j = 0
     for k in range(n):
         f_b = accel[k]
         x = rk4_step(x, f_b, gyro[k], dt, EARTH_WGS84)
-        process_noise(f_b, gyro[k], qa0, qg0, sf_acc, sf_gyro, tau, qa, qg)
+        f_avg += lp * (f_b - f_avg)
+        w_avg += lp * (gyro[k] - w_avg)
+        process_noise(f_avg, w_avg, qa0, qg0, sf_acc, sf_gyro, tau, qa, qg)
         kf.propagate(P, x, f_b, dt, qa, qg, EARTH_WGS84)
         while j < gps_idx.shape[0] and gps_idx[j] <= k + 1:
             if gps_idx[j] == k + 1 and gps_valid[j]:
@@ -386,7 +408,7 @@ def simulate(cfg: GpsInsConfig, progress=None) -> GpsInsResult:
     if progress:
         progress("GPS/INS")
     sig = np.full(3, cfg.table1.gps_sigma_m)
-    qa = np.full(3, cfg.q_accel ** 2)
+    qa = np.array([cfg.q_accel ** 2, cfg.q_accel ** 2, cfg.q_accel_z ** 2])
     qg = np.full(3, cfg.q_gyro ** 2)
     states, ppos, innov, sdiag = _run(x0, P0, gyro, accel, 1.0 / cfg.rate_hz,
                                       gps.index.astype(np.int64), gps.lla, gps.valid, sig, qa,

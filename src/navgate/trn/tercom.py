@@ -22,7 +22,10 @@ least-squares view of the match: with J the terrain gradients at the matched poi
 residual variance, Cov(d) = s^2 (J'J)^-1 (the Cramer-Rao form of TERCOM accuracy; Bergman,
 Ljung & Gustafsson 1999, "Terrain navigation using Bayesian statistics"). The grid
 quantisation variance step^2/12 is added and the result is scaled by ``cov_inflation`` to
-cover the DEM interpolation error the residuals do not reveal (docs/trn.md).
+cover the DEM interpolation error the residuals do not reveal, and by
+1 + (roughness_scale / roughness)^2: in weakly informative terrain the match is non-linear
+and multimodal, its errors exceed the Cramer-Rao form and are correlated from one
+overlapping profile to the next (docs/trn.md has the measurements behind both factors).
 
 Rejections, each with its reason in the log:
 
@@ -93,11 +96,12 @@ class TercomConfig:
     margin_m: float = 150.0
     min_half_width_m: float = 300.0
     max_half_width_m: float = 2500.0
-    min_roughness_m: float = 8.0
+    min_roughness_m: float = 10.0
     ambiguity_ratio: float = 3.0
     exclusion_radius_m: float | None = None  #: default: 2.5 DEM posts
     min_valid_fraction: float = 0.5
     cov_inflation: float = 1.5
+    roughness_scale_m: float = 30.0  #: covariance x (1 + (scale / roughness)^2); 0 disables
 
 
 @dataclass
@@ -232,6 +236,8 @@ class TercomCorrelator:
             return result
         cov = s2 * np.linalg.inv(info) + np.eye(2) * self.step**2 / 12.0
         cov = cfg.cov_inflation * 0.5 * (cov + cov.T)
+        if cfg.roughness_scale_m > 0:
+            cov *= 1.0 + (cfg.roughness_scale_m / roughness) ** 2
         result.cov = cov
         result.ins_n = float(np.mean(profile.pos_n))
         result.ins_e = float(np.mean(profile.pos_e))

@@ -12,7 +12,7 @@ Pipelines here stall as a whole: all stage registers share one clock enable,
 stages, so bubbles cost nothing when the output is ready.
 """
 
-from amaranth.hdl import C, Cat, Module, Mux, Signal, Value, signed
+from amaranth.hdl import C, Cat, Module, Mux, Signal, Value
 
 __all__ = ["QNAN", "Pipe", "unpack", "leading_zeros", "round_pack"]
 
@@ -118,22 +118,28 @@ def round_pack(m: Module, sign, exp, mant, rnd, sticky, name="rp"):
     ``mant`` is the 24-bit significand (hidden bit set), ``exp`` the signed
     biased exponent of that significand, ``rnd`` the first discarded bit and
     ``sticky`` the OR of all further discarded bits.  Returns the packed word
-    with underflow (biased exponent <= 0 -> signed zero)
-    and overflow (>= 255 -> signed infinity) applied.
+    with underflow (rounded biased exponent <= 0 -> signed zero) and overflow
+    (>= 255 -> signed infinity) applied.
+
+    For speed the range check does not wait for the rounding increment: the
+    increment carries out of the significand only when ``mant`` is all ones, so
+    the rounded exponent is ``exp + carry`` with ``carry = inc & (mant == ~0)``,
+    and both range tests are comparisons of ``exp`` with constants.  On a carry
+    ``mant + 1`` wraps to zero, which is the right fraction for 2.0 -> 1.0 * 2.
     """
     inc = rnd & (sticky | mant[0])
-    mant_r = Signal(25, name=f"{name}_mant_r")
-    exp_r = Signal(signed(len(exp) + 1), name=f"{name}_exp_r")
-    m.d.comb += mant_r.eq(mant + inc)
-    carry = mant_r[24]
-    m.d.comb += exp_r.eq(exp.as_signed() + carry)
+    carry = Signal(name=f"{name}_carry")
+    m.d.comb += carry.eq(inc & (mant == 0xFFFFFF))
+    frac = Signal(23, name=f"{name}_frac")
+    m.d.comb += frac.eq(mant[0:23] + inc)
+    exp = exp.as_signed()
+    under = (exp < 0) | ((exp == 0) & ~carry)
+    over = (exp > 254) | ((exp == 254) & carry)
     out = Signal(32, name=f"{name}_out")
-    # On carry the rounded significand is exactly 2.0: fraction 0, exponent + 1.
-    frac = Mux(carry, 0, mant_r[0:23])
-    with m.If(exp_r <= 0):
+    with m.If(under):
         m.d.comb += out.eq(Cat(C(0, 31), sign))
-    with m.Elif(exp_r >= 255):
+    with m.Elif(over):
         m.d.comb += out.eq(Cat(C(0, 23), C(0xFF, 8), sign))
     with m.Else():
-        m.d.comb += out.eq(Cat(frac, exp_r[0:8], sign))
+        m.d.comb += out.eq(Cat(frac, (exp + carry)[0:8], sign))
     return out

@@ -12,7 +12,8 @@ produced one per pipeline stage by ``r >= d ? (q=1, r -= d) : q=0; r <<= 1``.
 The final remainder is non-zero exactly when the discarded tail of the
 quotient is, which gives the sticky bit for round-to-nearest-even.
 
-Latency 27 cycles (1 unpack + 25 recurrence + 1 round), one result per cycle.
+Latency 28 cycles (1 unpack + 25 recurrence + 1 sticky + 1 round), one result
+per cycle.
 """
 
 from amaranth.hdl import C, Cat, Module, Signal, signed, unsigned
@@ -28,7 +29,7 @@ class Fp32Div(wiring.Component):
     """Float32 divide ``r = a / b``; input ``{a, b}``, output ``{r}``."""
 
     QUOTIENT_BITS = 25
-    LATENCY = QUOTIENT_BITS + 2
+    LATENCY = QUOTIENT_BITS + 3
     THROUGHPUT = 1.0
     IN_LAYOUT = data.StructLayout({"a": unsigned(32), "b": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
@@ -78,9 +79,17 @@ class Fp32Div(wiring.Component):
             s = p.reg(s, f"q{k}_sign")
             kind = p.reg(kind, f"q{k}_kind")
 
-        # ---- last stage: round, range check, pack --------------------------------------
+        # ---- sticky stage: the remainder is non-zero iff the quotient's tail is ---------
         # q[24] == 1 (quotient in [1, 2)); significand q[1:25], round bit q[0].
-        rounded = round_pack(m, s, e, q[1:25], q[0], r != 0)
+        f_mant = p.reg(q[1:25], "f_mant")
+        f_rnd = p.reg(q[0], "f_rnd")
+        f_st = p.reg(r != 0, "f_st")
+        e = p.reg(e, "f_exp")
+        s = p.reg(s, "f_sign")
+        kind = p.reg(kind, "f_kind")
+
+        # ---- last stage: round, range check, pack --------------------------------------
+        rounded = round_pack(m, s, e, f_mant, f_rnd, f_st)
         result = Signal(32)
         with m.If(kind[0]):
             m.d.comb += result.eq(QNAN)

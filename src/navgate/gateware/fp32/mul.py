@@ -11,7 +11,7 @@ pair, and the operand, product and sum registers sit where the DSP's A/B, M
 and P registers are so synthesis can absorb them.
 
 Stages: 1 unpack/exponent sum/special cases, 2 partial products, 3 partial
-product sum, 4 normalise (product in [1, 4)), round to nearest even, range
+product sum, 4 normalise (product in [1, 4)), 5 round to nearest even, range
 check and pack.
 """
 
@@ -27,7 +27,7 @@ __all__ = ["Fp32Mul"]
 class Fp32Mul(wiring.Component):
     """Float32 multiply ``r = a * b``; input ``{a, b}``, output ``{r}``."""
 
-    LATENCY = 4
+    LATENCY = 5
     THROUGHPUT = 1.0
     IN_LAYOUT = data.StructLayout({"a": unsigned(32), "b": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
@@ -73,25 +73,29 @@ class Fp32Mul(wiring.Component):
         s3_sign = p.reg(s2_sign, "s3_sign")
         s3_kind = p.reg(s2_kind, "s3_kind")
 
-        # ---- stage 4: normalise, round, pack -----------------------------------------
+        # ---- stage 4: normalise (product in [1, 4)) ------------------------------------
         top = s3_prod[47]
-        mant = Mux(top, s3_prod[24:48], s3_prod[23:47])
-        rnd = Mux(top, s3_prod[23], s3_prod[22])
-        low = s3_prod[0:22] != 0
-        sticky = low | (top & s3_prod[22])
         exp4 = Signal(signed(11))
         m.d.comb += exp4.eq(s3_exp + top)
-        rounded = round_pack(m, s3_sign, exp4, mant, rnd, sticky)
+        s4_mant = p.reg(Mux(top, s3_prod[24:48], s3_prod[23:47]), "s4_mant", unsigned(24))
+        s4_rnd = p.reg(Mux(top, s3_prod[23], s3_prod[22]), "s4_rnd")
+        s4_st = p.reg((s3_prod[0:22] != 0) | (top & s3_prod[22]), "s4_st")
+        s4_exp = p.reg(exp4, "s4_exp")
+        s4_sign = p.reg(s3_sign, "s4_sign")
+        s4_kind = p.reg(s3_kind, "s4_kind")
+
+        # ---- stage 5: round, range check, special cases, pack -----------------------------
+        rounded = round_pack(m, s4_sign, s4_exp, s4_mant, s4_rnd, s4_st)
         result = Signal(32)
-        with m.If(s3_kind[0]):
+        with m.If(s4_kind[0]):
             m.d.comb += result.eq(QNAN)
-        with m.Elif(s3_kind[1]):
-            m.d.comb += result.eq(Cat(C(0, 23), C(0xFF, 8), s3_sign))
-        with m.Elif(s3_kind[2]):
-            m.d.comb += result.eq(Cat(C(0, 31), s3_sign))
+        with m.Elif(s4_kind[1]):
+            m.d.comb += result.eq(Cat(C(0, 23), C(0xFF, 8), s4_sign))
+        with m.Elif(s4_kind[2]):
+            m.d.comb += result.eq(Cat(C(0, 31), s4_sign))
         with m.Else():
             m.d.comb += result.eq(rounded)
-        r = p.reg(result, "s4_r")
+        r = p.reg(result, "s5_r")
         m.d.comb += self.o.payload.r.eq(r)
 
         p.finish()

@@ -14,7 +14,8 @@ stage: bring down the next bit pair, ``rem = 4*rem + pair``; if
 remainder is non-zero exactly when the root has a non-zero tail, giving the
 sticky bit for round-to-nearest-even.
 
-Latency 27 cycles (1 unpack + 25 recurrence + 1 round), one result per cycle.
+Latency 28 cycles (1 unpack + 25 recurrence + 1 sticky + 1 round), one result
+per cycle.
 """
 
 from amaranth.hdl import C, Cat, Module, Signal, signed, unsigned
@@ -30,7 +31,7 @@ class Fp32Sqrt(wiring.Component):
     """Float32 square root ``r = sqrt(a)``; input ``{a}``, output ``{r}``."""
 
     ROOT_BITS = 25
-    LATENCY = ROOT_BITS + 2
+    LATENCY = ROOT_BITS + 3
     THROUGHPUT = 1.0
     IN_LAYOUT = data.StructLayout({"a": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
@@ -96,8 +97,16 @@ class Fp32Sqrt(wiring.Component):
             s = p.reg(s, f"r{k}_sign")
             kind = p.reg(kind, f"r{k}_kind")
 
+        # ---- sticky stage: the remainder is non-zero iff the root's tail is ---------------
+        f_mant = p.reg(root[1:25], "f_mant")
+        f_rnd = p.reg(root[0], "f_rnd")
+        f_st = p.reg(rem != 0, "f_st")
+        e = p.reg(e, "f_exp")
+        s = p.reg(s, "f_sign")
+        kind = p.reg(kind, "f_kind")
+
         # ---- last stage: round (a root never overflows or underflows), pack ----------------
-        rounded = round_pack(m, s, e, root[1:25], root[0], rem != 0)
+        rounded = round_pack(m, s, e, f_mant, f_rnd, f_st)
         result = Signal(32)
         with m.If(kind[0]):
             m.d.comb += result.eq(QNAN)
