@@ -104,11 +104,12 @@ def rotvec_from_quat(q):
     return v * (angle / s)
 
 
-@njit(cache=True)
-def quat_to_dcm(q):
-    """C_b^n of a unit quaternion, in seed 000's q0^2+q1^2-q2^2-q3^2 form."""
-    q0, q1, q2, q3 = q[0], q[1], q[2], q[3]
-    c = np.empty((3, 3))
+@njit(cache=True, inline="always")
+def dcm_from_quat_into(q0, q1, q2, q3, c):
+    """Write C_b^n of the unit quaternion (q0, q1, q2, q3) into the 3x3 array ``c``.
+
+    Seed 000's q0^2+q1^2-q2^2-q3^2 form; the allocation-free kernel the strapdown loop uses.
+    """
     c[0, 0] = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
     c[0, 1] = 2.0 * (q1 * q2 - q0 * q3)
     c[0, 2] = 2.0 * (q1 * q3 + q0 * q2)
@@ -118,6 +119,13 @@ def quat_to_dcm(q):
     c[2, 0] = 2.0 * (q1 * q3 - q0 * q2)
     c[2, 1] = 2.0 * (q2 * q3 + q0 * q1)
     c[2, 2] = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+
+
+@njit(cache=True)
+def quat_to_dcm(q):
+    """C_b^n of a unit quaternion, in seed 000's q0^2+q1^2-q2^2-q3^2 form."""
+    c = np.empty((3, 3))
+    dcm_from_quat_into(q[0], q[1], q[2], q[3], c)
     return c
 
 

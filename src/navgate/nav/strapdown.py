@@ -41,6 +41,7 @@ from numba import njit
 
 from navgate.nav.earth import E2, GAMMA_E, M_RATIO, OMEGA_IE, SOMIGLIANA_K, A, F
 from navgate.nav.rotations import SMALL_ANGLE_RAD
+from navgate.nav.rotations import dcm_from_quat_into as _dcm
 
 NAV_SIZE = 10
 LAT, LON, HGT, VN, VE, VD, Q0 = 0, 1, 2, 3, 4, 5, 6
@@ -84,19 +85,6 @@ def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
             a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
             a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1,
             a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
-
-
-@njit(cache=True, inline="always")
-def _dcm(q0, q1, q2, q3, c):
-    c[0, 0] = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
-    c[0, 1] = 2.0 * (q1 * q2 - q0 * q3)
-    c[0, 2] = 2.0 * (q1 * q3 + q0 * q2)
-    c[1, 0] = 2.0 * (q1 * q2 + q0 * q3)
-    c[1, 1] = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
-    c[1, 2] = 2.0 * (q2 * q3 - q0 * q1)
-    c[2, 0] = 2.0 * (q1 * q3 - q0 * q2)
-    c[2, 1] = 2.0 * (q2 * q3 + q0 * q1)
-    c[2, 2] = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
 
 
 @njit(cache=True)
