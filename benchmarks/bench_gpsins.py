@@ -2,6 +2,14 @@
 MicroBlaze (Virtex-6, 88 MHz, single-precision FPU).
 
 Usage: python benchmarks/bench_gpsins.py [--iterations 200000] [--repeat 5] [--seed 0]
+       python benchmarks/bench_gpsins.py --accuracy [--seeds 10]
+
+``--accuracy`` instead flies the default 300 s flight for seeds 0..N-1 with each IMU model
+(``navgate gpsins --imu ...``) and prints the accuracy table of docs/seed002-gpsins.md:
+horizontal RMS of GPS-only and GPS/INS, their ratio (target <= 1/3), the pooled ratio
+sqrt(mean GPS/INS MS / mean GPS-only MS) over the seeds (the quantity the optimal-filter
+bound of navgate.gpsins.bound predicts: an expected mean square), the outage error, the
+3-sigma containment and NEES.
 
 Each row times a Numba loop of ``--iterations`` calls (best of ``--repeat``; compilation
 excluded) on a realistic state (a point of the default flight) and reports microseconds per
@@ -83,12 +91,51 @@ def _best(fn, repeat):
     return best
 
 
+def accuracy(n_seeds: int):
+    """The seeds table: one row per IMU model, means over seeds (extremes in brackets)."""
+    models = [("table1", lambda c: c), ("table1-uncalibrated", scenario.uncalibrated_config),
+              ("table1, --gyro-noise 0.06", lambda c: scenario.with_gyro_noise(c, 0.06)),
+              ("tactical", scenario.tactical_config), ("ideal", scenario.ideal_config)]
+    table = Table(title=f"seed 002 GPS/INS accuracy, default flight, seeds 0..{n_seeds - 1}")
+    for col in ("IMU", "GPS-only RMS (m)", "GPS/INS RMS (m)", "ratio mean [min, max]",
+                "seeds <= 1/3", "seed 0", "pooled ratio", "max outage err (m) mean [max]",
+                "outage in 3-sigma (min)", "NEES mean [min, max]", "bound"):
+        table.add_column(col, justify="right")
+    for name, make in models:
+        rows = []
+        for seed in range(n_seeds):
+            cfg = make(scenario.GpsInsConfig(seed=seed))
+            s = scenario.simulate(cfg).summary()
+            gi = s["gps_ins"]
+            rows.append((s["gps_only"]["rms_horizontal_error_m"], gi["rms_horizontal_error_m"],
+                         gi["rms_ratio_to_gps_only"], gi["max_horizontal_error_during_outage_m"],
+                         gi["outage_within_3sigma_per_axis_fraction"],
+                         gi["nees_position_mean"],
+                         s["optimal_filter_bound"]["rms_ratio_to_gps_only"]))
+        a = np.array(rows)
+        r = a[:, 2]
+        table.add_row(name, f"{a[:, 0].mean():.1f}", f"{a[:, 1].mean():.1f}",
+                      f"{r.mean():.3f} [{r.min():.3f}, {r.max():.3f}]",
+                      f"{int((r <= 1 / 3).sum())}/{n_seeds}", f"{r[0]:.3f}",
+                      f"{math.sqrt(np.mean(a[:, 1] ** 2) / np.mean(a[:, 0] ** 2)):.3f}",
+                      f"{a[:, 3].mean():.0f} [{a[:, 3].max():.0f}]", f"{100 * a[:, 4].min():.0f} %",
+                      f"{a[:, 5].mean():.2f} [{a[:, 5].min():.2f}, {a[:, 5].max():.2f}]",
+                      f"{a[0, 6]:.3f}")
+    Console(width=200).print(table)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--iterations", type=int, default=200_000)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--accuracy", action="store_true",
+                    help="print the accuracy table over seeds instead of timings")
+    ap.add_argument("--seeds", type=int, default=10)
     args = ap.parse_args(argv)
+    if args.accuracy:
+        accuracy(args.seeds)
+        return
     n = args.iterations
 
     cfg = scenario.GpsInsConfig(seed=args.seed)
@@ -126,8 +173,8 @@ def main(argv=None):
 
     def loop():
         scenario._run(x0, p0, gyro_m, accel_m, dt, res.gps.index.astype(np.int64),
-                      res.gps.lla, res.gps.valid, sig, qa, qg, cfg.q_scale_factor,
-                      cfg.q_scale_factor, cfg.q_tau_s)
+                      res.gps.lla, res.gps.valid, sig, qa, qg, cfg.q_sf_accel,
+                      cfg.q_sf_gyro, cfg.q_tau_s)
 
     steps = gyro.shape[0]
     rows.append((f"closed loop per 100 Hz step ({steps} steps)", _best(loop, args.repeat)

@@ -54,6 +54,20 @@ def test_same_seed_same_numbers(tmp_path, capsys):
     assert sums[0] == sums[1]
 
 
+def test_tactical_imu_default_run_meets_the_one_third_target(tmp_path, capsys):
+    """``navgate gpsins --imu tactical`` on the default 300 s flight (seed 0): GPS/INS RMS at
+    most one third of GPS-only, outage inside 3-sigma; the summary carries the optimal-filter
+    bound for the IMU (test_bound.py checks its value)."""
+    code, _, err = run_cli(["--imu", "tactical", "--out", tmp_path / "t", "--quiet"], capsys)
+    assert code == 0, err
+    s = json.loads((tmp_path / "t" / "summary.json").read_text())
+    assert s["imu"] == "tactical" and s["duration_s"] == 300
+    gi = s["gps_ins"]
+    assert gi["rms_ratio_to_gps_only"] <= 1 / 3
+    assert gi["outage_within_3sigma_per_axis_fraction"] == 1.0
+    assert 0 < s["optimal_filter_bound"]["rms_ratio_to_gps_only"] < 1 / 3
+
+
 @pytest.mark.parametrize("args, message", [
     (["--duration", 100], "at least 250 s"),
     (["--outage-start", 290], "must end before the flight"),
@@ -62,6 +76,9 @@ def test_same_seed_same_numbers(tmp_path, capsys):
     (["--gyro-noise", 2], "--gyro-noise must be between"),
     (["--duration", "nan"], "finite"),
     (["--bogus"], "No such option"),
+    (["--imu", "tactical", "--ideal-sensors"], "exclude each other"),
+    (["--imu", "ideal", "--gyro-noise", "0.01"], "exclude each other"),
+    (["--imu", "adxrs"], "--imu"),
 ])
 def test_bad_options_one_line_exit_2(tmp_path, capsys, args, message):
     code, _, err = run_cli([*args, "--out", tmp_path / "o", "--quiet"], capsys)

@@ -26,7 +26,11 @@ k+4    denormalising shift, rounding (nearest: ((N >> (s-1)) + 1) >> 1, which eq
 k+5    saturation, sign, zero/divide-by-zero overrides, flags
 ====== =================================================================================
 
-``LATENCY = iterations + 5``, ``THROUGHPUT = 1``. Multipliers: (F+2) x (F+2) bits unsigned,
+``LATENCY = iterations + 5``, ``THROUGHPUT = 1``. With ``split_iterations=True`` each
+iteration takes two stages (``G = 2 - D`` registered first, so that the multiply stage is
+register -> multiplier -> register): ``LATENCY = 2 * iterations + 5``, the same cells (the
+extra registers fold into the DSP input registers on xc7) and a higher clock (ECP5 proxy for
+the default divider: 59.5 -> 72.8 MHz, then limited by the seed multiply). Multipliers: (F+2) x (F+2) bits unsigned,
 ``2 * iterations + 1`` of them for the divider and ``2 * iterations`` for the reciprocal
 (``+ 1`` with the linear seed); with the defaults (F = 20) each maps to two DSP48E1.
 
@@ -62,7 +66,8 @@ class _GoldschmidtBase(wiring.Component):
     _reciprocal = False
 
     def __init__(self, width: int, frac: int, iterations: int, seed_bits: int,
-                 internal_frac: int | None, seed: str, rounding: str):
+                 internal_frac: int | None, seed: str, rounding: str,
+                 split_iterations: bool):
         # the ranges the bit-true model accepts (navgate.numerics.goldschmidt)
         if not 2 <= width <= 30:
             raise invalid_parameter(self, f"width must be in [2, 30], got {width}")
@@ -91,7 +96,8 @@ class _GoldschmidtBase(wiring.Component):
         self.internal_frac = F
         self.seed = seed
         self.rounding = rounding
-        self.LATENCY = iterations + 5
+        self.split_iterations = bool(split_iterations)
+        self.LATENCY = (2 if self.split_iterations else 1) * iterations + 5
         self.THROUGHPUT = 1
         inputs = {"d": signed(width)} if self._reciprocal else {
             "n": signed(width), "d": signed(width)}
@@ -161,6 +167,7 @@ class _GoldschmidtBase(wiring.Component):
         rw = F + 2  # N, D, G < 2**(F+2)
         Ns = [reg(unsigned(rw), f"N_{j}") for j in range(k + 1)]
         Ds = [reg(unsigned(rw), f"D_{j}") for j in range(k)]  # last D unused
+        spi = 2 if self.split_iterations else 1  # stages per iteration
         s3 = [Ns[0].eq(x0 if N1 is None else (N1 * x0) >> F)]
         if k:
             s3.append(Ds[0].eq((D1 * x0) >> F))
@@ -169,15 +176,22 @@ class _GoldschmidtBase(wiring.Component):
         two = 2 << F
         s_iter = []
         for j in range(k):
-            G = Const(two, unsigned(F + 2)) - Ds[j]
-            G = G[:rw]
-            s_iter.append(Ns[j + 1].eq((Ns[j] * G) >> F))
+            G = (Const(two, unsigned(F + 2)) - Ds[j])[:rw]
+            N_in, D_in = Ns[j], Ds[j]
+            if self.split_iterations:
+                # G = 2 - D gets its own stage: the multiply stage is then reg -> mul -> reg
+                Gq = reg(unsigned(rw), f"G_{j}")
+                N_in = reg(unsigned(rw), f"N_{j}_a")
+                D_in = reg(unsigned(rw), f"D_{j}_a")
+                s_iter += [Gq.eq(G), N_in.eq(Ns[j]), D_in.eq(Ds[j])]
+                G = Gq
+            s_iter.append(Ns[j + 1].eq((N_in * G) >> F))
             if j + 1 < k:
-                s_iter.append(Ds[j + 1].eq((Ds[j] * G) >> F))
+                s_iter.append(Ds[j + 1].eq((D_in * G) >> F))
 
         # ---- stage k+4: denormalising shift and rounding --------------------------------
         mag = Ns[k]
-        sh = shift[k + 2]
+        sh = shift[spi * k + 2]
         q_low = reg(unsigned(w), "q_low")
         big = reg(unsigned(1), "q_big")
         left_amt = Signal(range(w + 1))
@@ -225,8 +239,9 @@ class GoldschmidtDivider(_GoldschmidtBase):
 
     def __init__(self, width: int = 20, frac: int = 10, iterations: int = 3,
                  seed_bits: int = 4, internal_frac: int | None = None, seed: str = "table",
-                 rounding: str = "nearest"):
-        super().__init__(width, frac, iterations, seed_bits, internal_frac, seed, rounding)
+                 rounding: str = "nearest", split_iterations: bool = False):
+        super().__init__(width, frac, iterations, seed_bits, internal_frac, seed, rounding,
+                         split_iterations)
 
 
 class GoldschmidtReciprocal(_GoldschmidtBase):
@@ -236,5 +251,6 @@ class GoldschmidtReciprocal(_GoldschmidtBase):
 
     def __init__(self, width: int = 20, frac: int = 10, iterations: int = 3,
                  seed_bits: int = 4, internal_frac: int | None = None, seed: str = "table",
-                 rounding: str = "nearest"):
-        super().__init__(width, frac, iterations, seed_bits, internal_frac, seed, rounding)
+                 rounding: str = "nearest", split_iterations: bool = False):
+        super().__init__(width, frac, iterations, seed_bits, internal_frac, seed, rounding,
+                         split_iterations)

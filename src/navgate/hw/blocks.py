@@ -40,6 +40,10 @@ REGISTRY: dict[str, tuple[str, str]] = {
         "navgate.gateware.goldschmidt:GoldschmidtDivider",
         "Goldschmidt fixed-point divider (seed 004), pipelined",
     ),
+    "goldschmidt_recip": (
+        "navgate.gateware.goldschmidt:GoldschmidtReciprocal",
+        "Goldschmidt fixed-point reciprocal (seed 004), pipelined",
+    ),
     "fixed_mul": (
         "navgate.gateware.fixed:FixedMul",
         "signed Q-format multiplier: full product, truncated/saturated result, overflow flag",

@@ -14,7 +14,7 @@ stages, so bubbles cost nothing when the output is ready.
 
 from amaranth.hdl import C, Cat, Module, Mux, Signal, Value
 
-__all__ = ["QNAN", "Pipe", "unpack", "leading_zeros", "round_pack"]
+__all__ = ["QNAN", "Pipe", "unpack", "leading_zeros", "round_pack", "round_split"]
 
 QNAN = 0x7FC00000
 
@@ -23,8 +23,12 @@ class Pipe:
     """Helper that registers values behind one shared clock enable.
 
     ``reg(value)`` returns a reset-less register loaded from ``value`` whenever
-    the pipeline advances.  ``finish()`` emits the enable logic, the valid shift
-    register and the stream handshake; call it once at the end of elaborate.
+    the pipeline advances.  ``reset=True`` gives it a synchronous reset, which
+    keeps Xilinx synthesis from packing a chain of such registers into SRL16E
+    shift-register LUTs (used for the flags and exponents that ride along the
+    pipeline, so that they cost flip-flops instead of LUTs).  ``finish()`` emits
+    the enable logic, the valid shift register and the stream handshake; call
+    it once at the end of elaborate.
     """
 
     def __init__(self, m: Module, i, o, stages: int):
@@ -36,12 +40,12 @@ class Pipe:
         self._stmts = []
         self._count = 0
 
-    def reg(self, value, name=None, shape=None):
+    def reg(self, value, name=None, shape=None, reset=False):
         self._count += 1
         value = Value.cast(value) if shape is None else value
         if shape is None:
             shape = value.shape()
-        sig = Signal(shape, name=name or f"p{self._count}", reset_less=True)
+        sig = Signal(shape, name=name or f"p{self._count}", reset_less=not reset)
         self._stmts.append(sig.eq(value))
         return sig
 
@@ -142,4 +146,28 @@ def round_pack(m: Module, sign, exp, mant, rnd, sticky, name="rp"):
         m.d.comb += out.eq(Cat(C(0, 23), C(0xFF, 8), sign))
     with m.Else():
         m.d.comb += out.eq(Cat(frac, (exp + carry)[0:8], sign))
+    return out
+
+
+def round_split(m: Module, p: Pipe, sign, exp, mant, rnd, sticky, name="rs"):
+    """:func:`round_pack` over two pipeline stages (the increment and the range
+    tests, then the final selection); returns ``(packed, stage-2 registers)``
+    so callers can register their own side signals in step."""
+    inc = rnd & (sticky | mant[0])
+    carry = inc & (mant == 0xFFFFFF)
+    exp = exp.as_signed()
+    frac = Signal(23, name=f"{name}_frac")
+    m.d.comb += frac.eq(mant[0:23] + inc)
+    r_frac = p.reg(frac, f"{name}_rfrac")
+    r_exp8 = p.reg((exp + carry)[0:8], f"{name}_rexp8")
+    r_under = p.reg((exp < 0) | ((exp == 0) & ~carry), f"{name}_runder")
+    r_over = p.reg((exp > 254) | ((exp == 254) & carry), f"{name}_rover")
+    r_sign = p.reg(sign, f"{name}_rsign")
+    out = Signal(32, name=f"{name}_out")
+    with m.If(r_under):
+        m.d.comb += out.eq(Cat(C(0, 31), r_sign))
+    with m.Elif(r_over):
+        m.d.comb += out.eq(Cat(C(0, 23), C(0xFF, 8), r_sign))
+    with m.Else():
+        m.d.comb += out.eq(Cat(r_frac, r_exp8, r_sign))
     return out

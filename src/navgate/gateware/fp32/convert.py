@@ -32,11 +32,11 @@ def _check(width, frac_bits):
 class Fp32FromFixed(wiring.Component):
     """Signed Q value ``x`` (``width`` bits, ``frac_bits`` fraction bits) -> float32.
 
-    Input ``{x}``, output ``{r}``.  Stages: magnitude, normalise (leading-zero
-    count and shift), round and pack.
+    Input ``{x}``, output ``{r}``.  Stages: magnitude, leading-zero count,
+    normalising shift, round and pack.
     """
 
-    LATENCY = 3
+    LATENCY = 4
     THROUGHPUT = 1.0
 
     def __init__(self, width: int = 32, frac_bits: int = 16):
@@ -60,26 +60,33 @@ class Fp32FromFixed(wiring.Component):
         s1_neg = p.reg(neg, "s1_neg")
 
         _, lz = leading_zeros(s1_mag)
-        norm = Signal(w)
-        m.d.comb += norm.eq(s1_mag << lz)
-        s2_norm = p.reg(norm, "s2_norm")
+        s2_mag = p.reg(s1_mag, "s2_mag")
         s2_lz = p.reg(lz, "s2_lz")
         s2_zero = p.reg(s1_mag == 0, "s2_zero")
         s2_neg = p.reg(s1_neg, "s2_neg")
 
-        # value = norm * 2**(w - 1 - lz - frac_bits - (w - 1)), msb of norm set.
+        # Normalise (msb of norm set); value = norm * 2**(w - 1 - lz - frac_bits - (w - 1)).
+        norm = Signal(w)
+        m.d.comb += norm.eq(s2_mag << s2_lz)
         if w >= 25:
-            mant = s2_norm[w - 24:w]
-            rnd = s2_norm[w - 25]
-            sticky = s2_norm[0:w - 25] != 0 if w > 25 else C(0, 1)
+            mant = norm[w - 24:w]
+            rnd = norm[w - 25]
+            sticky = norm[0:w - 25] != 0 if w > 25 else C(0, 1)
         else:
-            mant = Cat(C(0, 24 - w), s2_norm)
+            mant = Cat(C(0, 24 - w), norm)
             rnd = C(0, 1)
             sticky = C(0, 1)
         exp = Signal(signed(12))
         m.d.comb += exp.eq(w - 1 - self.frac_bits + 127 - s2_lz)
-        rounded = round_pack(m, s2_neg, exp, mant, rnd, sticky)
-        r = p.reg(Mux(s2_zero, 0, rounded), "s3_r", unsigned(32))
+        s3_mant = p.reg(mant, "s3_mant", unsigned(24))
+        s3_rnd = p.reg(rnd, "s3_rnd")
+        s3_st = p.reg(sticky, "s3_st")
+        s3_exp = p.reg(exp, "s3_exp")
+        s3_zero = p.reg(s2_zero, "s3_zero")
+        s3_neg = p.reg(s2_neg, "s3_neg")
+
+        rounded = round_pack(m, s3_neg, s3_exp, s3_mant, s3_rnd, s3_st)
+        r = p.reg(Mux(s3_zero, 0, rounded), "s4_r", unsigned(32))
         m.d.comb += self.o.payload.r.eq(r)
         p.finish()
         return m
@@ -155,12 +162,22 @@ class Fp32ToFixed(wiring.Component):
         s3_neg = p.reg(s2_neg, "s3_neg")
         s3_kind = p.reg(s2_kind, "s3_kind")
 
-        limit = Mux(s3_neg, C(1 << (w - 1), w), C((1 << (w - 1)) - 1, w))
+        # Saturation tests and the negation side by side, then one selection.
         nan, sat_in, zero = s3_kind[0], s3_kind[1], s3_kind[2]
-        over = ~nan & ~zero & (sat_in | (s3_mag > limit))
-        mag_c = Mux(nan | zero, 0, Mux(over, limit, s3_mag))
+        too_big = Mux(s3_neg, s3_mag > (1 << (w - 1)), s3_mag > (1 << (w - 1)) - 1)
+        over = ~nan & ~zero & (sat_in | too_big)
+        neg_mag = Signal(w)
+        m.d.comb += neg_mag.eq(-s3_mag)
+        sat = Mux(s3_neg, C(1 << (w - 1), w), C((1 << (w - 1)) - 1, w))
         value = Signal(w)
-        m.d.comb += value.eq(Mux(s3_neg, -mag_c, mag_c))
+        with m.If(nan | zero):
+            m.d.comb += value.eq(0)
+        with m.Elif(over):
+            m.d.comb += value.eq(sat)
+        with m.Elif(s3_neg):
+            m.d.comb += value.eq(neg_mag)
+        with m.Else():
+            m.d.comb += value.eq(s3_mag)
         r = p.reg(value, "s4_r")
         flag = p.reg(over | nan, "s4_flag")
         m.d.comb += [self.o.payload.r.eq(r), self.o.payload.overflow.eq(flag)]

