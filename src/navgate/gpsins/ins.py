@@ -36,6 +36,7 @@ import numpy as np
 from numba import njit
 
 from navgate.nav.earth import OMEGA_IE, gravity, radii
+from navgate.nav.rotations import dcm_from_quat_into
 
 EARTH_WGS84 = 0
 EARTH_SPHERE = 1
@@ -57,16 +58,9 @@ def earth_terms(lat, h, kind):
 
 @njit(cache=True)
 def dcm_from_quat(q0, q1, q2, q3):
+    """C_b^n of (q0, q1, q2, q3): navgate.nav.rotations' kernel, returned as a new array."""
     c = np.empty((3, 3))
-    c[0, 0] = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
-    c[0, 1] = 2.0 * (q1 * q2 - q0 * q3)
-    c[0, 2] = 2.0 * (q1 * q3 + q0 * q2)
-    c[1, 0] = 2.0 * (q1 * q2 + q0 * q3)
-    c[1, 1] = q0 * q0 - q1 * q1 + q2 * q2 - q3 * q3
-    c[1, 2] = 2.0 * (q2 * q3 - q0 * q1)
-    c[2, 0] = 2.0 * (q1 * q3 - q0 * q2)
-    c[2, 1] = 2.0 * (q2 * q3 + q0 * q1)
-    c[2, 2] = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    dcm_from_quat_into(q0, q1, q2, q3, c)
     return c
 
 
