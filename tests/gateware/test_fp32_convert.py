@@ -94,7 +94,6 @@ def test_q16_16_both_directions():
     assert list(out["r"]) == list(value) and list(out["overflow"]) == list(flag)
 
 
-@pytest.mark.filterwarnings("ignore:.*created but never used")
 def test_rejects_bad_parameters():
     with pytest.raises(ValueError, match="width"):
         Fp32ToFixed(width=1)

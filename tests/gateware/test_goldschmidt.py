@@ -58,16 +58,6 @@ def reciprocal_model(dut):
     return model
 
 
-# MODEL_BUG: navgate.numerics.goldschmidt._finish flags ``too_big`` (bl + left > width + 1)
-# also when the shift is to the right (left == 0), so a normalised N >= 2**(width+1) that is
-# about to be shifted right is reported as overflow and saturated. That happens with
-# internal_frac > width, and with frac = 0 where N reaches 2**(F+1) exactly. The gateware
-# implements the documented datapath (overflow only when the shifted result exceeds the
-# range) and matches the model with the one-line fix ``too_big = (left > 0) & (...)`` in
-# every configuration below. The affected configurations are strict xfails: when the model
-# is fixed they pass and the marks must go (docs/gateware-cordic.md, "Goldschmidt").
-MODEL_BUG = pytest.mark.xfail(strict=True, reason="numerics.goldschmidt too_big on right shift")
-
 CONFIGS = {
     "default": {},
     "truncate": dict(rounding="truncate"),
@@ -80,19 +70,18 @@ CONFIGS = {
 }
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(k, marks=MODEL_BUG) if k == "q16_0_F18" else k for k in CONFIGS])
+@pytest.mark.parametrize("name", list(CONFIGS))
 def test_divider_matches_model_amaranth(name):
     dut = GoldschmidtDivider(**CONFIGS[name])
     count = N_RANDOM if name == "default" else 2000
     v = division_vectors(dut.width, seed=31, count=count)
     result = verify(dut, divide_model(dut), v, seed=8, valid_prob=0.8, ready_prob=0.7)
     result.assert_ok()
-    assert result.latency == dut.LATENCY == (2 if dut.split_iterations else 1) * dut.iterations + 5
+    stages_per_iteration = 2 if dut.split_iterations else 1
+    assert result.latency == dut.LATENCY == stages_per_iteration * dut.iterations + 5
 
 
-@pytest.mark.parametrize("name", [
-    pytest.param(k, marks=MODEL_BUG) if k.startswith("q16_0") else k for k in CONFIGS])
+@pytest.mark.parametrize("name", list(CONFIGS))
 def test_reciprocal_matches_model_amaranth(name):
     dut = GoldschmidtReciprocal(**CONFIGS[name])
     count = N_RANDOM if name == "default" else 2000

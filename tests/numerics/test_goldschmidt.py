@@ -214,3 +214,15 @@ def test_bit_exact_against_scalar_transcription(width, frac, it, sb, rounding):
         want = _ref_divide(1, int(d[k]), width, frac, it, sb, F, rounding, True)
         got = (int(r[k]), bool(g["divide_by_zero"][k]), bool(g["overflow"][k]))
         assert got == want, int(d[k])
+
+
+def test_right_shift_of_a_wide_normalised_value_is_not_overflow():
+    """Regression: Q(16,0) with 18 internal fraction bits; results need a right shift."""
+    import numpy as np
+
+    from navgate.numerics.goldschmidt import goldschmidt_reciprocal
+
+    q, flags = goldschmidt_reciprocal(np.array([1, -32768, 2]), 16, 0, iterations=4,
+                                      seed_bits=2, internal_frac=18)
+    assert q.tolist() == [1, 0, 1]  # 1/1, 1/-32768 -> 0, 1/2 rounds half up to 1
+    assert not flags["overflow"].any()

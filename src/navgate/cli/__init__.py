@@ -26,6 +26,7 @@ COMMANDS: dict[str, str] = {
     "gpsins": "navgate.cli.gpsins:gpsins",
     "build": "navgate.cli.build:build",
     "report": "navgate.cli.build:report",
+    "kf2x2": "navgate.cli.kf2x2:kf2x2",
 }
 
 

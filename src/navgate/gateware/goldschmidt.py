@@ -30,7 +30,9 @@ k+5    saturation, sign, zero/divide-by-zero overrides, flags
 iteration takes two stages (``G = 2 - D`` registered first, so that the multiply stage is
 register -> multiplier -> register): ``LATENCY = 2 * iterations + 5``, the same cells (the
 extra registers fold into the DSP input registers on xc7) and a higher clock (ECP5 proxy for
-the default divider: 59.5 -> 72.8 MHz, then limited by the seed multiply). Multipliers: (F+2) x (F+2) bits unsigned,
+the default divider: 59.5 -> 72.8 MHz, then limited by the seed multiply).
+
+Multipliers: (F+2) x (F+2) bits unsigned,
 ``2 * iterations + 1`` of them for the divider and ``2 * iterations`` for the reciprocal
 (``+ 1`` with the linear seed); with the defaults (F = 20) each maps to two DSP48E1.
 

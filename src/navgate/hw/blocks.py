@@ -44,6 +44,7 @@ REGISTRY: dict[str, tuple[str, str]] = {
         "navgate.gateware.goldschmidt:GoldschmidtReciprocal",
         "Goldschmidt fixed-point reciprocal (seed 004), pipelined",
     ),
+    "kf2x2": ("navgate.gateware.kf2x2.top:Kf2x2", "seed 004 2x2 adaptive Kalman filter"),
     "fixed_mul": (
         "navgate.gateware.fixed:FixedMul",
         "signed Q-format multiplier: full product, truncated/saturated result, overflow flag",

@@ -175,7 +175,8 @@ def _finish(mag: np.ndarray, shift: np.ndarray, neg: np.ndarray, width: int, rou
     right = np.clip(-shift, 0, 62).astype(np.int64)
     # overflow test before a left shift so that int64 cannot wrap
     bl = np.where(mag > 0, _lead(np.maximum(mag, 1)) + 1, 0)
-    too_big = bl + left > width + 1
+    # only a left shift can overflow; a right shift of a wide normalised value cannot
+    too_big = (left > 0) & (bl + left > width + 1)
     q = np.where(too_big, 0, mag << np.where(too_big, 0, left))
     if rounding == "nearest":  # add half an output LSB before a right shift
         q = q + np.where(right > 0, np.left_shift(1, np.maximum(right - 1, 0)), 0)

@@ -22,7 +22,15 @@ from ._common import Pipe, leading_zeros, round_pack, unpack
 __all__ = ["Fp32FromFixed", "Fp32FromInt", "Fp32ToFixed", "Fp32ToInt"]
 
 
-def _check(width, frac_bits):
+def _check(obj, width, frac_bits):
+    try:
+        _check_values(width, frac_bits)
+    except ValueError:
+        obj._MustUse__silence = True  # a rejected component is not an unused one
+        raise
+
+
+def _check_values(width, frac_bits):
     if not isinstance(width, int) or not 2 <= width <= 64:
         raise ValueError(f"width must be an integer in [2, 64], got {width!r}")
     if not isinstance(frac_bits, int) or not -256 <= frac_bits <= 256:
@@ -40,7 +48,7 @@ class Fp32FromFixed(wiring.Component):
     THROUGHPUT = 1.0
 
     def __init__(self, width: int = 32, frac_bits: int = 16):
-        _check(width, frac_bits)
+        _check(self, width, frac_bits)
         self.width = width
         self.frac_bits = frac_bits
         super().__init__({
@@ -110,7 +118,7 @@ class Fp32ToFixed(wiring.Component):
     THROUGHPUT = 1.0
 
     def __init__(self, width: int = 32, frac_bits: int = 16):
-        _check(width, frac_bits)
+        _check(self, width, frac_bits)
         self.width = width
         self.frac_bits = frac_bits
         super().__init__({
