@@ -250,7 +250,7 @@ def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialE
     """Closed-loop INS + ESKF over the sensor data, with baro and (optionally) TRN updates."""
     start_wall = _time.perf_counter()
     filter_cfg = eskf.FilterConfig.from_imu_spec(
-        sensors.IDEAL_IMU if data.ideal else sensors.ADIS16500,
+        sensors.IDEAL_IMU if data.ideal else sensors.ADIS16500, rate_hz=cfg.imu_rate_hz,
         residual_accel_bias=cfg.init_accel_bias_sigma,
         residual_gyro_bias=cfg.init_gyro_bias_sigma)
     filt = eskf.ErrorStateFilter(init.nav, init.p0, filter_cfg, rate_hz=cfg.imu_rate_hz,
