@@ -111,10 +111,11 @@ class Fp32ToFixed(wiring.Component):
     """Float32 -> signed Q value (``width`` bits, ``frac_bits`` fraction bits).
 
     Input ``{a}``, output ``{r, overflow}``.  Stages: unpack and shift amount,
-    shift (with round and sticky bits), round, saturate and negate.
+    shift decoding, left shift, right shift (with round and sticky bits),
+    round, saturate and negate.
     """
 
-    LATENCY = 4
+    LATENCY = 6
     THROUGHPUT = 1.0
 
     def __init__(self, width: int = 32, frac_bits: int = 16):
@@ -134,25 +135,39 @@ class Fp32ToFixed(wiring.Component):
         a = unpack(m, self.i.payload.a, "a")
         # value = mant * 2**sh; t = mant * 2**(sh + 2) keeps a round bit and one
         # more bit below the integer point, the rest goes to sticky.
-        sh = Signal(signed(11))
-        m.d.comb += sh.eq(a.exp - 150 + self.frac_bits)
+        sh2 = Signal(signed(12))  # sh + 2
+        m.d.comb += sh2.eq(a.exp - 148 + self.frac_bits)
+        s0_sh2 = p.reg(sh2, "s0_sh2")
+        s0_m = p.reg(a.mant, "s0_m")
+        s0_neg = p.reg(a.sign, "s0_neg", reset=True)
+        s0_kind = p.reg(Cat(a.nan, a.inf, a.zero), "s0_kind", reset=True)
+
         # value >= 2**(23 + sh) > 2**w whenever sh > w - 23: always saturates.
-        big = sh > w - 23
+        sh2 = s0_sh2
+        big = sh2 > w - 21
         left = Signal(range(max(2, w - 20)))  # sh + 2 in [0, w - 21] (0 if w < 21)
-        right = Signal(range(27))         # -(sh + 2) clamped to 26 (t = 0 then)
+        right = Signal(range(27))             # -(sh + 2) clamped to 26 (t = 0 then)
         m.d.comb += [
-            left.eq(Mux((sh + 2 >= 0) & ~big, sh + 2, 0)),
-            right.eq(Mux(sh + 2 >= 0, 0, Mux(-(sh + 2) > 26, 26, -(sh + 2)))),
+            left.eq(Mux((sh2 >= 0) & ~big, sh2, 0)),
+            right.eq(Mux(sh2 >= 0, 0, Mux(sh2 < -26, 26, -sh2))),
         ]
-        s1_m = p.reg(a.mant, "s1_m")
+        nan, inf, zero = s0_kind[0], s0_kind[1], s0_kind[2]
+        s1_m = p.reg(s0_m, "s1_m")
         s1_left = p.reg(left, "s1_left")
         s1_right = p.reg(right, "s1_right")
-        s1_neg = p.reg(a.sign, "s1_neg")
-        s1_kind = p.reg(Cat(a.nan, a.inf | big & ~a.nan, a.zero), "s1_kind")
+        s1_neg = p.reg(s0_neg, "s1_neg", reset=True)
+        s1_kind = p.reg(Cat(nan, inf | big & ~nan, zero), "s1_kind", reset=True)
 
         tw = max(w + 3, 24)  # t < 2**(24 + w - 21), or < 2**24 for small w
+        # Left and right shifts in separate stages (at most one of them is non-zero).
+        ml = p.reg(s1_m << s1_left, "s1b_ml", unsigned(tw))
+        s1b_m = p.reg(s1_m, "s1b_m")
+        s1b_right = p.reg(s1_right, "s1b_right")
+        s1b_neg = p.reg(s1_neg, "s1b_neg", reset=True)
+        s1b_kind = p.reg(s1_kind, "s1b_kind", reset=True)
+        s1_m, s1_right, s1_neg, s1_kind = s1b_m, s1b_right, s1b_neg, s1b_kind
         t = Signal(tw)
-        m.d.comb += t.eq((s1_m << s1_left) >> s1_right)
+        m.d.comb += t.eq(ml >> s1_right)
         # Bits shifted out on the right: mant[0:right] has a one iff the count of
         # trailing zeros of mant is below right.
         _, tz = leading_zeros(s1_m[::-1])

@@ -12,15 +12,15 @@ produced one per pipeline stage by ``r >= d ? (q=1, r -= d) : q=0; r <<= 1``.
 The final remainder is non-zero exactly when the discarded tail of the
 quotient is, which gives the sticky bit for round-to-nearest-even.
 
-Latency 28 cycles (1 unpack + 25 recurrence + 1 sticky + 1 round), one result
-per cycle.
+Latency 30 cycles (1 unpack + 1 pre-normalise + 25 recurrence + 1 sticky + 2
+round), one result per cycle.
 """
 
 from amaranth.hdl import C, Cat, Module, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from ._common import QNAN, Pipe, round_pack, unpack
+from ._common import QNAN, Pipe, round_split, unpack
 
 __all__ = ["Fp32Div"]
 
@@ -29,7 +29,7 @@ class Fp32Div(wiring.Component):
     """Float32 divide ``r = a / b``; input ``{a, b}``, output ``{r}``."""
 
     QUOTIENT_BITS = 25
-    LATENCY = QUOTIENT_BITS + 3
+    LATENCY = QUOTIENT_BITS + 5
     THROUGHPUT = 1.0
     IN_LAYOUT = data.StructLayout({"a": unsigned(32), "b": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
@@ -44,23 +44,31 @@ class Fp32Div(wiring.Component):
         m = Module()
         p = Pipe(m, self.i, self.o, self.LATENCY)
 
-        # ---- stage 1: unpack, special cases, pre-normalise ------------------------
+        # ---- stage 1: unpack, special cases ------------------------
         a = unpack(m, self.i.payload.a, "a")
         b = unpack(m, self.i.payload.b, "b")
         sign = a.sign ^ b.sign
         nan = a.nan | b.nan | (a.inf & b.inf) | (a.zero & b.zero)
         inf = a.inf | b.zero  # (nan has priority)
         zero = a.zero | b.inf
-        shift = a.mant < b.mant
         exp = Signal(signed(10))
-        m.d.comb += exp.eq(a.exp - b.exp + 127 - shift)
-        r = p.reg(a.mant << shift, "s1_r", unsigned(25))
-        d = p.reg(b.mant, "s1_d")
-        e = p.reg(exp, "s1_exp")
-        s = p.reg(sign, "s1_sign")
-        kind = p.reg(Cat(nan, inf, zero), "s1_kind")
+        m.d.comb += exp.eq(a.exp - b.exp + 127)  # the "- shift" follows in stage 3
+        s0_ma = p.reg(a.mant, "s0_ma")
+        s0_mb = p.reg(b.mant, "s0_mb")
+        s0_e = p.reg(exp, "s0_exp", reset=True)
+        s0_s = p.reg(sign, "s0_sign", reset=True)
+        s0_kind = p.reg(Cat(nan, inf, zero), "s0_kind", reset=True)
 
-        # ---- stages 2..26: one quotient bit per stage --------------------------------
+        # ---- stage 2: pre-normalise the dividend --------------------------------------------
+        shift = s0_ma < s0_mb
+        r = p.reg(s0_ma << shift, "s1_r", unsigned(25))
+        d = p.reg(s0_mb, "s1_d")
+        s1_shift = p.reg(shift, "s1_shift")
+        e = p.reg(s0_e, "s1_exp", reset=True)
+        s = p.reg(s0_s, "s1_sign", reset=True)
+        kind = p.reg(s0_kind, "s1_kind", reset=True)
+
+        # ---- stages 3..27: one quotient bit per stage --------------------------------
         q = None
         for k in range(self.QUOTIENT_BITS):
             diff = Signal(26, name=f"q{k}_diff")
@@ -75,9 +83,9 @@ class Fp32Div(wiring.Component):
             r = p.reg(nxt, f"q{k}_r", unsigned(25))
             if k != self.QUOTIENT_BITS - 1:
                 d = p.reg(d, f"q{k}_d")
-            e = p.reg(e, f"q{k}_exp")
-            s = p.reg(s, f"q{k}_sign")
-            kind = p.reg(kind, f"q{k}_kind")
+            e = p.reg(e - s1_shift if k == 0 else e, f"q{k}_exp", signed(10), reset=True)
+            s = p.reg(s, f"q{k}_sign", reset=True)
+            kind = p.reg(kind, f"q{k}_kind", reset=True)
 
         # ---- sticky stage: the remainder is non-zero iff the quotient's tail is ---------
         # q[24] == 1 (quotient in [1, 2)); significand q[1:25], round bit q[0].
@@ -88,8 +96,10 @@ class Fp32Div(wiring.Component):
         s = p.reg(s, "f_sign")
         kind = p.reg(kind, "f_kind")
 
-        # ---- last stage: round, range check, pack --------------------------------------
-        rounded = round_pack(m, s, e, f_mant, f_rnd, f_st)
+        # ---- last two stages: round, range check, pack ----------------------------------
+        rounded = round_split(m, p, s, e, f_mant, f_rnd, f_st)
+        kind = p.reg(kind, "g_kind", reset=True)
+        s = p.reg(s, "g_sign", reset=True)
         result = Signal(32)
         with m.If(kind[0]):
             m.d.comb += result.eq(QNAN)

@@ -14,7 +14,7 @@ stage: bring down the next bit pair, ``rem = 4*rem + pair``; if
 remainder is non-zero exactly when the root has a non-zero tail, giving the
 sticky bit for round-to-nearest-even.
 
-Latency 28 cycles (1 unpack + 25 recurrence + 1 sticky + 1 round), one result
+Latency 29 cycles (1 unpack + 25 recurrence + 1 sticky + 2 round), one result
 per cycle.
 """
 
@@ -22,7 +22,7 @@ from amaranth.hdl import C, Cat, Module, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from ._common import QNAN, Pipe, round_pack, unpack
+from ._common import QNAN, Pipe, round_split, unpack
 
 __all__ = ["Fp32Sqrt"]
 
@@ -31,7 +31,7 @@ class Fp32Sqrt(wiring.Component):
     """Float32 square root ``r = sqrt(a)``; input ``{a}``, output ``{r}``."""
 
     ROOT_BITS = 25
-    LATENCY = ROOT_BITS + 3
+    LATENCY = ROOT_BITS + 4
     THROUGHPUT = 1.0
     IN_LAYOUT = data.StructLayout({"a": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
@@ -93,9 +93,9 @@ class Fp32Sqrt(wiring.Component):
                 rest = p.reg(rest_next, f"r{k}_rest")
             else:
                 rest = C(0, 0)
-            e = p.reg(e, f"r{k}_exp")
-            s = p.reg(s, f"r{k}_sign")
-            kind = p.reg(kind, f"r{k}_kind")
+            e = p.reg(e, f"r{k}_exp", reset=True)
+            s = p.reg(s, f"r{k}_sign", reset=True)
+            kind = p.reg(kind, f"r{k}_kind", reset=True)
 
         # ---- sticky stage: the remainder is non-zero iff the root's tail is ---------------
         f_mant = p.reg(root[1:25], "f_mant")
@@ -105,8 +105,10 @@ class Fp32Sqrt(wiring.Component):
         s = p.reg(s, "f_sign")
         kind = p.reg(kind, "f_kind")
 
-        # ---- last stage: round (a root never overflows or underflows), pack ----------------
-        rounded = round_pack(m, s, e, f_mant, f_rnd, f_st)
+        # ---- last two stages: round (a root never overflows or underflows), pack --------
+        rounded = round_split(m, p, s, e, f_mant, f_rnd, f_st)
+        kind = p.reg(kind, "g_kind", reset=True)
+        s = p.reg(s, "g_sign", reset=True)
         result = Signal(32)
         with m.If(kind[0]):
             m.d.comb += result.eq(QNAN)
