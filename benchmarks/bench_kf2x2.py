@@ -22,7 +22,13 @@ from navgate.gateware.kf2x2.top import Kf2x2
 from navgate.hw.synth import synthesize, timing_ecp5
 from navgate.hw.verilog import emit_verilog
 from navgate.numerics.kf2x2 import (
-    KfParams, init_state, quantize_frames, rlc_scenario, run_frames, run_frames_float)
+    KfParams,
+    init_state,
+    quantize_frames,
+    rlc_scenario,
+    run_frames,
+    run_frames_float,
+)
 
 SIG_P, SIG_M = 0.1, 1.0
 

@@ -7,12 +7,24 @@ from amaranth.sim import Simulator
 
 from navgate.gateware.kf2x2.modules import KfModule
 from navgate.gateware.kf2x2.schedule import (
-    ALU_UNITS, MUL_UNITS, SEED_WINDOWS, build_schedule, divider_latency)
+    ALU_UNITS,
+    MUL_UNITS,
+    SEED_WINDOWS,
+    build_schedule,
+    divider_latency,
+)
 from navgate.gateware.kf2x2.sim import verify_frames
 from navgate.gateware.kf2x2.top import GAIN_NAMES, INIT_NAMES, Kf2x2, ModuleHarness
 from navgate.numerics.kf2x2 import (
-    FRAME_INPUTS, MODULES, STATE_NAMES, KfParams, init_state, quantize_frames, rlc_scenario,
-    run_frame)
+    FRAME_INPUTS,
+    MODULES,
+    STATE_NAMES,
+    KfParams,
+    init_state,
+    quantize_frames,
+    rlc_scenario,
+    run_frame,
+)
 
 P = KfParams()
 
@@ -212,10 +224,18 @@ def _check_rlc(res, sc, p=P):
     assert np.all(err < meas)
 
 
+def test_rlc_1000_frames_amaranth():
+    """Closed-loop RLC (seed's tb_top_kf_manyframes_rlc) in Amaranth's simulator, 1000
+    frames with the noise step at frame 500 (about 17 s; the full 4000 frames are the slow
+    test below, about 65 s, and the Verilator test): zero mismatches, 34 cycles every frame,
+    estimate error below the measurement noise."""
+    sc, st, frames = _rlc_frames(1000)
+    res = verify_frames(P, st, frames, backend="amaranth", adapt_q=False, keep_outputs=True)
+    _check_rlc(res, sc)
+
+
+@pytest.mark.slow
 def test_rlc_4000_frames_amaranth():
-    """Closed-loop RLC (seed's tb_top_kf_manyframes_rlc): 4000 frames in Amaranth's
-    simulator with the measurement-noise step at frame 2000 (about 65 s), zero mismatches,
-    34 cycles every frame, estimate error below the measurement noise."""
     sc, st, frames = _rlc_frames(4000)
     res = verify_frames(P, st, frames, backend="amaranth", adapt_q=False, keep_outputs=True)
     _check_rlc(res, sc)
@@ -227,3 +247,12 @@ def test_rlc_4000_frames_verilator():
     sc, st, frames = _rlc_frames(4000)
     res = verify_frames(P, st, frames, backend="verilator", adapt_q=False, keep_outputs=True)
     _check_rlc(res, sc)
+
+
+def test_pipelined_multiplier_tradeoff_figures():
+    """The frame lengths quoted in docs/seed004-kf2x2.md for pipelined multipliers (same
+    units, no seed windows), exact cycle counts of the list scheduler."""
+    from navgate.gateware.kf2x2.schedule import min_frame_cycles
+
+    got = [min_frame_cycles(P, mul_latency=L) for L in (1, 2, 3)]
+    assert got == [26, 35, 44]

@@ -75,7 +75,13 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out_dir, quiet):
     from rich.table import Table
 
     from navgate.numerics.kf2x2 import (
-        KfParams, init_state, quantize_frames, rlc_scenario, run_frames, run_frames_float)
+        KfParams,
+        init_state,
+        quantize_frames,
+        rlc_scenario,
+        run_frames,
+        run_frames_float,
+    )
 
     console = Console(stderr=True, quiet=quiet)
     if not 10 <= frames <= 100_000:

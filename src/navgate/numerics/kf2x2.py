@@ -41,12 +41,16 @@ covariances (the seed names ``subsystem_eq1`` without equations; the scheme is a
 fading-memory covariance matching estimator, Sage and Husa 1969 / Myers and Tapley 1976
 for R, Mohamed and Schwarz 1999 / Akhlaghi et al. 2017 for Q, weights 2**-shift):
 
-* R (diagonal, one ``subsystem_eq1`` per measurement): ``R_ii += (|e_i^2 - (H Pp H^T)_ii|
-  - R_ii) >> r_shift``; R_01 is kept. The absolute value (the seed's ``fxp_abs``) keeps R
-  non-negative (the "improved Sage-Husa" form).
-* Q: ``Q_ij += (dq_i dq_j - Q_ij) >> q_shift`` with dq the previous frame's correction
-  K e = x+ - xp (the seed's Q slot, C10-C12, lies before this frame's K exists).
+* R (diagonal, one ``subsystem_eq1`` per measurement): ``R_ii <- (R_ii - R_ii >> r_shift)
+  + |ep_i^2 - gp_ii| >> r_shift``, ep the previous frame's innovation and gp the previous
+  frame's diagonal of H Pp H^T; R_01 is kept. The absolute value (the seed's ``fxp_abs``)
+  keeps R non-negative (the "improved Sage-Husa" form).
+* Q: ``Q_ij <- (Q_ij - Q_ij >> q_shift) + (dq_i dq_j) >> q_shift`` with dq the previous
+  frame's correction K e = x+ - xp.
 
+The previous frame's quantities are used because the seed's Q and R slots (C10-C12,
+C12-C14) lie before this frame's K (C24) and H Pp H^T (C14) exist; with a memory of
+2**shift = 32 frames the one-frame lag is immaterial (docs/seed004-kf2x2.md).
 Both are computed every frame and committed at the end of the frame only when the frame's
 ``adapt_q`` / ``adapt_r`` input is set (otherwise Q and R stay as they are).
 """

@@ -41,7 +41,8 @@ from dataclasses import dataclass
 from navgate.numerics.kf2x2 import FRAME_INPUTS, MODULES, STATE_NAMES, KfParams, Op, frame_program
 
 __all__ = ["ScheduleError", "Scheduled", "Schedule", "build_schedule", "SEED_WINDOWS",
-           "MUL_UNITS", "ALU_UNITS", "FRAME_CYCLES", "DIV_MUL_UNIT", "divider_latency"]
+           "MUL_UNITS", "ALU_UNITS", "FRAME_CYCLES", "DIV_MUL_UNIT", "divider_latency",
+           "min_frame_cycles"]
 
 #: seed 004's Gantt chart: module -> (first cycle, last cycle)
 SEED_WINDOWS = {
@@ -102,21 +103,32 @@ class Schedule:
 
     def table(self) -> str:
         """Gantt table: one row per cycle with the ops issued on each unit."""
-        rows = []
-        for c in range(FRAME_CYCLES):
-            here = sorted((s for s in self.ops if s.cycle == c),
-                          key=lambda s: (s.unit, s.index))
-            rows.append(f"C{c:<3d} " + "  ".join(f"{s.unit}{s.index}:{s.op.name}" for s in here))
-        return "\n".join(rows)
+        k = self.params.div_iterations
+        cells: dict[int, list[tuple[str, int, str]]] = {c: [] for c in range(FRAME_CYCLES)}
+        for s in self.ops:
+            cells[s.cycle].append((s.unit, s.index, s.op.name))
+            if s.unit == "div":
+                for t in range(2 * k):
+                    cells[s.cycle + 2 + t].append(("mul", DIV_MUL_UNIT, f"({s.op.name})"))
+        return "\n".join(f"C{c:<3d} " + "  ".join(f"{u}{i}:{name}" for u, i, name in
+                                                   sorted(cells[c]))
+                         for c in range(FRAME_CYCLES))
 
 
-def build_schedule(params: KfParams = KfParams(), program: list[Op] | None = None,
-                   windows: dict | None = None, check: bool = True) -> Schedule:
+def build_schedule(params: KfParams | None = None, program: list[Op] | None = None,
+                   windows: dict | None = None, check: bool = True, mul_latency: int = 1,
+                   frame_cycles: int = FRAME_CYCLES) -> Schedule:
+    """Schedule the frame program. ``mul_latency`` > 1 (pipelined multipliers, one issue
+    per cycle) and ``frame_cycles`` are for the trade-off analysis of
+    :func:`min_frame_cycles` only; the gateware implements ``mul_latency = 1``."""
+    params = KfParams() if params is None else params
     prog = frame_program(params) if program is None else program
     windows = SEED_WINDOWS if windows is None else windows
-    dl = divider_latency(params)
     k = params.div_iterations
-    lat = {o.name: (dl if o.kind == "recip" else 1) for o in prog}
+    dl = 4 + 2 * k * mul_latency
+    div_offsets = [2 + i * mul_latency for i in range(2 * k)]
+    lat = {o.name: (dl if o.kind == "recip" else mul_latency if o.kind == "mul" else 1)
+           for o in prog}
     producers = {o.name: o for o in prog}
     for o in prog:
         for d in o.deps:
@@ -138,7 +150,7 @@ def build_schedule(params: KfParams = KfParams(), program: list[Op] | None = Non
     busy: set[tuple[str, int, int]] = set()
     placed: list[Scheduled] = []
     todo = list(prog)
-    for c in range(FRAME_CYCLES):
+    for c in range(frame_cycles):
         cands = [o for o in todo
                  if windows[o.module][0] <= c
                  and all(ready_at.get(d, 0 if d not in producers else 10**9) <= c
@@ -147,7 +159,7 @@ def build_schedule(params: KfParams = KfParams(), program: list[Op] | None = Non
         for o in cands:
             unit = UNIT_OF_KIND[o.kind]
             if unit == "div":
-                need = [("mul", DIV_MUL_UNIT, c + 2 + t) for t in range(2 * k)]
+                need = [("mul", DIV_MUL_UNIT, c + t) for t in div_offsets]
                 if ("div", 0, c) in busy or any(n in busy for n in need):
                     continue
                 for t in range(dl):
@@ -165,7 +177,7 @@ def build_schedule(params: KfParams = KfParams(), program: list[Op] | None = Non
             placed.append(Scheduled(o, c, unit, index, c + lat[o.name]))
             todo.remove(o)
     if todo:
-        raise ScheduleError(f"{len(todo)} operations do not fit in {FRAME_CYCLES} cycles: "
+        raise ScheduleError(f"{len(todo)} operations do not fit in {frame_cycles} cycles: "
                             f"{', '.join(o.name for o in todo[:8])}")
     got = {}
     for module in MODULES:
@@ -177,5 +189,23 @@ def build_schedule(params: KfParams = KfParams(), program: list[Op] | None = Non
         if check and (first < lo or last > hi):
             raise ScheduleError(f"{module} occupies C{first}-C{last}, outside its window "
                                 f"C{lo}-C{hi}")
+    if max(s.ready for s in placed) > frame_cycles:
+        raise ScheduleError(f"results are not ready within {frame_cycles} cycles")
     placed.sort(key=lambda s: (s.cycle, s.unit, s.index))
     return Schedule(params, placed, got)
+
+
+def min_frame_cycles(params: KfParams | None = None, mul_latency: int = 1) -> int:
+    """Shortest frame (cycles from start to the last result, done included) that the list
+    scheduler finds with the same units and no module windows, for multipliers pipelined
+    ``mul_latency`` deep: the cost in cycles of a faster clock (docs/seed004-kf2x2.md)."""
+    params = KfParams() if params is None else params
+    for cycles in range(8, 200):
+        windows = {m: (0, cycles - 1) for m in SEED_WINDOWS}
+        try:
+            build_schedule(params, windows=windows, mul_latency=mul_latency,
+                           frame_cycles=cycles)
+        except ScheduleError:
+            continue
+        return cycles
+    raise ScheduleError("no schedule under 200 cycles")

@@ -30,7 +30,13 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.kf2x2.modules import KfModule
 from navgate.gateware.kf2x2.schedule import (
-    ALU_UNITS, DIV_MUL_UNIT, FRAME_CYCLES, MUL_UNITS, SEED_WINDOWS, build_schedule)
+    ALU_UNITS,
+    DIV_MUL_UNIT,
+    FRAME_CYCLES,
+    MUL_UNITS,
+    SEED_WINDOWS,
+    build_schedule,
+)
 from navgate.gateware.kf2x2.units import GoldschmidtSerial, q_alu, q_mul
 from navgate.numerics.kf2x2 import COMMIT, FRAME_INPUTS, MODULES, STATE_NAMES, KfParams
 
@@ -150,7 +156,6 @@ class Kf2x2(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        n = self.n
         last = FRAME_CYCLES - 1
         cyc = Signal(range(FRAME_CYCLES))
         go = Signal()
@@ -279,8 +284,8 @@ class ModuleHarness(wiring.Component):
     ports ``start``, ``done``, ``i_*``, ``o_*`` plus ``overflow`` (an issued operation
     saturated in this cycle)."""
 
-    def __init__(self, module: str, params: KfParams = KfParams()):
-        self.params = params
+    def __init__(self, module: str, params: KfParams | None = None):
+        self.params = params = KfParams() if params is None else params
         self.schedule = build_schedule(params)
         self.mod = KfModule(self.schedule, module)
         n = params.n
