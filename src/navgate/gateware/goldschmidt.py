@@ -52,7 +52,7 @@ from navgate.numerics.goldschmidt import goldschmidt_seed_table
 __all__ = ["GoldschmidtDivider", "GoldschmidtReciprocal"]
 
 
-def _leading_one(m: Module, value, name: str) -> tuple[Signal, Signal]:
+def leading_one(m: Module, value, name: str) -> tuple[Signal, Signal]:
     """Position ``p`` of the highest set bit of ``value`` (0 when ``value`` is 0) and the
     leading-zero count ``len(value) - 1 - p``."""
     w = len(value)
@@ -128,7 +128,7 @@ class _GoldschmidtBase(wiring.Component):
         d = self.i.payload.d
         d_zero = d == 0
         a = Mux(d_zero, 1, Mux(d[-1], -d, d))[:w]  # |min_int| = 2**(w-1) fits in w bits
-        pd, lzd = _leading_one(m, a, "pd")
+        pd, lzd = leading_one(m, a, "pd")
         Dn = reg(unsigned(F), "D_norm")
         # D = a << (F - 1 - p), as (a << (w - 1 - p)) << (F - w)
         d_norm = (a << lzd)[:w] << (F - w)
@@ -140,7 +140,7 @@ class _GoldschmidtBase(wiring.Component):
             n = self.i.payload.n
             n_zero = n == 0
             b = Mux(n_zero, 1, Mux(n[-1], -n, n))[:w]
-            pn, lzn = _leading_one(m, b, "pn")
+            pn, lzn = leading_one(m, b, "pn")
             Nn = reg(unsigned(F + 1), "N_norm")
             s1 = [neg[0].eq(n[-1] ^ d[-1]), dzero[0].eq(d_zero), nzero[0].eq(n_zero),
                   shift[0].eq(pn - pd + frac - F), Dn.eq(d_norm),

