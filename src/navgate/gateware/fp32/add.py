@@ -25,15 +25,14 @@ goal on the ECP5 proxy).
 """
 
 from amaranth.hdl import C, Cat, Module, Mux, Signal, signed, unsigned
-from amaranth.lib import data, stream, wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.lib import data
 
-from ._common import QNAN, Pipe, leading_zeros, round_split, unpack
+from ._common import QNAN, Pipe, StreamOp, leading_zeros, round_split, unpack
 
 __all__ = ["Fp32Add"]
 
 
-class Fp32Add(wiring.Component):
+class Fp32Add(StreamOp):
     """Float32 add/subtract: ``r = a + b`` (``sub == 0``) or ``r = a - b`` (``sub == 1``).
 
     Input payload ``{a, b, sub}``, output payload ``{r}``.
@@ -43,12 +42,6 @@ class Fp32Add(wiring.Component):
     THROUGHPUT = 1.0
     IN_LAYOUT = data.StructLayout({"a": unsigned(32), "b": unsigned(32), "sub": unsigned(1)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
-
-    def __init__(self):
-        super().__init__({
-            "i": In(stream.Signature(self.IN_LAYOUT)),
-            "o": Out(stream.Signature(self.OUT_LAYOUT)),
-        })
 
     def elaborate(self, platform):
         m = Module()

@@ -7,15 +7,14 @@ output bit is set per result.
 """
 
 from amaranth.hdl import Cat, Module, Mux, unsigned
-from amaranth.lib import data, stream, wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.lib import data
 
-from ._common import Pipe, unpack
+from ._common import Pipe, StreamOp, unpack
 
 __all__ = ["Fp32Compare"]
 
 
-class Fp32Compare(wiring.Component):
+class Fp32Compare(StreamOp):
     """Compare ``a`` with ``b``; input ``{a, b}``, output ``{lt, equal, gt, unordered}``.
 
     The model's ``eq`` is called ``equal`` here: a layout field named ``eq``
@@ -27,12 +26,6 @@ class Fp32Compare(wiring.Component):
     IN_LAYOUT = data.StructLayout({"a": unsigned(32), "b": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"lt": unsigned(1), "equal": unsigned(1), "gt": unsigned(1),
                                     "unordered": unsigned(1)})
-
-    def __init__(self):
-        super().__init__({
-            "i": In(stream.Signature(self.IN_LAYOUT)),
-            "o": Out(stream.Signature(self.OUT_LAYOUT)),
-        })
 
     def elaborate(self, platform):
         m = Module()

@@ -16,16 +16,15 @@ Latency 30 cycles (1 unpack + 1 pre-normalise + 25 recurrence + 1 sticky + 2
 round), one result per cycle.
 """
 
-from amaranth.hdl import C, Cat, Module, Signal, signed, unsigned
-from amaranth.lib import data, stream, wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.hdl import Cat, Module, Signal, signed, unsigned
+from amaranth.lib import data
 
-from ._common import QNAN, Pipe, round_split, unpack
+from ._common import Pipe, StreamOp, round_split, select_special, unpack
 
 __all__ = ["Fp32Div"]
 
 
-class Fp32Div(wiring.Component):
+class Fp32Div(StreamOp):
     """Float32 divide ``r = a / b``; input ``{a, b}``, output ``{r}``."""
 
     QUOTIENT_BITS = 25
@@ -33,12 +32,6 @@ class Fp32Div(wiring.Component):
     THROUGHPUT = 1.0
     IN_LAYOUT = data.StructLayout({"a": unsigned(32), "b": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
-
-    def __init__(self):
-        super().__init__({
-            "i": In(stream.Signature(self.IN_LAYOUT)),
-            "o": Out(stream.Signature(self.OUT_LAYOUT)),
-        })
 
     def elaborate(self, platform):
         m = Module()
@@ -100,16 +93,7 @@ class Fp32Div(wiring.Component):
         rounded = round_split(m, p, s, e, f_mant, f_rnd, f_st)
         kind = p.reg(kind, "g_kind", reset=True)
         s = p.reg(s, "g_sign", reset=True)
-        result = Signal(32)
-        with m.If(kind[0]):
-            m.d.comb += result.eq(QNAN)
-        with m.Elif(kind[1]):
-            m.d.comb += result.eq(Cat(C(0, 23), C(0xFF, 8), s))
-        with m.Elif(kind[2]):
-            m.d.comb += result.eq(Cat(C(0, 31), s))
-        with m.Else():
-            m.d.comb += result.eq(rounded)
-        out = p.reg(result, "out_r")
+        out = p.reg(select_special(m, kind, s, rounded), "out_r")
         m.d.comb += self.o.payload.r.eq(out)
 
         p.finish()

@@ -15,28 +15,21 @@ product sum, 4 normalise (product in [1, 4)), 5 round to nearest even, range
 check and pack.
 """
 
-from amaranth.hdl import C, Cat, Module, Mux, Signal, signed, unsigned
-from amaranth.lib import data, stream, wiring
-from amaranth.lib.wiring import In, Out
+from amaranth.hdl import Cat, Module, Mux, Signal, signed, unsigned
+from amaranth.lib import data
 
-from ._common import QNAN, Pipe, round_pack, unpack
+from ._common import Pipe, StreamOp, round_pack, select_special, unpack
 
 __all__ = ["Fp32Mul"]
 
 
-class Fp32Mul(wiring.Component):
+class Fp32Mul(StreamOp):
     """Float32 multiply ``r = a * b``; input ``{a, b}``, output ``{r}``."""
 
     LATENCY = 5
     THROUGHPUT = 1.0
     IN_LAYOUT = data.StructLayout({"a": unsigned(32), "b": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
-
-    def __init__(self):
-        super().__init__({
-            "i": In(stream.Signature(self.IN_LAYOUT)),
-            "o": Out(stream.Signature(self.OUT_LAYOUT)),
-        })
 
     def elaborate(self, platform):
         m = Module()
@@ -86,16 +79,7 @@ class Fp32Mul(wiring.Component):
 
         # ---- stage 5: round, range check, special cases, pack -----------------------------
         rounded = round_pack(m, s4_sign, s4_exp, s4_mant, s4_rnd, s4_st)
-        result = Signal(32)
-        with m.If(s4_kind[0]):
-            m.d.comb += result.eq(QNAN)
-        with m.Elif(s4_kind[1]):
-            m.d.comb += result.eq(Cat(C(0, 23), C(0xFF, 8), s4_sign))
-        with m.Elif(s4_kind[2]):
-            m.d.comb += result.eq(Cat(C(0, 31), s4_sign))
-        with m.Else():
-            m.d.comb += result.eq(rounded)
-        r = p.reg(result, "s5_r")
+        r = p.reg(select_special(m, s4_kind, s4_sign, rounded), "s5_r")
         m.d.comb += self.o.payload.r.eq(r)
 
         p.finish()
