@@ -17,7 +17,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 __all__ = ["QNAN", "Pipe", "StreamOp", "unpack", "leading_zeros", "round_pack", "round_split",
-           "select_special"]
+           "select_special", "finish_recurrence"]
 
 QNAN = 0x7FC00000
 
@@ -203,3 +203,24 @@ def select_special(m: Module, kind, sign, rounded, name: str = "sel"):
     with m.Else():
         m.d.comb += result.eq(rounded)
     return result
+
+
+def finish_recurrence(m: Module, p: Pipe, digits, remainder, exp, sign, kind, out_payload):
+    """Common tail of the digit-recurrence cores (divide, square root).
+
+    ``digits`` holds 25 result bits with the leading one at bit 24: the significand is
+    ``digits[1:25]``, the round bit ``digits[0]``, and the sticky bit is set iff the final
+    ``remainder`` is non-zero. One sticky stage, the two stages of :func:`round_split`, then
+    the special-case selection, registered into ``out_payload``.
+    """
+    f_mant = p.reg(digits[1:25], "f_mant")
+    f_rnd = p.reg(digits[0], "f_rnd")
+    f_st = p.reg(remainder != 0, "f_st")
+    exp = p.reg(exp, "f_exp")
+    sign = p.reg(sign, "f_sign")
+    kind = p.reg(kind, "f_kind")
+    rounded = round_split(m, p, sign, exp, f_mant, f_rnd, f_st)
+    kind = p.reg(kind, "g_kind", reset=True)
+    sign = p.reg(sign, "g_sign", reset=True)
+    out = p.reg(select_special(m, kind, sign, rounded), "out_r")
+    m.d.comb += out_payload.eq(out)

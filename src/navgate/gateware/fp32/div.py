@@ -19,7 +19,7 @@ round), one result per cycle.
 from amaranth.hdl import Cat, Module, Signal, signed, unsigned
 from amaranth.lib import data
 
-from ._common import Pipe, StreamOp, round_split, select_special, unpack
+from ._common import Pipe, StreamOp, finish_recurrence, unpack
 
 __all__ = ["Fp32Div"]
 
@@ -80,21 +80,8 @@ class Fp32Div(StreamOp):
             s = p.reg(s, f"q{k}_sign", reset=True)
             kind = p.reg(kind, f"q{k}_kind", reset=True)
 
-        # ---- sticky stage: the remainder is non-zero iff the quotient's tail is ---------
-        # q[24] == 1 (quotient in [1, 2)); significand q[1:25], round bit q[0].
-        f_mant = p.reg(q[1:25], "f_mant")
-        f_rnd = p.reg(q[0], "f_rnd")
-        f_st = p.reg(r != 0, "f_st")
-        e = p.reg(e, "f_exp")
-        s = p.reg(s, "f_sign")
-        kind = p.reg(kind, "f_kind")
-
-        # ---- last two stages: round, range check, pack ----------------------------------
-        rounded = round_split(m, p, s, e, f_mant, f_rnd, f_st)
-        kind = p.reg(kind, "g_kind", reset=True)
-        s = p.reg(s, "g_sign", reset=True)
-        out = p.reg(select_special(m, kind, s, rounded), "out_r")
-        m.d.comb += self.o.payload.r.eq(out)
+        # ---- sticky stage, round, range check, pack (q[24] == 1: quotient in [1, 2)) -----
+        finish_recurrence(m, p, q, r, e, s, kind, self.o.payload.r)
 
         p.finish()
         return m

@@ -21,7 +21,7 @@ per cycle.
 from amaranth.hdl import C, Cat, Module, Signal, signed, unsigned
 from amaranth.lib import data
 
-from ._common import Pipe, StreamOp, round_split, select_special, unpack
+from ._common import Pipe, StreamOp, finish_recurrence, unpack
 
 __all__ = ["Fp32Sqrt"]
 
@@ -90,20 +90,8 @@ class Fp32Sqrt(StreamOp):
             s = p.reg(s, f"r{k}_sign", reset=True)
             kind = p.reg(kind, f"r{k}_kind", reset=True)
 
-        # ---- sticky stage: the remainder is non-zero iff the root's tail is ---------------
-        f_mant = p.reg(root[1:25], "f_mant")
-        f_rnd = p.reg(root[0], "f_rnd")
-        f_st = p.reg(rem != 0, "f_st")
-        e = p.reg(e, "f_exp")
-        s = p.reg(s, "f_sign")
-        kind = p.reg(kind, "f_kind")
-
-        # ---- last two stages: round (a root never overflows or underflows), pack --------
-        rounded = round_split(m, p, s, e, f_mant, f_rnd, f_st)
-        kind = p.reg(kind, "g_kind", reset=True)
-        s = p.reg(s, "g_sign", reset=True)
-        out = p.reg(select_special(m, kind, s, rounded), "out_r")
-        m.d.comb += self.o.payload.r.eq(out)
+        # ---- sticky stage, round (a root never overflows or underflows), pack ------------
+        finish_recurrence(m, p, root, rem, e, s, kind, self.o.payload.r)
 
         p.finish()
         return m
