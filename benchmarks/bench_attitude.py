@@ -29,12 +29,12 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from navgate.attitude import mahony as ref
-from navgate.attitude import mahony_fp32 as bt
-from navgate.attitude import tinykalman as tk
-from navgate.attitude.complementary import complementary_batch
 from navgate.nav.rotations import dcm_to_euler_array, quat_to_dcm_array
 from navgate.numerics.fp32 import f32_to_bits
+from navgate.systems.attitude import mahony as ref
+from navgate.systems.attitude import mahony_fp32 as bt
+from navgate.systems.attitude.complementary import complementary_batch
+from navgate.systems.tinykalman import model as tk
 
 DEFAULT_LOG = Path(__file__).resolve().parents[2] / "shared" / "data" / "fusion_sensor_data.csv"
 
@@ -117,7 +117,7 @@ def ahrs_table(log_path, console):
     except ImportError:
         console.print("ahrs package not installed: comparison skipped")
         return None
-    from navgate.attitude.logio import read_imu_csv
+    from navgate.sim.imu_log import read_imu_csv
 
     if not Path(log_path).exists():
         console.print(f"{log_path} not found: comparison skipped")

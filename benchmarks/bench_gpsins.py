@@ -8,7 +8,7 @@ Usage: python benchmarks/bench_gpsins.py [--iterations 200000] [--repeat 5] [--s
 (``navgate gpsins --imu ...``) and prints the accuracy table of docs/seed002-gpsins.md:
 horizontal RMS of GPS-only and GPS/INS, their ratio (target <= 1/3), the pooled ratio
 sqrt(mean GPS/INS MS / mean GPS-only MS) over the seeds (the quantity the optimal-filter
-bound of navgate.gpsins.bound predicts: an expected mean square), the outage error, the
+bound of navgate.systems.gpsins.bound predicts: an expected mean square), the outage error, the
 3-sigma containment and NEES.
 
 Each row times a Numba loop of ``--iterations`` calls (best of ``--repeat``; compilation
@@ -35,9 +35,9 @@ from numba import njit
 from rich.console import Console
 from rich.table import Table
 
-from navgate.gpsins import filter as kf
-from navgate.gpsins import scenario
-from navgate.gpsins.ins import EARTH_WGS84, rk4_step
+from navgate.systems.gpsins import filter as kf
+from navgate.systems.gpsins import scenario
+from navgate.systems.gpsins.ins import EARTH_WGS84, rk4_step
 
 
 @njit(cache=True)

@@ -18,10 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from navgate.gateware.kf2x2.top import Kf2x2
 from navgate.hw.synth import synthesize, timing_ecp5
 from navgate.hw.verilog import emit_verilog
-from navgate.numerics.kf2x2 import (
+from navgate.systems.kf2x2.model import (
     KfParams,
     init_state,
     quantize_frames,
@@ -29,6 +28,7 @@ from navgate.numerics.kf2x2 import (
     run_frames,
     run_frames_float,
 )
+from navgate.systems.kf2x2.top import Kf2x2
 
 SIG_P, SIG_M = 0.1, 1.0
 

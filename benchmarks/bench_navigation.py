@@ -57,7 +57,7 @@ def main():
     run_filter()
     t_filt = best(run_filter, args.repeat)
 
-    from navgate.sim import flight
+    from navgate.systems.ins_trn import flight
     from navgate.trn.dem import Dem
 
     dem = Dem.default()

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from navgate.attitude.estimate import estimate_attitude
-from navgate.attitude.logio import LogError, read_imu_csv
+from navgate.sim.imu_log import LogError, read_imu_csv
+from navgate.systems.attitude.estimate import estimate_attitude
 
 DEFAULT = Path(__file__).resolve().parents[2] / "shared" / "data" / "fusion_sensor_data.csv"
 

@@ -186,7 +186,7 @@ def test_real_xio_log(tmp_path, capsys):
     still: |gyro| <= 1 deg/s) their roll and pitch equal the accelerometer tilt of that
     window to within 0.5 deg (the accelerometer noise is ~1e-3 g, i.e. 0.06 deg, and both
     filters start from it)."""
-    from navgate.attitude.logio import read_imu_csv
+    from navgate.sim.imu_log import read_imu_csv
 
     log = read_imu_csv(FUSION_CSV)
     assert log.style == "x-io" and len(log) > 10000 and log.mag is not None

@@ -32,6 +32,24 @@ def test_factories_build_documented_components(name):
     assert hasattr(component, "i") and hasattr(component, "o")
 
 
+def test_systems_publish_their_blocks_through_the_entry_point():
+    from navgate.hw.blocks import published_registries
+    from navgate.systems import BLOCKS
+
+    registries = published_registries()
+    assert registries["systems"] is BLOCKS
+    assert "kf2x2" in BLOCKS and "kf2x2" not in REGISTRY
+
+
+def test_a_block_registered_twice_is_an_error(monkeypatch):
+    from navgate.hw import blocks as hw_blocks
+
+    monkeypatch.setattr(hw_blocks, "published_registries",
+                        lambda: {"other": {"fixed_mul": ("x:y", "a second fixed_mul")}})
+    with pytest.raises(ValueError, match="'fixed_mul' is registered by both"):
+        hw_blocks.all_blocks()
+
+
 def test_unknown_block():
     with pytest.raises(KeyError, match="unknown block 'nope'"):
         get_block("nope")

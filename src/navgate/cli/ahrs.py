@@ -1,8 +1,8 @@
 """``navgate ahrs``: run an attitude filter (seed 003's Mahony or a complementary filter) over a
 real IMU log and write ``t qw qx qy qz roll_deg pitch_deg yaw_deg``.
 
-Input formats and error handling: :mod:`navgate.attitude.logio`; axes and filters:
-:mod:`navgate.attitude.estimate`. Bad input ends with one line on stderr and exit 2.
+Input formats and error handling: :mod:`navgate.sim.imu_log`; axes and filters:
+:mod:`navgate.systems.attitude.estimate`. Bad input ends with one line on stderr and exit 2.
 """
 
 from __future__ import annotations
@@ -49,8 +49,8 @@ def ahrs(input_csv, method, out_csv, kp, ki, gain, axes, no_mag, init, quiet):
     from rich.console import Console
     from rich.table import Table
 
-    from navgate.attitude.estimate import estimate_attitude
-    from navgate.attitude.logio import LogError, read_imu_csv, write_attitude_csv
+    from navgate.sim.imu_log import LogError, read_imu_csv, write_attitude_csv
+    from navgate.systems.attitude.estimate import estimate_attitude
 
     if method == "complementary" and gain > 1:
         raise CliError(f"--gain must be between 0 and 1, got {gain:g}")

@@ -46,7 +46,7 @@ def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, rang
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from navgate.sim import flight, report
+    from navgate.systems.ins_trn import flight, report
     from navgate.trn.dem import Dem, DemError
 
     console = Console(stderr=True, quiet=quiet)

@@ -3,8 +3,8 @@ GPS outage; GPS-only and GPS/INS side by side.
 
 Writes summary.json, trajectory.csv, gps.csv and errors.png into ``--out`` (same conventions
 as ``navgate fly``). Bad option values end with one line on stderr and exit 2. ``--imu``
-picks the IMU model (``navgate.gpsins.scenario.config_for_imu``); summary.json also carries
-the optimal-filter bound for that IMU (``navgate.gpsins.bound``), which tells whether the
+picks the IMU model (``navgate.systems.gpsins.scenario.config_for_imu``); summary.json also carries
+the optimal-filter bound for that IMU (``navgate.systems.gpsins.bound``), which tells whether the
 one-third RMS target is reachable with it at all.
 """
 
@@ -56,7 +56,7 @@ def gpsins(duration, seed, out_dir, outage_start, outage_length, rate_hz, gyro_n
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from navgate.gpsins import scenario
+    from navgate.systems.gpsins import scenario
 
     console = Console(stderr=True, quiet=quiet)
     if duration < 250:

@@ -2,7 +2,7 @@
 
 Runs the discretised RLC circuit (capacitor voltage, inductor current; both measured with
 noise whose standard deviation doubles half way through) through the bit-true model
-(:mod:`navgate.numerics.kf2x2`) and the float64 reference, and, with ``--engine amaranth``
+(:mod:`navgate.systems.kf2x2.model`) and the float64 reference, and, with ``--engine amaranth``
 or ``--engine verilator``, through the gateware (Amaranth simulator, or the emitted Verilog
 in Verilator via cocotb), counting mismatches against the bit-true model word by word.
 Writes ``summary.json``, ``frames.csv`` (truth, measurement, estimates, R estimate) and
@@ -74,7 +74,7 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out_dir, quiet):
     from rich.console import Console
     from rich.table import Table
 
-    from navgate.numerics.kf2x2 import (
+    from navgate.systems.kf2x2.model import (
         KfParams,
         init_state,
         quantize_frames,
@@ -118,7 +118,7 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out_dir, quiet):
     mismatches = None
     gate_seconds = None
     if engine != "model":
-        from navgate.gateware.kf2x2.sim import verify_frames
+        from navgate.systems.kf2x2.rtl_sim import verify_frames
 
         console.print(f"running {frames} frames on the gateware ({engine}) ...")
         res = verify_frames(params, st, qframes, adapt_q=adapt_q, backend=engine,

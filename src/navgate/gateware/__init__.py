@@ -1,4 +1,4 @@
-"""Amaranth 0.5 gateware of navgate, grouped by seed system.
+"""Amaranth 0.5 arithmetic cores shared by the seed systems, and the verification harness.
 
 * :mod:`navgate.gateware.fp32` - float32 cores (add/sub, mul, div, sqrt,
   compare, int/fixed conversions), bit-true to :mod:`navgate.numerics.fp32`;

@@ -5,9 +5,13 @@ one-line description. The factories are named as ``"module:attribute"`` strings 
 only when a block is built, so that ``navgate build --list`` stays fast and one broken core
 cannot hide the others.
 
-Adding a block is one line in :data:`REGISTRY`. The float32 cores are merged in from
-``navgate.gateware.fp32.BLOCKS`` (a ``name -> class`` dict kept by that package), their
-description being the first line of the class docstring.
+The shared cores are listed in :data:`REGISTRY` (one line each). The float32 cores are merged
+in from ``navgate.gateware.fp32.BLOCKS`` (a ``name -> class`` dict kept by that package), their
+description being the first line of the class docstring. The seed systems' designs are not
+known here (``hw`` is a shared library and imports no system): each package that has blocks
+publishes a registry of the same shape as :data:`REGISTRY` under the entry-point group
+``navgate.blocks`` (pyproject.toml; navgate's own systems publish ``navgate.systems:BLOCKS``),
+and :func:`all_blocks` merges every published registry.
 
 Every component built from here documents ``LATENCY`` (cycles from an accepted input to its
 result being valid, with the output ready) and ``THROUGHPUT`` (results per cycle at steady
@@ -44,7 +48,6 @@ REGISTRY: dict[str, tuple[str, str]] = {
         "navgate.gateware.goldschmidt:GoldschmidtReciprocal",
         "Goldschmidt fixed-point reciprocal (seed 004), pipelined",
     ),
-    "kf2x2": ("navgate.gateware.kf2x2.top:Kf2x2", "seed 004 2x2 adaptive Kalman filter"),
     "fixed_mul": (
         "navgate.gateware.fixed:FixedMul",
         "signed Q-format multiplier: full product, truncated/saturated result, overflow flag",
@@ -53,6 +56,8 @@ REGISTRY: dict[str, tuple[str, str]] = {
 
 #: where the float32 cores keep their own registry (name -> class)
 FP32_MODULE = "navgate.gateware.fp32"
+#: entry-point group under which packages publish block registries shaped like REGISTRY
+ENTRY_POINT_GROUP = "navgate.blocks"
 
 
 @dataclass(frozen=True)
@@ -96,11 +101,29 @@ def _fp32_blocks() -> dict[str, Block]:
     }
 
 
+def published_registries() -> dict[str, dict[str, tuple[str, str]]]:
+    """The block registries published under :data:`ENTRY_POINT_GROUP`, by entry-point name."""
+    from importlib.metadata import entry_points
+
+    return {ep.name: ep.load() for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
 def all_blocks() -> dict[str, Block]:
-    """Every registered block, sorted by name (fp32 cores merged in)."""
+    """Every registered block, sorted by name (fp32 cores and published registries merged in).
+
+    A name published twice is an error (``ValueError`` naming both owners), so that one
+    registry can never silently shadow another's block.
+    """
     found: dict[str, Block] = dict(_fp32_blocks())
-    for name, (target, description) in REGISTRY.items():
-        found[name] = Block(name, _lazy_factory(target), description)
+    owners = dict.fromkeys(found, FP32_MODULE)
+    sources = {"navgate.hw.blocks": REGISTRY, **published_registries()}
+    for owner, registry in sources.items():
+        for name, (target, description) in registry.items():
+            if name in found:
+                raise ValueError(f"block {name!r} is registered by both {owners[name]} "
+                                 f"and {owner}")
+            found[name] = Block(name, _lazy_factory(target), description)
+            owners[name] = owner
     return {name: found[name] for name in sorted(found)}
 
 

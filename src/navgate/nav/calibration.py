@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from navgate.sim.sensors import ACCEL_LSB_M_S2, GYRO_LSB_RAD_S
+from navgate.devices.adis16500 import ACCEL_LSB_M_S2, GYRO_LSB_RAD_S
 
 
 @dataclass

@@ -1,17 +1,15 @@
-"""A GPS-denied flight over a DEM: route layout, sensor simulation, INS-only and INS+TRN runs.
+"""The GPS-denied flight scenario over a DEM: route layout, truth, sensor simulation, scoring.
 
-This is the scenario behind ``navgate fly`` (seed 000 "Data Flow", processor and FPGA
-sides together, in the float64 reference arithmetic):
+This is the scenario behind ``navgate fly`` (seed 000 "Data Flow"); the navigation that runs
+on it lives with seed 000's system in :mod:`navgate.systems.ins_trn`:
 
 1. :func:`plan_route` lays a closed circuit (four legs with coordinated turns, a climb, a
    descent and speed changes) inside the DEM's valid area, with a margin for the TRN
    search window, at a cruise altitude a clearance above the highest terrain under it.
 2. :func:`simulate_sensors` generates the truth at the IMU rate, error-free IMU readings
    consistent with it, and the sensor outputs: ADIS16500 words, BMP390 altitude, AGL ranges.
-3. :func:`run_navigation` runs the closed-loop INS + 15-state ESKF over the same sensor data,
-   with barometric altitude updates, and (unless disabled) the altitude profile buffer,
-   TERCOM correlator and seed-000 TRN position updates.
-4. :func:`fly` does all of it for INS-only and INS+TRN and scores both against truth.
+3. :func:`initial_estimate` draws the GPS-aided solution at the moment GPS is lost, and
+   :func:`score` compares a logged navigation solution with the truth.
 
 The flight starts at the moment GPS is lost: the INS is initialised from the GPS-aided
 solution, whose errors are drawn from the initial covariance (position 5 m, velocity
@@ -22,18 +20,15 @@ gyro bias 10 deg/h), docs/scenario.md.
 from __future__ import annotations
 
 import math
-import time as _time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from navgate.nav import eskf, strapdown
+from navgate.nav import eskf
 from navgate.nav.earth import LocalTangent, radii
-from navgate.nav.rotations import quat_from_rotvec, quat_multiply, quat_to_dcm_array
 from navgate.sim import sensors, trajectory
 from navgate.trn.dem import Dem
-from navgate.trn.profile import ACCEPTED, ProfileBuffer
-from navgate.trn.tercom import TercomConfig, TercomCorrelator
+from navgate.trn.tercom import TercomConfig
 
 DEG = math.pi / 180.0
 
@@ -229,131 +224,6 @@ def initial_estimate(data: SensorData, cfg: FlightConfig) -> InitialEstimate:
 
 
 @dataclass
-class NavRun:
-    """Navigation output, logged at cfg.log_rate_hz."""
-
-    name: str
-    t: np.ndarray
-    nav: np.ndarray  #: (M, 10)
-    sigma: np.ndarray  #: (M, 15) square roots of P's diagonal
-    p_ne: np.ndarray  #: (M,) P[0, 1]
-    fixes: list  #: TercomResult rows (dicts) with "applied" and "nis"
-    accepted: dict
-    rejected: dict
-    profile_counts: dict
-    imu_samples_rejected: int
-    wall_time_s: float
-
-
-def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialEstimate, *,
-                   use_trn: bool, name: str, progress=None) -> NavRun:
-    """Closed-loop INS + ESKF over the sensor data, with baro and (optionally) TRN updates."""
-    start_wall = _time.perf_counter()
-    filter_cfg = eskf.FilterConfig.from_imu_spec(
-        sensors.IDEAL_IMU if data.ideal else sensors.ADIS16500, rate_hz=cfg.imu_rate_hz,
-        residual_accel_bias=cfg.init_accel_bias_sigma,
-        residual_gyro_bias=cfg.init_gyro_bias_sigma)
-    filt = eskf.ErrorStateFilter(init.nav, init.p0, filter_cfg, rate_hz=cfg.imu_rate_hz,
-                                 bias_a0=init.bias_a, bias_g0=init.bias_g)
-    baro_sigma = max(sensors.Barometer(sensors.BMP390).altitude_noise_m, 0.05)
-    n_readings = data.gyro.shape[0]
-    log_every = max(1, int(round(cfg.imu_rate_hz / cfg.log_rate_hz)))
-    n_log = n_readings // log_every + 1
-    out_nav = np.empty((n_log, strapdown.NAV_SIZE))
-    out_sigma = np.empty((n_log, 16))
-    out_nav[0] = filt.nav
-    out_sigma[0, :15] = np.sqrt(np.diag(filt.p))
-    p_ne = np.full(n_log, np.nan)
-    p_ne[0] = filt.p[0, 1]
-
-    # events at IMU sample boundaries: (index, kind, payload)
-    events = [(int(k), 0, j) for j, k in enumerate(data.baro_index)]
-    events += [(int(k), 1, j) for j, k in enumerate(data.ranger_index)]
-    events += [(k, 2, 0) for k in range(log_every, n_readings + 1, log_every)]
-    events.sort()
-    tangent = LocalTangent(*dem.center, 0.0)
-    correlator = TercomCorrelator(dem, tangent, cfg.tercom)
-    buffer = ProfileBuffer(min_spacing_m=cfg.profile_spacing_m)
-    fixes = []
-    last_fix_t = -math.inf
-    k_done = 0
-    t0 = data.truth.t[0]
-    dt = 1.0 / cfg.imu_rate_hz
-    sigma_buf = np.empty((1, 16))
-    nav_buf = np.empty((1, strapdown.NAV_SIZE))
-    for k, kind, j in events:
-        if k > n_readings:
-            break
-        if k > k_done:
-            filt.propagate(data.gyro, data.accel, k_done, k, out_nav=nav_buf,
-                           out_sigma=sigma_buf, out_every=10**9)
-            if progress is not None:
-                progress(k - k_done)
-            k_done = k
-        t_now = t0 + k * dt
-        if kind == 2:
-            row = k // log_every
-            out_nav[row] = filt.nav
-            out_sigma[row, :15] = np.sqrt(np.maximum(np.diag(filt.p), 0.0))
-            p_ne[row] = filt.p[0, 1]
-        elif kind == 0:
-            h = data.baro.altitude[j]
-            if np.isfinite(h):
-                filt.update_altitude(h, baro_sigma)
-            else:
-                filt.rejected["baro invalid sample"] = filt.rejected.get(
-                    "baro invalid sample", 0) + 1
-        elif kind == 1 and use_trn:
-            roll, pitch, _ = _euler(filt.nav[6:10])
-            pn, pe = tangent.to_ned(filt.nav[0], filt.nav[1])
-            # the newest barometer sample at or before this ranger sample
-            jb = int(np.searchsorted(data.baro_index, k, "right")) - 1
-            h_baro = data.baro.altitude[jb] if jb >= 0 else np.nan
-            status = buffer.add(time=t_now, h_baro=float(h_baro),
-                                slant_range=float(data.ranger.slant_range[j]),
-                                range_valid=bool(data.ranger.valid[j]), roll=roll, pitch=pitch,
-                                pos_n=float(pn), pos_e=float(pe))
-            if status == ACCEPTED and t_now - last_fix_t >= cfg.fix_interval_s:
-                last_fix_t = t_now
-                sigma_max = math.sqrt(max(np.linalg.eigvalsh(filt.p[:2, :2]).max(), 0.0))
-                result = correlator.correlate(buffer.snapshot(), sigma_max)
-                row = result.as_row()
-                row["applied"] = False
-                row["nis"] = math.nan
-                if result.accepted:
-                    # y = p_ins - p_fix = -shift, measured lag_s ago
-                    y = np.array([result.ins_n - result.fix_n, result.ins_e - result.fix_e])
-                    lag = result.lag_s if cfg.lag_compensation else 0.0
-                    upd = filt.update_position_offset(y, result.cov, lag)
-                    row["nis"] = upd.nis
-                    row["applied"] = upd.accepted
-                    if upd.accepted:
-                        c = upd.correction
-                        buffer.shift(-c[0], -c[1], -c[3], -c[4], now=t_now)
-                    else:
-                        row["reason"] = "rejected by chi-square gate"
-                fixes.append(row)
-    if k_done < n_readings:
-        filt.propagate(data.gyro, data.accel, k_done, n_readings, out_nav=nav_buf,
-                       out_sigma=sigma_buf, out_every=10**9)
-        if progress is not None:
-            progress(n_readings - k_done)
-        out_nav[-1] = filt.nav
-        out_sigma[-1, :15] = np.sqrt(np.maximum(np.diag(filt.p), 0.0))
-        p_ne[-1] = filt.p[0, 1]
-    t_log = t0 + np.arange(n_log) * log_every * dt
-    return NavRun(name, t_log, out_nav, out_sigma[:, :15], p_ne, fixes, dict(filt.accepted),
-                  dict(filt.rejected), dict(buffer.counts), filt.imu_samples_rejected,
-                  _time.perf_counter() - start_wall)
-
-
-def _euler(q):
-    c = quat_to_dcm_array(np.asarray(q))
-    return (math.atan2(c[2, 1], c[2, 2]), -math.asin(max(-1.0, min(1.0, c[2, 0]))),
-            math.atan2(c[1, 0], c[0, 0]))
-
-
-@dataclass
 class Score:
     horizontal_error: np.ndarray  #: m, at the log times
     north_error: np.ndarray
@@ -372,7 +242,7 @@ class Score:
         }
 
 
-def score(run: NavRun, truth: trajectory.Trajectory, log_every: int) -> Score:
+def score(run, truth: trajectory.Trajectory, log_every: int) -> Score:
     idx = np.arange(run.t.size) * log_every
     idx = np.minimum(idx, len(truth) - 1)
     lat_t, lon_t = truth.lat[idx], truth.lon[idx]
@@ -389,92 +259,5 @@ def score(run: NavRun, truth: trajectory.Trajectory, log_every: int) -> Score:
     return Score(np.hypot(en, ee), en, ee, nees)
 
 
-@dataclass
-class FlightResult:
-    config: FlightConfig
-    dem: Dem
-    route: Route
-    data: SensorData
-    runs: dict  #: name -> NavRun
-    scores: dict  #: name -> Score
-    log_every: int
-    wall_time_s: float
-
-    def summary(self) -> dict:
-        cfg = self.config
-        truth = self.data.truth
-        out = {
-            "duration_s": float(truth.t[-1] - truth.t[0]),
-            "imu_rate_hz": cfg.imu_rate_hz,
-            "wall_time_s": self.wall_time_s,
-            "seed": cfg.seed,
-            "ideal_sensors": cfg.ideal_sensors,
-            "dem": {"name": self.dem.name, "rows": self.dem.shape[0], "cols": self.dem.shape[1],
-                    "post_spacing_m": list(self.dem.post_spacing_m()),
-                    "void_fraction": self.dem.void_fraction()},
-            "route": {"start_lat_deg": math.degrees(self.route.lat0),
-                      "start_lon_deg": math.degrees(self.route.lon0),
-                      "cruise_altitude_m": self.route.h0,
-                      "distance_km": float(np.sum(np.linalg.norm(truth.v_ned, axis=1))
-                                           / cfg.imu_rate_hz / 1000.0)},
-            "sensors": {"imu": "ideal" if cfg.ideal_sensors else sensors.ADIS16500.name,
-                        "imu_saturated_words": self.data.imu.saturated,
-                        "baro": "ideal" if cfg.ideal_sensors else sensors.BMP390.name,
-                        "ranger": cfg.ranger,
-                        "ranger_valid_fraction": float(np.mean(self.data.ranger.valid))},
-        }
-        for name, run in self.runs.items():
-            s = self.scores[name].summary(run.t)
-            s["baro_updates_accepted"] = run.accepted.get("baro", 0)
-            s["baro_updates_rejected"] = run.rejected.get("baro", 0)
-            s["baro_samples_invalid"] = run.rejected.get("baro invalid sample", 0)
-            s["imu_samples_rejected"] = run.imu_samples_rejected
-            s["wall_time_s"] = run.wall_time_s
-            if name == "trn_aided":
-                applied = [f for f in run.fixes if f["applied"]]
-                reasons = {}
-                for f in run.fixes:
-                    if not f["applied"]:
-                        reasons[f["reason"]] = reasons.get(f["reason"], 0) + 1
-                s["fixes_attempted"] = len(run.fixes)
-                s["fixes_accepted"] = len(applied)
-                s["fixes_rejected"] = len(run.fixes) - len(applied)
-                s["fix_rejection_reasons"] = reasons
-                s["profile_sample_counts"] = run.profile_counts
-                nis = [f["nis"] for f in applied]
-                s["nis_trn_mean"] = float(np.mean(nis)) if nis else None
-            out[name] = s
-        return out
-
-
-def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None
-        ) -> FlightResult:
-    """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done."""
-    start = _time.perf_counter()
-    if route is None:
-        if stage:
-            stage("planning route")
-        route = plan_route(dem, cfg)
-    if stage:
-        stage("simulating sensors")
-    data = simulate_sensors(route, dem, cfg)
-    init = initial_estimate(data, cfg)
-    runs = {}
-    if stage:
-        stage("navigating: INS only")
-    runs["ins_only"] = run_navigation(data, dem, cfg, init, use_trn=False, name="ins_only",
-                                      progress=progress)
-    if cfg.trn:
-        if stage:
-            stage("navigating: INS + TRN")
-        runs["trn_aided"] = run_navigation(data, dem, cfg, init, use_trn=True,
-                                           name="trn_aided", progress=progress)
-    log_every = max(1, int(round(cfg.imu_rate_hz / cfg.log_rate_hz)))
-    scores = {name: score(run, data.truth, log_every) for name, run in runs.items()}
-    return FlightResult(cfg, dem, route, data, runs, scores, log_every,
-                        _time.perf_counter() - start)
-
-
-__all__ = ["FlightConfig", "FlightResult", "RouteError", "fly", "plan_route",
-           "simulate_sensors", "run_navigation", "initial_estimate", "score",
-           "quat_from_rotvec", "quat_multiply"]
+__all__ = ["FlightConfig", "InitialEstimate", "Route", "RouteError", "Score", "SensorData",
+           "initial_estimate", "plan_route", "score", "simulate_sensors"]

@@ -45,11 +45,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from navgate.devices.adis16500 import (
+    ACCEL_LSB_M_S2,
+    GYRO_LSB_RAD_S,
+    INT16_MAX,
+    INT16_MIN,
+)
+from navgate.devices.adis16500 import STANDARD_GRAVITY as G0
+
 DEG = math.pi / 180.0
-G0 = 9.80665
-GYRO_LSB_RAD_S = 0.00625 * DEG  #: seed 000 gyro LSB (rad/s)
-ACCEL_LSB_M_S2 = 1.25e-3 * G0  #: seed 000 accel LSB (m/s^2)
-INT16_MIN, INT16_MAX = -32768, 32767
 
 
 @dataclass(frozen=True)

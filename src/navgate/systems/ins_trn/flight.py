@@ -1,0 +1,118 @@
+"""The ``navgate fly`` run: plan, simulate, navigate INS-only and INS+TRN, and score both.
+
+The scenario (route, truth, sensors, scoring) is :mod:`navgate.sim.flight`; the navigation
+loop is :mod:`navgate.systems.ins_trn.navigation`; the report is
+:mod:`navgate.systems.ins_trn.report`.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+
+from navgate.sim import sensors
+from navgate.sim.flight import (
+    FlightConfig,
+    Route,
+    RouteError,
+    SensorData,
+    initial_estimate,
+    plan_route,
+    score,
+    simulate_sensors,
+)
+from navgate.systems.ins_trn.navigation import NavRun, run_navigation
+from navgate.trn.dem import Dem
+
+
+@dataclass
+class FlightResult:
+    config: FlightConfig
+    dem: Dem
+    route: Route
+    data: SensorData
+    runs: dict  #: name -> NavRun
+    scores: dict  #: name -> Score
+    log_every: int
+    wall_time_s: float
+
+    def summary(self) -> dict:
+        cfg = self.config
+        truth = self.data.truth
+        out = {
+            "duration_s": float(truth.t[-1] - truth.t[0]),
+            "imu_rate_hz": cfg.imu_rate_hz,
+            "wall_time_s": self.wall_time_s,
+            "seed": cfg.seed,
+            "ideal_sensors": cfg.ideal_sensors,
+            "dem": {"name": self.dem.name, "rows": self.dem.shape[0], "cols": self.dem.shape[1],
+                    "post_spacing_m": list(self.dem.post_spacing_m()),
+                    "void_fraction": self.dem.void_fraction()},
+            "route": {"start_lat_deg": math.degrees(self.route.lat0),
+                      "start_lon_deg": math.degrees(self.route.lon0),
+                      "cruise_altitude_m": self.route.h0,
+                      "distance_km": float(np.sum(np.linalg.norm(truth.v_ned, axis=1))
+                                           / cfg.imu_rate_hz / 1000.0)},
+            "sensors": {"imu": "ideal" if cfg.ideal_sensors else sensors.ADIS16500.name,
+                        "imu_saturated_words": self.data.imu.saturated,
+                        "baro": "ideal" if cfg.ideal_sensors else sensors.BMP390.name,
+                        "ranger": cfg.ranger,
+                        "ranger_valid_fraction": float(np.mean(self.data.ranger.valid))},
+        }
+        for name, run in self.runs.items():
+            s = self.scores[name].summary(run.t)
+            s["baro_updates_accepted"] = run.accepted.get("baro", 0)
+            s["baro_updates_rejected"] = run.rejected.get("baro", 0)
+            s["baro_samples_invalid"] = run.rejected.get("baro invalid sample", 0)
+            s["imu_samples_rejected"] = run.imu_samples_rejected
+            s["wall_time_s"] = run.wall_time_s
+            if name == "trn_aided":
+                applied = [f for f in run.fixes if f["applied"]]
+                reasons = {}
+                for f in run.fixes:
+                    if not f["applied"]:
+                        reasons[f["reason"]] = reasons.get(f["reason"], 0) + 1
+                s["fixes_attempted"] = len(run.fixes)
+                s["fixes_accepted"] = len(applied)
+                s["fixes_rejected"] = len(run.fixes) - len(applied)
+                s["fix_rejection_reasons"] = reasons
+                s["profile_sample_counts"] = run.profile_counts
+                nis = [f["nis"] for f in applied]
+                s["nis_trn_mean"] = float(np.mean(nis)) if nis else None
+            out[name] = s
+        return out
+
+
+def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None
+        ) -> FlightResult:
+    """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done."""
+    start = _time.perf_counter()
+    if route is None:
+        if stage:
+            stage("planning route")
+        route = plan_route(dem, cfg)
+    if stage:
+        stage("simulating sensors")
+    data = simulate_sensors(route, dem, cfg)
+    init = initial_estimate(data, cfg)
+    runs = {}
+    if stage:
+        stage("navigating: INS only")
+    runs["ins_only"] = run_navigation(data, dem, cfg, init, use_trn=False, name="ins_only",
+                                      progress=progress)
+    if cfg.trn:
+        if stage:
+            stage("navigating: INS + TRN")
+        runs["trn_aided"] = run_navigation(data, dem, cfg, init, use_trn=True,
+                                           name="trn_aided", progress=progress)
+    log_every = max(1, int(round(cfg.imu_rate_hz / cfg.log_rate_hz)))
+    scores = {name: score(run, data.truth, log_every) for name, run in runs.items()}
+    return FlightResult(cfg, dem, route, data, runs, scores, log_every,
+                        _time.perf_counter() - start)
+
+
+__all__ = ["FlightConfig", "FlightResult", "NavRun", "RouteError", "fly", "plan_route",
+           "run_navigation"]

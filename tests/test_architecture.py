@@ -1,0 +1,127 @@
+"""The package's import structure (docs/architecture.md): systems import shared libraries, no
+shared library imports a system, and no two modules import each other, directly or through
+others.
+
+The imports are read from the source with ``ast`` (every ``import`` statement, including those
+inside functions), so a lazy import counts as much as a top-level one.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import navgate
+
+PACKAGE_ROOT = Path(navgate.__file__).parent
+SHARED = ("nav", "trn", "numerics", "gateware", "devices", "hw", "sim")
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE_ROOT.parent).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def _resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str:
+    if node.level == 0:
+        return node.module or ""
+    base = module.split(".") if is_package else module.split(".")[:-1]
+    base = base[: len(base) - (node.level - 1)]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def import_graph() -> dict[str, set[str]]:
+    """module -> the navgate modules it imports (package imports resolved to modules)."""
+    files = {_module_name(p): p for p in PACKAGE_ROOT.rglob("*.py")}
+    graph: dict[str, set[str]] = {}
+    for module, path in files.items():
+        targets: set[str] = set()
+        is_package = path.name == "__init__.py"
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = _resolve(module, is_package, node)
+                # "from pkg import mod" imports pkg.mod when that is a module
+                names = [f"{base}.{alias.name}" if f"{base}.{alias.name}" in files else base
+                         for alias in node.names]
+            else:
+                continue
+            targets.update(name for name in names
+                           if name == "navgate" or name.startswith("navgate."))
+        graph[module] = {t for t in targets if t in files and t != module}
+    return graph
+
+
+def _layer(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+def test_the_graph_is_read():
+    graph = import_graph()
+    # a few edges that must be there, so that an empty graph cannot pass the tests below
+    assert "navgate.nav.eskf" in graph["navgate.systems.ins_trn.navigation"]
+    assert "navgate.devices.adis16500" in graph["navgate.nav.calibration"]
+    assert "navgate.devices.adis16500" in graph["navgate.sim.sensors"]
+    assert len(graph) > 60
+
+
+@pytest.mark.parametrize("shared", SHARED)
+def test_shared_libraries_import_no_system(shared):
+    offenders = sorted(
+        f"{module} -> {target}"
+        for module, targets in import_graph().items() if _layer(module) == shared
+        for target in targets if _layer(target) in ("systems", "cli")
+    )
+    assert not offenders, "shared library imports a system or the CLI:\n" + "\n".join(offenders)
+
+
+def find_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan): the import cycles."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    cycles: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return cycles
+
+
+def test_cycle_finder_finds_a_known_cycle():
+    graph = {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}
+    assert find_cycles(graph) == [["a", "b", "c"]]
+    assert find_cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_no_import_cycles():
+    cycles = find_cycles(import_graph())
+    assert not cycles, f"import cycles: {cycles}"
