@@ -58,3 +58,62 @@ class ImuCalibration:
         g = np.asarray(gyro_words, float) * self.gyro_lsb - self.gyro_bias
         a = np.asarray(accel_words, float) * self.accel_lsb - self.accel_bias
         return g @ self.gyro_matrix.T, a @ self.accel_matrix.T
+
+
+# ------------------------------------------------------------------ float32 bit-true face
+
+
+@dataclass(frozen=True)
+class ImuCalibrationFp32:
+    """The calibration parameters as the float32 registers of seed 000 hold them (uint32 bit
+    patterns, :mod:`navgate.numerics.fp32`): one LSB size, bias (3) and matrix (3x3) per sensor.
+    """
+
+    gyro_lsb: np.uint32
+    accel_lsb: np.uint32
+    gyro_bias: np.ndarray  #: (3,) uint32
+    accel_bias: np.ndarray  #: (3,) uint32
+    gyro_matrix: np.ndarray  #: (3, 3) uint32, row-major
+    accel_matrix: np.ndarray  #: (3, 3) uint32
+
+
+def calibration_to_fp32(cal: ImuCalibration) -> ImuCalibrationFp32:
+    """Round every parameter to float32 (round to nearest even) as the PS writes the registers."""
+    from navgate.numerics.fp32 import f32_to_bits, flush_subnormal
+
+    def words(x):
+        return flush_subnormal(f32_to_bits(np.asarray(x, float)))
+
+    return ImuCalibrationFp32(words(cal.gyro_lsb), words(cal.accel_lsb), words(cal.gyro_bias),
+                              words(cal.accel_bias), words(cal.gyro_matrix),
+                              words(cal.accel_matrix))
+
+
+def apply_calibration_fp32(cal: ImuCalibrationFp32, gyro_words, accel_words):
+    """Seed 000's ``imu_calibration`` in float32, the bit-true face of the gateware block.
+
+    For each sensor and sample (int16 words ``w``, shape (N, 3)), in exactly this order::
+
+        x_j = fp32_sub(fp32_mul(fp32_from_int(w_j, 16), lsb), bias_j)          j = 0, 1, 2
+        y_i = fp32_add(fp32_add(fp32_mul(M_i0, x_0), fp32_mul(M_i1, x_1)),
+                       fp32_mul(M_i2, x_2))                                      i = 0, 1, 2
+
+    (round to nearest even, subnormals flushed). Returns ``(gyro, accel)`` as (N, 3) uint32
+    bit patterns (rad/s and m/s^2). Words outside int16 raise ``ValueError``.
+    """
+    from navgate.numerics.fp32 import fp32_add, fp32_from_int, fp32_mul, fp32_sub
+
+    def one(words, lsb, bias, matrix):
+        w = np.asarray(words)
+        if w.ndim != 2 or w.shape[1] != 3:
+            raise ValueError("words must be an (N, 3) array of int16 values")
+        x = fp32_sub(fp32_mul(fp32_from_int(w.astype(np.int64), 16), lsb), bias[None, :])
+        out = np.empty(w.shape, np.uint32)
+        for i in range(3):
+            out[:, i] = fp32_add(fp32_add(fp32_mul(matrix[i, 0], x[:, 0]),
+                                          fp32_mul(matrix[i, 1], x[:, 1])),
+                                 fp32_mul(matrix[i, 2], x[:, 2]))
+        return out
+
+    return (one(gyro_words, cal.gyro_lsb, cal.gyro_bias, cal.gyro_matrix),
+            one(accel_words, cal.accel_lsb, cal.accel_bias, cal.accel_matrix))
