@@ -51,6 +51,7 @@ class FlightConfig:
     margin_m: float = 2000.0
     max_leg_m: float = 9000.0
     ranger: str = "long-range"
+    trn_method: str = "tercom"  #: a name of navgate.trn.correlators.METHODS
     baro_rate_hz: float = 25.0
     ranger_rate_hz: float = 10.0
     fix_interval_s: float = 10.0
@@ -76,6 +77,11 @@ class FlightConfig:
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"invalid {name}: {getattr(self, name)}")
+        from navgate.trn.correlators import METHODS
+
+        if self.trn_method not in METHODS:
+            raise ValueError(f"unknown TRN method {self.trn_method!r}; choose from "
+                             f"{', '.join(METHODS)}")
         if self.ranger not in sensors.RANGER_PRESETS:
             raise ValueError(f"unknown ranger {self.ranger!r}; choose from "
                              f"{', '.join(sensors.RANGER_PRESETS)}")

@@ -22,9 +22,9 @@ from navgate.nav.earth import LocalTangent
 from navgate.nav.rotations import quat_to_dcm_array
 from navgate.sim import sensors
 from navgate.sim.flight import FlightConfig, InitialEstimate, SensorData
+from navgate.trn.correlators import make_correlator
 from navgate.trn.dem import Dem
 from navgate.trn.profile import ACCEPTED, ProfileBuffer
-from navgate.trn.tercom import TercomCorrelator
 
 
 @dataclass
@@ -71,7 +71,7 @@ def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialE
     events += [(k, 2, 0) for k in range(log_every, n_readings + 1, log_every)]
     events.sort()
     tangent = LocalTangent(*dem.center, 0.0)
-    correlator = TercomCorrelator(dem, tangent, cfg.tercom)
+    correlator = make_correlator(cfg.trn_method, dem, tangent, cfg.tercom)
     buffer = ProfileBuffer(min_spacing_m=cfg.profile_spacing_m)
     fixes = []
     last_fix_t = -math.inf
