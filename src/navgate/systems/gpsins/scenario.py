@@ -42,6 +42,7 @@ expected ratio is 0.40 (:mod:`navgate.systems.gpsins.bound`). :data:`TACTICAL_TA
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 
@@ -51,7 +52,7 @@ from numba import njit
 from navgate.nav.earth import radii_array
 from navgate.nav.rotations import quat_from_rotvec, quat_multiply
 from navgate.sim import sensors, trajectory
-from navgate.systems.gpsins import bound
+from navgate.systems.gpsins import augmented, bound, smoother
 from navgate.systems.gpsins import filter as kf
 from navgate.systems.gpsins.ins import EARTH_WGS84, rk4_step
 
@@ -155,6 +156,16 @@ class GpsInsConfig:
     q_scale_factor_accel: float | None = None
     q_scale_factor_gyro: float | None = None
     q_tau_s: float = 30.0  #: correlation time that turns it into noise density
+    #: "full": the filter with the sensors' own error states (augmented.py; its noise is the
+    #: sensor model's white noise); "seed": the seed's 9-state filter with the pessimistic
+    #: floors above (filter.py)
+    filter: str = "full"
+    #: sensor blocks the full filter carries (accelerometer bias, gyro bias, accelerometer
+    #: scale, gyro scale); None: carried where the sensor model has that error (sigma > 0).
+    #: A block not carried is covered by process noise (bias^2 tau, (sf x excitation)^2 tau)
+    carry: tuple = (None, None, None, None)
+    smoother: str = "none"  #: "none", "rts" (fixed interval) or "fixed-lag" (full filter)
+    lag_s: float = 10.0  #: fixed-lag smoother's lag (s)
 
     @property
     def q_sf_accel(self) -> float:
@@ -179,6 +190,26 @@ class GpsInsConfig:
             raise ValueError("the GPS outage must end before the flight does")
         if not 20 <= self.speed_mps <= 300:
             raise ValueError("speed must be within 20..300 m/s")
+        if self.filter not in FILTERS:
+            raise ValueError(f"unknown filter {self.filter!r}; choose from {', '.join(FILTERS)}")
+        if self.smoother not in SMOOTHERS:
+            raise ValueError(f"unknown smoother {self.smoother!r}; choose from "
+                             f"{', '.join(SMOOTHERS)}")
+        if self.smoother != "none" and self.filter != "full":
+            raise ValueError("the smoothers run on the full filter (filter='full')")
+        if len(self.carry) != 4 or any(c not in (None, True, False) for c in self.carry):
+            raise ValueError("carry must be four flags (True, False or None)")
+        if not (math.isfinite(self.lag_s) and 0 <= self.lag_s <= self.duration_s):
+            raise ValueError(f"lag must be within 0..{self.duration_s:g} s, got {self.lag_s}")
+
+    @property
+    def lag_epochs(self) -> int:
+        """The fixed lag in GPS epochs, rounded down (no more delay than asked)."""
+        return int(math.floor(self.lag_s * self.gps_rate_hz + 1e-9))
+
+
+FILTERS = ("full", "seed")
+SMOOTHERS = ("none", "rts", "fixed-lag")
 
 
 #: no sensor errors at all (the filter then needs almost no process noise)
@@ -384,6 +415,33 @@ class GpsInsResult:
     innovations: np.ndarray
     innovation_var: np.ndarray
     wall_time_s: float = 0.0
+    #: the full filter's stored forward pass (for the smoothers); None for the seed filter
+    forward: dict | None = None
+    smoothed: Solution | None = None  #: the smoother cfg.smoother asks for
+
+    def smooth(self, lags=(None,)) -> list[Solution]:
+        """Smoothed solutions of the full filter: one per lag (None: RTS, L: fixed lag of L
+        GPS epochs), scored like the filter's (navgate.systems.gpsins.smoother)."""
+        if self.forward is None:
+            raise ValueError("smoothing needs the full filter (filter='full')")
+        fw = self.forward
+        dt = 1.0 / self.cfg.rate_hz
+        off = fw["off"]
+        states, fcs, wcs, qas, qgs = (fw[k] for k in ("states", "fcs", "wcs", "qas", "qgs"))
+
+        def interval(k0, k1, P_start):
+            return augmented.interval_covariances(np.ascontiguousarray(P_start), states, fcs,
+                                                  wcs, qas, qgs, dt, k0, k1, off)
+
+        out = []
+        for sm in smoother.sweep(fw["ep_idx"], fw["p_post"], fw["p_prior"], fw["dxs"],
+                                 interval, len(states), dt, lags):
+            st = states[:, :3] - sm.pos_err
+            scale = augmented.position_scale(st)
+            cov = sm.pos_cov * scale[:, :, None] * scale[:, None, :]
+            name = "rts" if sm.lag_epochs is None else f"fixed-lag {sm.lag_epochs}"
+            out.append(_solution(name, self.truth, st, cov))
+        return out
 
     @property
     def outage_mask(self) -> np.ndarray:
@@ -447,16 +505,148 @@ class GpsInsResult:
         }
         s["gps_ins"]["rms_ratio_to_gps_only"] = (s["gps_ins"]["rms_horizontal_error_m"]
                                                  / s["gps_only"]["rms_horizontal_error_m"])
+        ms_go = s["gps_only"]["rms_horizontal_error_m"] ** 2
+        s["filter"] = {"kind": c.filter, "n_states": int(self.forward["n"]) if self.forward
+                       else kf.NX, "states": self.forward["names"] if self.forward else
+                       augmented.state_names(np.full(4, -1))}
+        s["gps_ins"]["rms_horizontal_error_outside_outage_m"] = float(np.sqrt(np.mean(
+            gi.horizontal_error[~out] ** 2)))
+        s["ratio_whole_flight"] = s["gps_ins"]["rms_ratio_to_gps_only"]
+        s["ratio_outage_excluded"] = float(np.sqrt(np.mean(gi.horizontal_error[~out] ** 2)
+                                                   / ms_go))
+        tb = trajectory_bound(c)
+        s["bound_causal"] = tb.ratio_causal
+        s["bound_rts"] = tb.ratio_smoothed(None)
+        s["trajectory_bound"] = {
+            "causal": {"ratio_whole_flight": tb.ratio_causal,
+                       "ratio_outage_excluded": tb.ratio_causal_outage_excluded},
+            "fixed_lag": {"lag_s": c.lag_epochs / c.gps_rate_hz,
+                          "ratio_whole_flight": tb.ratio_smoothed(c.lag_epochs),
+                          "ratio_outage_excluded": tb.ratio_smoothed(c.lag_epochs, True)},
+            "rts": {"ratio_whole_flight": tb.ratio_smoothed(None),
+                    "ratio_outage_excluded": tb.ratio_smoothed(None, True)},
+            "n_states": tb.n_states,
+            "states": tb.state_names,
+            "note": "expected (ensemble mean-square) ratios of the filter matched to the sensor "
+                    "model, carrying every error state it has, along this flight's trajectory, "
+                    "and of its smoothers (navgate.systems.gpsins.bound.trajectory_bound); "
+                    "compare with ratios pooled over seeds",
+        }
+        if self.smoothed is not None:
+            sm = self.smoothed
+            s["gps_ins_smoothed"] = {
+                "smoother": c.smoother,
+                "lag_s": c.lag_epochs / c.gps_rate_hz if c.smoother == "fixed-lag" else None,
+                "rms_horizontal_error_m": float(np.sqrt(np.mean(sm.horizontal_error ** 2))),
+                "rms_horizontal_error_outside_outage_m": float(np.sqrt(np.mean(
+                    sm.horizontal_error[~out] ** 2))),
+                "rms_vertical_error_m": float(np.sqrt(np.mean(sm.err_ned[:, 2] ** 2))),
+                "max_horizontal_error_during_outage_m": float(
+                    sm.horizontal_error[out].max()) if out.any() else None,
+                "ratio_whole_flight": float(np.sqrt(np.mean(sm.horizontal_error ** 2)
+                                                    / ms_go)),
+                "ratio_outage_excluded": float(np.sqrt(np.mean(sm.horizontal_error[~out] ** 2)
+                                                       / ms_go)),
+                "bound": (tb.ratio_smoothed(None) if c.smoother == "rts"
+                          else tb.ratio_smoothed(c.lag_epochs)),
+                "nees_position_mean": float(np.mean(sm.nees)),
+                "nees_position_dof": 3,
+            }
         b = optimal_bound(c)
         s["optimal_filter_bound"] = {
             "rms_horizontal_error_m": b.rms_horizontal_m,
             "rms_ratio_to_gps_only": b.ratio_to_gps_only,
-            "note": "expected (ensemble mean-square) ratio of the optimal filter for this "
-                    "IMU's white noise and gyro drift (given a bias state), straight flight: "
-                    "a lower bound on the expected mean square, not on one run "
-                    "(navgate.systems.gpsins.bound)",
+            "note": "one-channel cross-check (straight, level flight, gyro noise and drift "
+                    "only): expected ratio of the optimal filter for this IMU's white noise "
+                    "and gyro drift (given a bias state); the trajectory bound above is the "
+                    "one to compare with (navgate.systems.gpsins.bound)",
         }
         return s
+
+
+def sensor_sigmas(t1: Table1) -> np.ndarray:
+    """1-sigma of the four sensor error blocks the IMU model flies with: accelerometer bias
+    (m/s^2), gyro bias (rad/s), accelerometer and gyro scale factors (relative)."""
+    return np.array([t1.accel_residual_offset_g * G0, t1.gyro_turn_on_drift_dps * DEG,
+                     t1.accel_scale_in_flight, t1.gyro_scale_in_flight])
+
+
+def white_densities(t1: Table1) -> tuple[float, float]:
+    """The sensor model's white-noise densities: accelerometer (m/s^2)^2/Hz, gyro
+    (rad/s)^2/Hz (our assumption: Table 1 gives none; docs/seed002-gpsins.md)."""
+    return (t1.accel_noise_ug_rthz * 1e-6 * G0) ** 2, (t1.gyro_noise_dps_rthz * DEG) ** 2
+
+
+def full_filter_setup(cfg: GpsInsConfig, P0_nav: np.ndarray, every_block: bool = False):
+    """Layout, P0 and process noise of the full filter, all from the sensor model: the
+    blocks ``cfg.carry`` asks for (default: those the model has; ``every_block``: all the
+    model has, as the bound carries them); white noise, plus bias^2 tau and the
+    scale-factor excitation term for a block the model has but the filter does not carry.
+    Returns (off, P0, qa0 (3,), qg0 (3,), sf_acc, sf_gyro)."""
+    sig = sensor_sigmas(cfg.table1)
+    carry = tuple(bool(sig[i] > 0) if (every_block or cfg.carry[i] is None)
+                  else bool(cfg.carry[i]) for i in range(4))
+    off, n = augmented.layout(carry)
+    P0 = np.zeros((n, n))
+    P0[:kf.NX, :kf.NX] = P0_nav
+    for b in range(4):
+        if off[b] >= 0:
+            for i in range(3):
+                P0[off[b] + i, off[b] + i] = sig[b] ** 2
+    qa_w, qg_w = white_densities(cfg.table1)
+    tau = cfg.q_tau_s
+    qa0 = np.full(3, qa_w + (0.0 if carry[0] else sig[0] ** 2 * tau))
+    qg0 = np.full(3, qg_w + (0.0 if carry[1] else sig[1] ** 2 * tau))
+    sf_acc = 0.0 if carry[2] else float(sig[2])
+    sf_gyro = 0.0 if carry[3] else float(sig[3])
+    return off, P0, qa0, qg0, sf_acc, sf_gyro
+
+
+def make_truth(cfg: GpsInsConfig) -> trajectory.Trajectory:
+    """The flight's truth (independent of the seed)."""
+    return trajectory.generate(
+        flight_plan(cfg), lat0=cfg.lat0_deg * DEG, lon0=cfg.lon0_deg * DEG, h0=cfg.h0_m,
+        heading0=cfg.heading0_deg * DEG, speed0=cfg.speed_mps, rate_hz=cfg.rate_hz,
+        duration_s=cfg.duration_s)
+
+
+def _nav_p0(truth: trajectory.Trajectory, cfg: GpsInsConfig) -> np.ndarray:
+    return initial_state(truth, cfg, np.random.default_rng(0))[1]
+
+
+def trajectory_bound(cfg: GpsInsConfig) -> bound.TrajectoryBound:
+    """:func:`navgate.systems.gpsins.bound.trajectory_bound` for this flight and IMU model:
+    every error state the sensor model has, its white noise, the scenario's GPS epochs,
+    outage and initial sigmas; the causal filter, the RTS smoother and the fixed-lag
+    smoother of ``cfg.lag_s``. Cached per flight (the seed does not enter)."""
+    return _trajectory_bound(replace(cfg, seed=0, filter="full", smoother="none",
+                                     carry=(None, None, None, None)))
+
+
+@functools.lru_cache(maxsize=8)
+def _trajectory_bound(cfg: GpsInsConfig) -> bound.TrajectoryBound:
+    truth = make_truth(cfg)
+    gyro, accel = truth.imu()
+    off, P0, qa0, qg0, _, _ = full_filter_setup(cfg, _nav_p0(truth, cfg), every_block=True)
+    n = gyro.shape[0]
+    gps = simulate_gps(truth, cfg, np.random.default_rng(0))
+    ep_idx = np.concatenate([[0], gps.index]).astype(np.int64)
+    t = truth.t
+    outage = (t >= cfg.outage_start_s) & (t < cfg.outage_start_s + cfg.outage_s)
+    return bound.trajectory_bound(
+        truth.states, accel, gyro, 1.0 / cfg.rate_hz, ep_idx, gps.valid, P0,
+        np.tile(qa0, (n, 1)), np.tile(qg0, (n, 1)), cfg.table1.gps_sigma_m, off, outage,
+        lags=(None, cfg.lag_epochs))
+
+
+def _solution(name, truth, pos, cov_m) -> Solution:
+    """Score positions ``pos`` (N+1, 3: lat, lon, h) with covariance ``cov_m`` (N+1, 3, 3) in
+    metres of (north, east, up)."""
+    err = _ned_error(pos[:, 0], pos[:, 1], pos[:, 2], truth)
+    e_s = np.column_stack([err[:, 0], err[:, 1], -err[:, 2]])
+    nees = np.einsum("ni,nij,nj->n", e_s, np.linalg.inv(cov_m), e_s)
+    sigma = np.sqrt(np.stack([cov_m[:, 0, 0], cov_m[:, 1, 1], cov_m[:, 2, 2]], axis=1))
+    return Solution(name, truth.t, err, np.hypot(err[:, 0], err[:, 1]), sigma, nees)
 
 
 def optimal_bound(c: GpsInsConfig) -> bound.BoundResult:
@@ -528,10 +718,7 @@ def simulate(cfg: GpsInsConfig, progress=None) -> GpsInsResult:
     seeds = rng.integers(0, 2**31 - 1, 3)
     if progress:
         progress("trajectory")
-    truth = trajectory.generate(
-        flight_plan(cfg), lat0=cfg.lat0_deg * DEG, lon0=cfg.lon0_deg * DEG, h0=cfg.h0_m,
-        heading0=cfg.heading0_deg * DEG, speed0=cfg.speed_mps, rate_hz=cfg.rate_hz,
-        duration_s=cfg.duration_s)
+    truth = make_truth(cfg)
     if progress:
         progress("sensors")
     gyro_true, accel_true = truth.imu()
@@ -550,23 +737,36 @@ def simulate(cfg: GpsInsConfig, progress=None) -> GpsInsResult:
     if progress:
         progress("GPS/INS")
     sig = np.full(3, cfg.table1.gps_sigma_m)
-    qa = np.array([cfg.q_accel ** 2, cfg.q_accel ** 2, cfg.q_accel_z ** 2])
-    qg = np.full(3, cfg.q_gyro ** 2)
-    states, ppos, innov, sdiag = _run(x0, P0, gyro, accel, 1.0 / cfg.rate_hz,
-                                      gps.index.astype(np.int64), gps.lla, gps.valid, sig, qa,
-                                      qg, cfg.q_sf_accel, cfg.q_sf_gyro, cfg.q_tau_s)
+    dt = 1.0 / cfg.rate_hz
+    forward = None
+    if cfg.filter == "seed":
+        qa = np.array([cfg.q_accel ** 2, cfg.q_accel ** 2, cfg.q_accel_z ** 2])
+        qg = np.full(3, cfg.q_gyro ** 2)
+        states, ppos, innov, sdiag = _run(x0, P0, gyro, accel, dt, gps.index.astype(np.int64),
+                                          gps.lla, gps.valid, sig, qa, qg, cfg.q_sf_accel,
+                                          cfg.q_sf_gyro, cfg.q_tau_s)
+    else:
+        off, P0f, qa0, qg0, sf_acc, sf_gyro = full_filter_setup(cfg, P0)
+        ep_idx = np.concatenate([[0], gps.index]).astype(np.int64)
+        (states, fcs, wcs, qas, qgs, ppos, p_post, p_prior, dxs, comps, innov,
+         sdiag) = augmented.run(x0, P0f, gyro, accel, dt, ep_idx, gps.lla, gps.valid, sig,
+                                qa0, qg0, sf_acc, sf_gyro, cfg.q_tau_s, off)
+        forward = dict(off=off, n=P0f.shape[0], names=augmented.state_names(off),
+                       ep_idx=ep_idx, states=states, fcs=fcs, wcs=wcs, qas=qas, qgs=qgs,
+                       p_post=p_post, p_prior=p_prior, dxs=dxs, comps=comps)
     if progress:
         progress("scoring")
-    err = _ned_error(states[:, 0], states[:, 1], states[:, 2], truth)
-    # metres covariance is in (dlat, dlon, dh) scaled coordinates = (N, E, -D) errors of the
-    # INS; NEES is sign-invariant per axis pair only through the full quadratic form, so map
-    # the error to the same convention: INS - truth in (north, east, up)
-    e_s = np.column_stack([err[:, 0], err[:, 1], -err[:, 2]])
-    nees = np.einsum("ni,nij,nj->n", e_s, np.linalg.inv(ppos), e_s)
-    sigma = np.sqrt(np.stack([ppos[:, 0, 0], ppos[:, 1, 1], ppos[:, 2, 2]], axis=1))
-    gi = Solution("gps_ins", truth.t, err, np.hypot(err[:, 0], err[:, 1]), sigma, nees)
+    # ppos is in metres of (dlat, dlon, dh) scaled = (north, east, up) errors of the INS;
+    # _solution maps the error to that convention for the NEES
+    gi = _solution("gps_ins", truth, states[:, :3], ppos)
     gerr = np.column_stack([gps.noise_ned[:, 0], gps.noise_ned[:, 1], gps.noise_ned[:, 2]])
     go = Solution("gps_only", gps.t, gerr, np.hypot(gerr[:, 0], gerr[:, 1]))
-    res = GpsInsResult(cfg, truth, gps, states, ppos, go, gi, rec, innov, sdiag)
+    res = GpsInsResult(cfg, truth, gps, states, ppos, go, gi, rec, innov, sdiag,
+                       forward=forward)
+    if cfg.smoother != "none":
+        if progress:
+            progress("smoothing")
+        lag = None if cfg.smoother == "rts" else cfg.lag_epochs
+        res.smoothed = res.smooth((lag,))[0]
     res.wall_time_s = _time.perf_counter() - start
     return res
