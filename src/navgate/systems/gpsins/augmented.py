@@ -102,30 +102,39 @@ def add_noise(P, x, qa, qg, dt):
 
 @njit(cache=True)
 def phi_sandwich(P, F, dt):
-    """P <- (I + F dt) P (I + F dt)' using F's non-zeros (in place)."""
+    """P <- (I + F dt) P (I + F dt)' using F's non-zeros (in place): T = P + dt F P row by
+    row (rows of F without non-zeros, the sensor states', are copies), then the upper
+    triangle of T + dt T F', mirrored."""
     n = P.shape[0]
-    T = P.copy()
+    ptr = np.zeros(n + 1, dtype=np.int64)
+    cols = np.empty(n * n, dtype=np.int64)
+    vals = np.empty(n * n)
+    m = 0
     for i in range(n):
         for k in range(n):
             a = F[i, k]
             if a != 0.0:
-                a *= dt
-                for j in range(n):
-                    T[i, j] += a * P[k, j]
-    out = T.copy()
-    for j in range(n):
-        for k in range(n):
-            a = F[j, k]
-            if a != 0.0:
-                a *= dt
-                for i in range(n):
-                    out[i, j] += a * T[i, k]
+                cols[m] = k
+                vals[m] = a * dt
+                m += 1
+        ptr[i + 1] = m
+    T = P.copy()
     for i in range(n):
-        for j in range(i + 1, n):
-            s = 0.5 * (out[i, j] + out[j, i])
-            P[i, j] = s
-            P[j, i] = s
-        P[i, i] = out[i, i]
+        for q in range(ptr[i], ptr[i + 1]):
+            a = vals[q]
+            k = cols[q]
+            for j in range(n):
+                T[i, j] += a * P[k, j]
+    for j in range(n):
+        p0, p1 = ptr[j], ptr[j + 1]
+        for i in range(j + 1):
+            acc = T[i, j]
+            for q in range(p0, p1):
+                acc += T[i, cols[q]] * vals[q]
+            P[i, j] = acc
+    for j in range(n):
+        for i in range(j + 1, n):
+            P[i, j] = P[j, i]
 
 
 @njit(cache=True)
@@ -156,25 +165,41 @@ def gps_update(P, x, gps, sigma):
         for j in range(3):
             S[i, j] = hd[i] * PHt[i, j]
         S[i, i] += sigma[i] * sigma[i]
-    K = PHt @ np.linalg.inv(S)
-    dx = K @ z
-    # X = (I - K H) P = P - K (H P);  P' = X (I - K H)' + K R K' = X - (X H') K' + K R K'
-    X = P.copy()
+    # S^-1 by cofactors (3 x 3, symmetric positive definite)
+    c00 = S[1, 1] * S[2, 2] - S[1, 2] * S[2, 1]
+    c01 = S[0, 2] * S[2, 1] - S[0, 1] * S[2, 2]
+    c02 = S[0, 1] * S[1, 2] - S[0, 2] * S[1, 1]
+    c11 = S[0, 0] * S[2, 2] - S[0, 2] * S[2, 0]
+    c12 = S[0, 2] * S[1, 0] - S[0, 0] * S[1, 2]
+    c22 = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+    det = S[0, 0] * c00 + S[0, 1] * (S[1, 2] * S[2, 0] - S[1, 0] * S[2, 2]) + S[0, 2] * (
+        S[1, 0] * S[2, 1] - S[1, 1] * S[2, 0])
+    Si = np.empty((3, 3))
+    Si[0, 0], Si[0, 1], Si[0, 2] = c00 / det, c01 / det, c02 / det
+    Si[1, 0], Si[1, 1], Si[1, 2] = c01 / det, c11 / det, c12 / det
+    Si[2, 0], Si[2, 1], Si[2, 2] = c02 / det, c12 / det, c22 / det
+    K = np.empty((n, 3))
+    dx = np.empty(n)
     for i in range(n):
-        for m in range(3):
-            k = K[i, m]
-            for j in range(n):
-                X[i, j] -= k * PHt[j, m]  # (H P)[m, j] = hd[m] P[m, j] = PHt[j, m]
-    XHt = np.empty((n, 3))
+        for j in range(3):
+            K[i, j] = PHt[i, 0] * Si[0, j] + PHt[i, 1] * Si[1, j] + PHt[i, 2] * Si[2, j]
+        dx[i] = K[i, 0] * z[0] + K[i, 1] * z[1] + K[i, 2] * z[2]
+    # X = (I - K H) P = P - K (H P), (H P)[m, j] = PHt[j, m];
+    # P' = X (I - K H)' + K R K' = X - (X H') K' + K R K' (upper triangle, mirrored)
+    X = np.empty((n, n))
     for i in range(n):
-        for m in range(3):
-            XHt[i, m] = X[i, m] * hd[m]
+        k0, k1, k2 = K[i, 0], K[i, 1], K[i, 2]
+        for j in range(n):
+            X[i, j] = P[i, j] - k0 * PHt[j, 0] - k1 * PHt[j, 1] - k2 * PHt[j, 2]
+    r0, r1, r2 = sigma[0] * sigma[0], sigma[1] * sigma[1], sigma[2] * sigma[2]
     for i in range(n):
+        a0 = X[i, 0] * hd[0]
+        a1 = X[i, 1] * hd[1]
+        a2 = X[i, 2] * hd[2]
+        b0, b1, b2 = K[i, 0] * r0, K[i, 1] * r1, K[i, 2] * r2
         for j in range(i, n):
-            acc = X[i, j]
-            for m in range(3):
-                acc += -XHt[i, m] * K[j, m] + K[i, m] * sigma[m] * sigma[m] * K[j, m]
-            P[i, j] = acc
+            P[i, j] = (X[i, j] + (b0 - a0) * K[j, 0] + (b1 - a1) * K[j, 1]
+                       + (b2 - a2) * K[j, 2])
     for i in range(n):
         for j in range(i):
             P[i, j] = P[j, i]
