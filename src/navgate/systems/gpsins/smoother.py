@@ -121,14 +121,17 @@ def interval_smooth(Pj, Fs, dt, Pinv, targets, dPs):
 def spd_inverse(P: np.ndarray) -> np.ndarray:
     """Inverse of a covariance whose states span many orders of magnitude (rad^2 of latitude
     to m^2 of height), through its correlation matrix; states with zero variance (a sensor
-    error the model does not have) get zero rows and columns (the pseudo-inverse)."""
+    error the model does not have) get zero rows and columns, and a correlation matrix that
+    is singular (a direction without uncertainty) gets its pseudo-inverse (eigenvalues below
+    1e-12 of the largest dropped): the pseudo-inverse throughout."""
     d = np.sqrt(np.clip(np.diag(P), 0.0, None))
     keep = d > 0
     out = np.zeros_like(P)
     if keep.any():
         dk = d[keep]
         corr = P[np.ix_(keep, keep)] / np.outer(dk, dk)
-        out[np.ix_(keep, keep)] = np.linalg.inv(corr) / np.outer(dk, dk)
+        inv = np.linalg.pinv(corr, rcond=1e-12, hermitian=True)
+        out[np.ix_(keep, keep)] = inv / np.outer(dk, dk)
     return out
 
 
