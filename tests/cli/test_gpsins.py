@@ -32,6 +32,10 @@ def test_writes_report(tmp_path, capsys):
                 "nees_position_mean"):
         assert isinstance(s["gps_ins"][key], float)
     assert isinstance(s["gps_only"]["rms_horizontal_error_m"], float)
+    for key in ("ratio_whole_flight", "ratio_outage_excluded", "bound_causal", "bound_rts"):
+        assert isinstance(s[key], float) and 0 < s[key] < 1
+    assert s["filter"]["kind"] == "full" and s["filter"]["n_states"] == 21
+    assert "gps_ins_smoothed" not in s
     # the outage shows in the GPS log: 30 fixes flagged invalid out of 260
     with open(out / "gps.csv") as fh:
         rows = list(csv.DictReader(fh))
@@ -68,7 +72,36 @@ def test_tactical_imu_default_run_meets_the_one_third_target(tmp_path, capsys):
     assert 0 < s["optimal_filter_bound"]["rms_ratio_to_gps_only"] < 1 / 3
 
 
+@pytest.mark.parametrize("smoother, extra", [("rts", []), ("fixed-lag", ["--lag", 5])])
+def test_smoother_adds_a_smoothed_block(tmp_path, capsys, smoother, extra):
+    out = tmp_path / "s"
+    code, _, err = run_cli(["--duration", 250, "--outage-start", 200, "--smoother", smoother,
+                            *extra, "--out", out, "--quiet"], capsys)
+    assert code == 0, err
+    s = json.loads((out / "summary.json").read_text())
+    sm = s["gps_ins_smoothed"]
+    assert sm["smoother"] == smoother
+    assert isinstance(sm["rms_horizontal_error_m"], float)
+    assert sm["rms_horizontal_error_m"] < s["gps_ins"]["rms_horizontal_error_m"]
+    assert sm["lag_s"] == (5.0 if smoother == "fixed-lag" else None)
+    with open(out / "trajectory.csv") as fh:
+        assert "smoothed_horizontal_error_m" in fh.readline()
+
+
+def test_seed_filter_stays_available(tmp_path, capsys):
+    code, _, err = run_cli(["--duration", 250, "--outage-start", 200, "--filter", "seed",
+                            "--out", tmp_path / "f", "--quiet"], capsys)
+    assert code == 0, err
+    s = json.loads((tmp_path / "f" / "summary.json").read_text())
+    assert s["filter"]["kind"] == "seed" and s["filter"]["n_states"] == 9
+
+
 @pytest.mark.parametrize("args, message", [
+    (["--smoother", "rts", "--filter", "seed"], "needs --filter full"),
+    (["--lag", 5], "--lag applies to --smoother fixed-lag"),
+    (["--smoother", "fixed-lag", "--lag", 0.5], "--lag must be between"),
+    (["--smoother", "fixed-lag", "--lag", "nan"], "finite"),
+    (["--smoother", "forward"], "--smoother"),
     (["--duration", 100], "at least 250 s"),
     (["--outage-start", 290], "must end before the flight"),
     (["--rate", 5], "--rate must be between"),
