@@ -192,3 +192,25 @@ def test_blocks_follow_the_sensor_model_and_the_carry_flags():
         scenario.GpsInsConfig(filter="seed", smoother="rts")
     with pytest.raises(ValueError):
         scenario.GpsInsConfig(smoother="fixed")
+
+
+def test_a_non_finite_fix_is_flagged_and_not_used(run0):
+    """A fix with a NaN coordinate is counted in ``rejected`` and skipped (no update at that
+    epoch: the posterior is the prior); every state stays finite."""
+    fw = run0.forward
+    gps = run0.gps
+    lla = gps.lla.copy()
+    lla[5, 1] = np.nan
+    n_ep = 20
+    k_end = int(gps.index[n_ep - 1])
+    out = augmented.run(fw["states"][0].copy(), fw["p_post"][0].copy(),
+                        np.ascontiguousarray(fw["wcs"][:k_end]),
+                        np.ascontiguousarray(fw["fcs"][:k_end]), 1.0 / run0.cfg.rate_hz,
+                        fw["ep_idx"][:n_ep + 1], lla[:n_ep], gps.valid[:n_ep],
+                        np.full(3, 20.0), fw["qas"][0].copy(), fw["qgs"][0].copy(), 0.0, 0.0,
+                        30.0, fw["off"])
+    states, p_post, p_prior, rejected = out[0], out[6], out[7], out[12]
+    assert rejected.sum() == 1 and rejected[5]
+    np.testing.assert_array_equal(p_post[6], p_prior[6])
+    assert not np.array_equal(p_post[7], p_prior[7])
+    assert np.isfinite(states).all()

@@ -42,6 +42,8 @@ keeping one per IMU sample.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -247,7 +249,7 @@ def run(x0, P0, gyro, accel, dt, ep_idx, gps_lla, gps_valid, sigma, qa0, qg0, sf
     (after any correction), compensated readings f_c, w_c (N, 3), per-step densities qa, qg
     (N, 3), position covariance in metres (N+1, 3, 3), P_post, P_prior (M+1, n, n),
     corrections dx (M+1, n), compensation per epoch (M+1, 12), innovations and their
-    variances (M, 3)."""
+    variances (M, 3), and the valid fixes rejected for a non-finite coordinate (M,)."""
     n = P0.shape[0]
     N = gyro.shape[0]
     M = ep_idx.shape[0] - 1
@@ -263,6 +265,7 @@ def run(x0, P0, gyro, accel, dt, ep_idx, gps_lla, gps_valid, sigma, qa0, qg0, sf
     comps = np.zeros((M + 1, 12))
     innov = np.full((M, 3), np.nan)
     s_diag = np.full((M, 3), np.nan)
+    rejected = np.zeros(M, dtype=np.bool_)
     x = x0.copy()
     P = P0.copy()
     comp = np.zeros(12)
@@ -291,8 +294,14 @@ def run(x0, P0, gyro, accel, dt, ep_idx, gps_lla, gps_valid, sigma, qa0, qg0, sf
             qgs[k, i] = qg[i]
         if e <= M and ep_idx[e] == k + 1:
             p_prior[e] = P
-            if gps_valid[e - 1]:
-                dx, z, S = gps_update(P, x, gps_lla[e - 1], sigma)
+            fix = gps_lla[e - 1]
+            usable = gps_valid[e - 1]
+            if usable and not (math.isfinite(fix[0]) and math.isfinite(fix[1])
+                               and math.isfinite(fix[2])):
+                rejected[e - 1] = True  # a fix with a NaN/inf coordinate: flagged, not used
+                usable = False
+            if usable:
+                dx, z, S = gps_update(P, x, fix, sigma)
                 apply_correction(x, comp, dx, off)
                 dxs[e] = dx
                 for m in range(3):
@@ -310,7 +319,8 @@ def run(x0, P0, gyro, accel, dt, ep_idx, gps_lla, gps_valid, sigma, qa0, qg0, sf
     for a in range(3):
         for b in range(3):
             ppos[0, a, b] = P0[a, b] * hd[a] * hd[b]
-    return (states, fcs, wcs, qas, qgs, ppos, p_post, p_prior, dxs, comps, innov, s_diag)
+    return (states, fcs, wcs, qas, qgs, ppos, p_post, p_prior, dxs, comps, innov, s_diag,
+            rejected)
 
 
 @njit(cache=True)

@@ -509,6 +509,8 @@ class GpsInsResult:
         s["filter"] = {"kind": c.filter, "n_states": int(self.forward["n"]) if self.forward
                        else kf.NX, "states": self.forward["names"] if self.forward else
                        augmented.state_names(np.full(4, -1))}
+        if self.forward is not None:
+            s["gps_ins"]["fixes_rejected_non_finite"] = int(self.forward["rejected"].sum())
         s["gps_ins"]["rms_horizontal_error_outside_outage_m"] = float(np.sqrt(np.mean(
             gi.horizontal_error[~out] ** 2)))
         s["ratio_whole_flight"] = s["gps_ins"]["rms_ratio_to_gps_only"]
@@ -749,11 +751,12 @@ def simulate(cfg: GpsInsConfig, progress=None) -> GpsInsResult:
         off, P0f, qa0, qg0, sf_acc, sf_gyro = full_filter_setup(cfg, P0)
         ep_idx = np.concatenate([[0], gps.index]).astype(np.int64)
         (states, fcs, wcs, qas, qgs, ppos, p_post, p_prior, dxs, comps, innov,
-         sdiag) = augmented.run(x0, P0f, gyro, accel, dt, ep_idx, gps.lla, gps.valid, sig,
+         sdiag, rejected) = augmented.run(x0, P0f, gyro, accel, dt, ep_idx, gps.lla, gps.valid, sig,
                                 qa0, qg0, sf_acc, sf_gyro, cfg.q_tau_s, off)
         forward = dict(off=off, n=P0f.shape[0], names=augmented.state_names(off),
                        ep_idx=ep_idx, states=states, fcs=fcs, wcs=wcs, qas=qas, qgs=qgs,
-                       p_post=p_post, p_prior=p_prior, dxs=dxs, comps=comps)
+                       p_post=p_post, p_prior=p_prior, dxs=dxs, comps=comps,
+                       rejected=rejected)
     if progress:
         progress("scoring")
     # ppos is in metres of (dlat, dlon, dh) scaled = (north, east, up) errors of the INS;
