@@ -103,16 +103,19 @@ def add_noise(P, x, qa, qg, dt):
 
 
 @njit(cache=True)
-def phi_sandwich(P, F, dt):
-    """P <- (I + F dt) P (I + F dt)' using F's non-zeros (in place): T = P + dt F P row by
-    row (rows of F without non-zeros, the sensor states', are copies), then the upper
-    triangle of T + dt T F', mirrored."""
+def phi_sandwich(P, F, dt, rows):
+    """P <- (I + F dt) P (I + F dt)' using F's non-zeros (in place), for an F whose rows from
+    ``rows`` on are zero (the sensor states are random constants: rows >= 9): T = P + dt F P
+    row by row, then the upper triangle of T + dt T F', mirrored."""
     n = P.shape[0]
     ptr = np.zeros(n + 1, dtype=np.int64)
     cols = np.empty(n * n, dtype=np.int64)
     vals = np.empty(n * n)
     m = 0
     for i in range(n):
+        if i >= rows:
+            ptr[i + 1] = m
+            continue
         for k in range(n):
             a = F[i, k]
             if a != 0.0:
@@ -145,7 +148,7 @@ def propagate(P, x, f_c, w_c, dt, qa, qg, off, kind):
     n = P.shape[0]
     F = error_dynamics(x, f_c, w_c, off, n, kind)
     add_noise(P, x, qa, qg, dt)
-    phi_sandwich(P, F, dt)
+    phi_sandwich(P, F, dt, NAV)
     return F
 
 
