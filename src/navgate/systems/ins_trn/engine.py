@@ -224,6 +224,10 @@ def nav_from_ned(reference: LocalTangent, pn, pe, h, v, q) -> np.ndarray:
 ENGINES: dict[str, tuple[str, str]] = {
     "reference": ("navgate.systems.ins_trn.engine:ReferenceEngine",
                   "float64 reference model (nav.eskf, nav.strapdown)"),
+    "fp32": ("navgate.systems.ins_trn.fp32_engine:Fp32Engine",
+             "float32 bit-true model of the PL engines (op programs, compiled)"),
+    "fp32-plain": ("navgate.systems.ins_trn.fp32_engine:Fp32EngineUncompensated",
+                   "fp32 without the Kahan position compensation (measurement only)"),
 }
 
 
