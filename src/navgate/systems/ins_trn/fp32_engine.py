@@ -87,7 +87,10 @@ class Fp32Engine(PlEngine):
             "q_vel": c.accel_vrw**2 * dt, "q_att": c.gyro_arw**2 * dt,
             "q_ba": c.accel_bias_sigma**2 * (1.0 - decay_a**2),
             "q_bg": c.gyro_bias_sigma**2 * (1.0 - decay_g**2),
-            "decay_a": decay_a, "decay_g": decay_g,
+            "eps_a": -math.expm1(-dt / c.accel_bias_tau),
+            "eps_g": -math.expm1(-dt / c.gyro_bias_tau),
+            "e2_a": -math.expm1(-2.0 * dt / c.accel_bias_tau),
+            "e2_g": -math.expm1(-2.0 * dt / c.gyro_bias_tau),
             "sin_lat0": math.sin(ref.lat0), "cos_lat0": math.cos(ref.lat0),
             "inv_mlat": 1.0 / ref.m_per_rad_lat, "m_lat": ref.m_per_rad_lat,
             "m_lon": ref.m_per_rad_lon,
@@ -101,8 +104,8 @@ class Fp32Engine(PlEngine):
         pn, pe = s.reference.to_ned(nav[0], nav[1])
         for name, v in zip(fp.NAV_REGS, [pn, pe, *nav[2:]], strict=True):
             m.set(name, float(v))
-        m.set("cN", 0.0)
-        m.set("cE", 0.0)
+        for name in ("cN", "cE", "cD"):
+            m.set(name, 0.0)
         rn, re = radii(nav[0])
         m.set("kN", s.reference.m_per_rad_lat / (rn + nav[2]))
         m.set("kE", s.reference.m_per_rad_lon / ((re + nav[2]) * math.cos(nav[0])))
@@ -154,7 +157,7 @@ class Fp32Engine(PlEngine):
     def read_nav(self):
         g = self.m.get
         pn, pe = self.read_position_ned()
-        return nav_from_ned(self.setup.reference, pn, pe, g("h"),
+        return nav_from_ned(self.setup.reference, pn, pe, g("h") - g("cD"),
                             [g("vN"), g("vE"), g("vD")], [g(f"q{i}") for i in range(4)])
 
     def read_bias(self):

@@ -14,10 +14,11 @@ A :class:`Program` is a list of :class:`Op` in SSA form: every op writes a *new*
 
 * **state** (:data:`STATE_REGS`): persistent registers: navigation state (``pN pE h vN vE vD
   q0..q3``: position float32 NED metres about the reference point the PS set, height, NED
-  velocity, quaternion C_b^n), the Kahan compensation words of the horizontal position
-  (``cN cE``), the position scale factors ``kN kE`` of the last step, the bias estimates
-  (``ba0..2 bg0..2``), the 120-element upper triangle of P (``P{i}_{j}``, i <= j), and
-  configuration words the PS writes (calibration, dt, noise, reference point: :data:`CONFIG_REGS`);
+  velocity, quaternion C_b^n), the Kahan compensation words of the position
+  (``cN cE cD``: the position is ``pN - cN`` etc.), the position scale factors ``kN kE``
+  of the last step, the bias estimates (``ba0..2 bg0..2``), the 120-element upper
+  triangle of P (``P{i}_{j}``, i <= j), and configuration words the PS writes
+  (calibration, dt, noise, reference point: :data:`CONFIG_REGS`);
 * **input**: the per-call inputs (IMU words, measurement, R, lag, gate);
 * **const**: float32 literals (``c:<hex bits>``), a ROM in the gateware;
 * **temp**: SSA values.
@@ -63,9 +64,9 @@ CAL_REGS = tuple(f"cal_{s}_{p}" for s in ("g", "a")
                  for p in ("lsb", "b0", "b1", "b2", "m00", "m01", "m02", "m10", "m11", "m12",
                            "m20", "m21", "m22"))
 CONFIG_REGS = CAL_REGS + (
-    "dt", "half_dt", "q_vel", "q_att", "q_ba", "q_bg", "decay_a", "decay_g",
+    "dt", "half_dt", "q_vel", "q_att", "q_ba", "q_bg", "eps_a", "eps_g", "e2_a", "e2_g",
     "sin_lat0", "cos_lat0", "inv_mlat", "m_lat", "m_lon")
-STATE_REGS = NAV_REGS + ("cN", "cE", "kN", "kE", "ba0", "ba1", "ba2", "bg0", "bg1", "bg2") \
+STATE_REGS = NAV_REGS + ("cN", "cE", "cD", "kN", "kE", "ba0", "ba1", "ba2", "bg0", "bg1", "bg2") \
     + P_REGS + CONFIG_REGS
 
 
@@ -359,13 +360,14 @@ def emit_mechanization(b: Builder, gyro, accel, compensated: bool = True):
     vd = b.add("vD", m(b.sub(b.add(f_n[2], ft.g), cor_d), "dt"))
     inc_n = m(m(b.add("vN", vn), "half_dt"), ft.kn)
     inc_e = m(m(b.add("vE", ve), "half_dt"), ft.ke)
+    inc_h = b.neg(m(b.add("vD", vd), "half_dt"))
     if compensated:
         pn, cn = _kahan(b, "pN", "cN", inc_n)
         pe, ce = _kahan(b, "pE", "cE", inc_e)
-        b.prog.commit.update({"cN": cn, "cE": ce})
+        h, cd = _kahan(b, "h", "cD", inc_h)
+        b.prog.commit.update({"cN": cn, "cE": ce, "cD": cd})
     else:
-        pn, pe = b.add("pN", inc_n), b.add("pE", inc_e)
-    h = b.sub("h", m(b.add("vD", vd), "half_dt"))
+        pn, pe, h = b.add("pN", inc_n), b.add("pE", inc_e), b.add("h", inc_h)
     b.prog.commit.update({"pN": pn, "pE": pe, "h": h, "vN": vn, "vE": ve, "vD": vd,
                           "q0": q[0], "q1": q[1], "q2": q[2], "q3": q[3],
                           "kN": ft.kn, "kE": ft.ke})
@@ -403,8 +405,9 @@ def emit_phi(b: Builder, ft: FrameTerms, c_old, f_n, wxyz, ixyz):
             e = b.neg(m(c_old[i][j], "dt"))
             phi[3 + i, 9 + j] = e
             phi[6 + i, 12 + j] = e
-        phi[9 + i, 9 + i] = "decay_a"
-        phi[12 + i, 12 + i] = "decay_g"
+        # bias decay exp(-dt/tau) = 1 - eps: held as eps (see emit_covariance)
+        phi[9 + i, 9 + i] = "eps_a"
+        phi[12 + i, 12 + i] = "eps_g"
     return phi, ones
 
 
@@ -424,15 +427,27 @@ def emit_covariance(b: Builder, phi: dict, ones: set):
     a = {}
     for i in range(n):
         for j in range(n):
-            a[i, j] = b.sum([(1, term(i, k, p_reg(k, j))) for k in rows[i]])
-    q = {i: "q_vel" for i in (3, 4, 5)} | {i: "q_att" for i in (6, 7, 8)} \
-        | {i: "q_ba" for i in (9, 10, 11)} | {i: "q_bg" for i in (12, 13, 14)}
+            if i >= 9:  # bias rows: (1 - eps) P = P - eps P (eps keeps full precision)
+                if i == j:
+                    continue  # the diagonal bias entries are done in one step below
+                a[i, j] = b.sub(p_reg(i, j), b.mul(phi[i, i], p_reg(i, j)))
+            else:
+                a[i, j] = b.sum([(1, term(i, k, p_reg(k, j))) for k in rows[i]])
+    q = {i: "q_vel" for i in (3, 4, 5)} | {i: "q_att" for i in (6, 7, 8)}
     for i in range(n):
         for j in range(i, n):
-            v = b.sum([(1, a[i, k] if (j, k) in ones else b.mul(a[i, k], phi[j, k]))
-                       for k in rows[j]])
-            if i == j and i in q:
-                v = b.add(v, q[i])
+            if i == j and i >= 9:
+                # (1 - eps)^2 P + q = P + (q - e2 P), e2 = 1 - (1 - eps)^2: the increment is
+                # formed before it meets P, so the stationary variance stays put
+                qq, e2 = ("q_ba", "e2_a") if i < 12 else ("q_bg", "e2_g")
+                v = b.add(p_reg(i, i), b.sub(qq, b.mul(e2, p_reg(i, i))))
+            elif j >= 9:
+                v = b.sub(a[i, j], b.mul(a[i, j], phi[j, j]))
+            else:
+                v = b.sum([(1, a[i, k] if (j, k) in ones else b.mul(a[i, k], phi[j, k]))
+                           for k in rows[j]])
+                if i == j and i in q:
+                    v = b.add(v, q[i])
             b.prog.commit[p_reg(i, j)] = v
 
 
@@ -492,7 +507,7 @@ def emit_correction(b: Builder, dx):
 def altitude_gate_program() -> Program:
     """1-D update, first half: innovation, S, NIS and the gate (sequencer reads ``accept``)."""
     b = Builder("kalman_update_engine", ("h_meas", "r", "gate"))
-    y = b.sub("h_meas", "h")
+    y = b.add(b.sub("h_meas", "h"), "cD")
     s = b.add(p_reg(2, 2), "r")
     inv = b.div(1.0, s)
     nis = b.mul(b.mul(y, y), inv)
@@ -503,7 +518,7 @@ def altitude_gate_program() -> Program:
 def altitude_apply_program() -> Program:
     """1-D update, second half (run when accepted): K, Joseph covariance update, feedback."""
     b = Builder("kalman_update_engine", ("h_meas", "r"))
-    y = b.sub("h_meas", "h")
+    y = b.add(b.sub("h_meas", "h"), "cD")
     s = b.add(p_reg(2, 2), "r")
     inv = b.div(1.0, s)
     col = [p_reg(i, 2) for i in range(N_STATES)]
