@@ -118,7 +118,7 @@ def stream_from_sensors(data, truth_every: int | None = None, header: dict | Non
         keys.append(rows * 4 + 3)
         kinds.append(np.full(rows.size, TRUTH, np.uint8))
         idx.append(np.arange(rows.size))
-        times.append(truth.t[rows].astype(float))
+        times.append(np.array([t0 + int(k) * dt for k in rows]))
     key = np.concatenate(keys)
     order = np.argsort(key, kind="stable")
     baro_status = np.where(np.asarray(data.baro.valid, bool)
