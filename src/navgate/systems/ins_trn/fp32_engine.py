@@ -104,7 +104,7 @@ class Fp32Engine(PlEngine):
         pn, pe = s.reference.to_ned(nav[0], nav[1])
         for name, v in zip(fp.NAV_REGS, [pn, pe, *nav[2:]], strict=True):
             m.set(name, float(v))
-        for name in ("cN", "cE", "cD"):
+        for name in ("cN", "cE", "cD", "cvN", "cvE", "cvD", "cq0", "cq1", "cq2", "cq3"):
             m.set(name, 0.0)
         rn, re = radii(nav[0])
         m.set("kN", s.reference.m_per_rad_lat / (rn + nav[2]))
@@ -158,7 +158,8 @@ class Fp32Engine(PlEngine):
         g = self.m.get
         pn, pe = self.read_position_ned()
         return nav_from_ned(self.setup.reference, pn, pe, g("h") - g("cD"),
-                            [g("vN"), g("vE"), g("vD")], [g(f"q{i}") for i in range(4)])
+                            [g(v) - g(f"c{v}") for v in ("vN", "vE", "vD")],
+                            [g(f"q{i}") - g(f"cq{i}") for i in range(4)])
 
     def read_bias(self):
         g = self.m.get

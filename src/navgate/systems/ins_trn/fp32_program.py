@@ -15,7 +15,8 @@ A :class:`Program` is a list of :class:`Op` in SSA form: every op writes a *new*
 * **state** (:data:`STATE_REGS`): persistent registers: navigation state (``pN pE h vN vE vD
   q0..q3``: position float32 NED metres about the reference point the PS set, height, NED
   velocity, quaternion C_b^n), the Kahan compensation words of the position
-  (``cN cE cD``: the position is ``pN - cN`` etc.), the position scale factors ``kN kE``
+  (``cN cE cD``: the position is ``pN - cN`` etc.), of velocity and quaternion (``cvN cvE
+  cvD cq0..3``), the position scale factors ``kN kE``
   of the last step, the bias estimates (``ba0..2 bg0..2``), the 120-element upper
   triangle of P (``P{i}_{j}``, i <= j), and configuration words the PS writes
   (calibration, dt, noise, reference point: :data:`CONFIG_REGS`);
@@ -66,7 +67,8 @@ CAL_REGS = tuple(f"cal_{s}_{p}" for s in ("g", "a")
 CONFIG_REGS = CAL_REGS + (
     "dt", "half_dt", "q_vel", "q_att", "q_ba", "q_bg", "eps_a", "eps_g", "e2_a", "e2_g",
     "sin_lat0", "cos_lat0", "inv_mlat", "m_lat", "m_lon")
-STATE_REGS = NAV_REGS + ("cN", "cE", "cD", "kN", "kE", "ba0", "ba1", "ba2", "bg0", "bg1", "bg2") \
+STATE_REGS = NAV_REGS + ("cN", "cE", "cD", "cvN", "cvE", "cvD", "cq0", "cq1", "cq2", "cq3",
+                         "kN", "kE", "ba0", "ba1", "ba2", "bg0", "bg1", "bg2") \
     + P_REGS + CONFIG_REGS
 
 
@@ -312,6 +314,41 @@ def _frame_terms(b: Builder) -> FrameTerms:
                       kn, ke)
 
 
+def _attitude_increment(b: Builder, q, theta, n):
+    """q <- normalise(n (x) q (x) dq(theta)) in increment form with Kahan compensation.
+
+    dq(theta) = [1 + wm1, s theta] (series); the new quaternion is q + D with
+    D = q (wm1 + km1) + q (x) [0, s theta] + [0, n] (x) q, km1 = (1 - |q|^2) / 2 the
+    first-order normalisation of the current q; the second-order cross terms
+    (|n| |theta| < 1e-10 per sample) are dropped. D is formed in full relative precision and
+    added to q with a compensation word per component (``cq0..3``)."""
+    m = b.mul
+    x, y, z = theta
+    a2 = b.add(b.add(m(x, x), m(y, y)), m(z, z))
+    wm1 = m(a2, b.add(-1.0 / 8.0, m(a2, 1.0 / 384.0)))
+    s = b.add(0.5, m(a2, b.add(-1.0 / 48.0, m(a2, 1.0 / 3840.0))))
+    v1, v2, v3 = m(s, x), m(s, y), m(s, z)
+    q0, q1, q2, q3 = q
+    n2 = b.add(b.add(b.add(m(q0, q0), m(q1, q1)), m(q2, q2)), m(q3, q3))
+    km1 = b.sub(0.5, m(0.5, n2))
+    sc = b.add(wm1, km1)
+    nx, ny, nz = n
+    d = (b.sum([(1, m(q0, sc)), (-1, m(q1, v1)), (-1, m(q2, v2)), (-1, m(q3, v3)),
+                (-1, m(nx, q1)), (-1, m(ny, q2)), (-1, m(nz, q3))]),
+         b.sum([(1, m(q1, sc)), (1, m(q0, v1)), (1, m(q2, v3)), (-1, m(q3, v2)),
+                (1, m(nx, q0)), (1, m(ny, q3)), (-1, m(nz, q2))]),
+         b.sum([(1, m(q2, sc)), (1, m(q0, v2)), (-1, m(q1, v3)), (1, m(q3, v1)),
+                (-1, m(nx, q3)), (1, m(ny, q0)), (1, m(nz, q1))]),
+         b.sum([(1, m(q3, sc)), (1, m(q0, v3)), (1, m(q1, v2)), (-1, m(q2, v1)),
+                (1, m(nx, q2)), (-1, m(ny, q1)), (1, m(nz, q0))]))
+    out = []
+    for i in range(4):
+        qi, ci = _kahan(b, q[i], f"cq{i}", d[i])
+        b.prog.commit[f"cq{i}"] = ci
+        out.append(qi)
+    return tuple(out)
+
+
 def _kahan(b: Builder, p, comp, inc):
     """p + inc with the compensation word ``comp`` (Kahan summation); returns (p', comp')."""
     y = b.sub(inc, comp)
@@ -329,19 +366,22 @@ def emit_mechanization(b: Builder, gyro, accel, compensated: bool = True):
     f = [b.sub(accel[i], f"ba{i}") for i in range(3)]
     q = ("q0", "q1", "q2", "q3")
     c_old = _dcm(b, q)
-    dqb = _rotvec_quat(b, b.mul(w[0], "dt"), b.mul(w[1], "dt"), b.mul(w[2], "dt"))
-    q = _qmul(b, q, dqb)
     ix = b.add(ft.wie_n, ft.wen_n)
     iy = ft.wen_e
     iz = b.add(ft.wie_d, ft.wen_d)
     # navigation-frame rotation of -(w_ie + w_en) dt, first order: [1, -w dt / 2]
     nx, ny, nz = (b.neg(b.mul(v, "half_dt")) for v in (ix, iy, iz))
     m = b.mul
-    q = (b.sum([(1, q[0]), (-1, m(nx, q[1])), (-1, m(ny, q[2])), (-1, m(nz, q[3]))]),
-         b.sum([(1, q[1]), (1, m(nx, q[0])), (1, m(ny, q[3])), (-1, m(nz, q[2]))]),
-         b.sum([(1, q[2]), (-1, m(nx, q[3])), (1, m(ny, q[0])), (1, m(nz, q[1]))]),
-         b.sum([(1, q[3]), (1, m(nx, q[2])), (-1, m(ny, q[1])), (1, m(nz, q[0]))]))
-    q = _normalise(b, q)
+    if compensated:
+        q = _attitude_increment(b, q, [m(w[i], "dt") for i in range(3)], (nx, ny, nz))
+    else:
+        dqb = _rotvec_quat(b, b.mul(w[0], "dt"), b.mul(w[1], "dt"), b.mul(w[2], "dt"))
+        q = _qmul(b, q, dqb)
+        q = (b.sum([(1, q[0]), (-1, m(nx, q[1])), (-1, m(ny, q[2])), (-1, m(nz, q[3]))]),
+             b.sum([(1, q[1]), (1, m(nx, q[0])), (1, m(ny, q[3])), (-1, m(nz, q[2]))]),
+             b.sum([(1, q[2]), (-1, m(nx, q[3])), (1, m(ny, q[0])), (1, m(nz, q[1]))]),
+             b.sum([(1, q[3]), (1, m(nx, q[2])), (-1, m(ny, q[1])), (1, m(nz, q[0]))]))
+        q = _normalise(b, q)
     c_new = _dcm(b, q)
     f_n = []
     for i in range(3):
@@ -355,9 +395,14 @@ def emit_mechanization(b: Builder, gyro, accel, compensated: bool = True):
     cor_n = b.sub(m(wy, "vD"), m(wz, "vE"))
     cor_e = b.sub(m(wz, "vN"), m(wx, "vD"))
     cor_d = b.sub(m(wx, "vE"), m(wy, "vN"))
-    vn = b.add("vN", m(b.sub(f_n[0], cor_n), "dt"))
-    ve = b.add("vE", m(b.sub(f_n[1], cor_e), "dt"))
-    vd = b.add("vD", m(b.sub(b.add(f_n[2], ft.g), cor_d), "dt"))
+    dv = (m(b.sub(f_n[0], cor_n), "dt"), m(b.sub(f_n[1], cor_e), "dt"),
+          m(b.sub(b.add(f_n[2], ft.g), cor_d), "dt"))
+    if compensated:
+        (vn, cvn), (ve, cve), (vd, cvd) = (_kahan(b, v, f"c{v}", d)
+                                           for v, d in zip(("vN", "vE", "vD"), dv, strict=True))
+        b.prog.commit.update({"cvN": cvn, "cvE": cve, "cvD": cvd})
+    else:
+        vn, ve, vd = (b.add(v, d) for v, d in zip(("vN", "vE", "vD"), dv, strict=True))
     inc_n = m(m(b.add("vN", vn), "half_dt"), ft.kn)
     inc_e = m(m(b.add("vE", ve), "half_dt"), ft.ke)
     inc_h = b.neg(m(b.add("vD", vd), "half_dt"))
