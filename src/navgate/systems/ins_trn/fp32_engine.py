@@ -116,6 +116,7 @@ class Fp32Engine(PlEngine):
         for i in range(15):
             for j in range(i, 15):
                 m.set(fp.p_reg(i, j), p[i, j])
+                m.set("c" + fp.p_reg(i, j), 0.0)
 
     # -- engine calls ---------------------------------------------------------------------------
     def propagate(self, gyro_words, accel_words) -> None:
@@ -167,7 +168,7 @@ class Fp32Engine(PlEngine):
                 np.array([g(f"bg{i}") for i in range(3)]))
 
     def read_cov(self):
-        v = self.m.regs[self.m.p_idx]
+        v = self.m.regs[self.m.p_idx] - self.m.regs[self.m.cp_idx]
         p = np.empty((15, 15))
         k = 0
         for i in range(15):
@@ -176,13 +177,15 @@ class Fp32Engine(PlEngine):
                 k += 1
         return p
 
+    def _p(self, i, j):
+        name = fp.p_reg(i, j)
+        return self.m.get(name) - self.m.get("c" + name)
+
     def read_cov_diag(self):
-        r, ix = self.m.regs, self.m.index
-        return np.array([r[ix[fp.p_reg(i, i)]] for i in range(15)])
+        return np.array([self._p(i, i) for i in range(15)])
 
     def read_p_horizontal(self):
-        g = self.m.get
-        return np.array([[g("P0_0"), g("P0_1")], [g("P0_1"), g("P1_1")]])
+        return np.array([[self._p(0, 0), self._p(0, 1)], [self._p(0, 1), self._p(1, 1)]])
 
 
 class Fp32EngineUncompensated(Fp32Engine):

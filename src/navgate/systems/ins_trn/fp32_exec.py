@@ -166,6 +166,8 @@ class Machine:
             self.regs[self.index[c]] = const_value(c)
         self.p_idx = np.array([self.index[f"P{i}_{j}"] for i in range(15) for j in range(i, 15)],
                               dtype=np.int64)
+        self.cp_idx = np.array([self.index[f"cP{i}_{j}"] for i in range(15)
+                                for j in range(i, 15)], dtype=np.int64)
 
     def set(self, name, value):
         """Write a float32 register from a float64 value (rounded to nearest, flushed)."""

@@ -61,6 +61,7 @@ UNIT = {"add": "add", "sub": "add", "mul": "mul", "div": "div", "sqrt": "sqrt", 
 
 NAV_REGS = ("pN", "pE", "h", "vN", "vE", "vD", "q0", "q1", "q2", "q3")
 P_REGS = tuple(f"P{i}_{j}" for i in range(N_STATES) for j in range(i, N_STATES))
+CP_REGS = tuple("c" + p for p in P_REGS)  #: Kahan compensation words of P
 CAL_REGS = tuple(f"cal_{s}_{p}" for s in ("g", "a")
                  for p in ("lsb", "b0", "b1", "b2", "m00", "m01", "m02", "m10", "m11", "m12",
                            "m20", "m21", "m22"))
@@ -69,7 +70,7 @@ CONFIG_REGS = CAL_REGS + (
     "sin_lat0", "cos_lat0", "inv_mlat", "m_lat", "m_lon")
 STATE_REGS = NAV_REGS + ("cN", "cE", "cD", "cvN", "cvE", "cvD", "cq0", "cq1", "cq2", "cq3",
                          "kN", "kE", "ba0", "ba1", "ba2", "bg0", "bg1", "bg2") \
-    + P_REGS + CONFIG_REGS
+    + P_REGS + CP_REGS + CONFIG_REGS
 
 
 def p_reg(i: int, j: int) -> str:
@@ -496,6 +497,47 @@ def emit_covariance(b: Builder, phi: dict, ones: set):
             b.prog.commit[p_reg(i, j)] = v
 
 
+def emit_covariance_increment(b: Builder, phi: dict, ones: set):
+    """P <- P + E, E = G P + (G P)' + (G P) G' + Q with G = Phi - I (the same products as
+    Phi P Phi' + Q, formed as an increment so that the small per-sample changes keep their
+    full relative precision), added to each of the 120 stored elements with a Kahan
+    compensation word ``cP{i}_{j}`` (the covariance is P - cP)."""
+    b.module = "covariance_propagator"
+    n = N_STATES
+    g_rows = {i: sorted(k for (r, k) in phi if r == i) for i in range(n)}
+
+    def g_entry(i, k, x):
+        """G_ik * x: the bias rows' G_ii = -eps."""
+        if i >= 9:
+            return b.neg(b.mul(phi[i, i], x))
+        return b.mul(phi[i, k], x)
+
+    mm = {}
+    for i in range(n):
+        for j in range(n):
+            if i >= 9 and i == j:
+                continue
+            mm[i, j] = b.sum([(1, g_entry(i, k, p_reg(k, j))) for k in g_rows[i]])
+    q = {i: "q_vel" for i in (3, 4, 5)} | {i: "q_att" for i in (6, 7, 8)}
+    for i in range(n):
+        for j in range(i, n):
+            if i == j and i >= 9:
+                qq, e2 = ("q_ba", "e2_a") if i < 12 else ("q_bg", "e2_g")
+                e = b.sub(qq, b.mul(e2, p_reg(i, i)))
+            else:
+                terms = [(1, mm[i, j]), (1, mm[j, i])]
+                if j >= 9:
+                    terms.append((-1, b.mul(mm[i, j], phi[j, j])))
+                else:
+                    terms += [(1, b.mul(mm[i, k], phi[j, k])) for k in g_rows[j]]
+                if i == j and i in q:
+                    terms.append((1, q[i]))
+                e = b.sum(terms)
+            pij, cij = _kahan(b, p_reg(i, j), "c" + p_reg(i, j), e)
+            b.prog.commit[p_reg(i, j)] = pij
+            b.prog.commit["c" + p_reg(i, j)] = cij
+
+
 def propagate_program(compensated: bool = True) -> Program:
     """One IMU sample: calibration, mechanization, Phi/Q, covariance propagation."""
     ins = ("wg0", "wg1", "wg2", "wa0", "wa1", "wa2")
@@ -503,7 +545,10 @@ def propagate_program(compensated: bool = True) -> Program:
     g, a = emit_calibration(b, ins[:3], ins[3:])
     ft, c_old, f_n, wxyz, ixyz = emit_mechanization(b, g, a, compensated)
     phi, ones = emit_phi(b, ft, c_old, f_n, wxyz, ixyz)
-    emit_covariance(b, phi, ones)
+    if compensated:
+        emit_covariance_increment(b, phi, ones)
+    else:
+        emit_covariance(b, phi, ones)
     return b.prog
 
 
