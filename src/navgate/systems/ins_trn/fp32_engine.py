@@ -139,6 +139,14 @@ class Fp32Engine(PlEngine):
             return UpdateOutcome(False, nis, np.zeros(15), "rejected by chi-square gate")
         res = m.run(apply_key, **{k: v for k, v in inputs.items()})
         self._count(self.accepted, kind)
+        if self.check_pd:
+            p = self.read_cov()
+            try:
+                np.linalg.cholesky(p)
+            except np.linalg.LinAlgError:
+                self.pd_stats[0] += 1
+            if not np.all(np.isfinite(p)):
+                self.pd_stats[1] += 1
         return UpdateOutcome(True, nis, np.array([res[f"dx{i}"] for i in range(15)]))
 
     def update_altitude(self, h_meas, sigma) -> UpdateOutcome:
