@@ -30,7 +30,6 @@ engine (:mod:`navgate.systems.ins_trn.fp32_engine`) is the bit-true face of the 
 
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
@@ -168,14 +167,6 @@ class ReferenceEngine(PlEngine):
         self.imu_samples_rejected += f.imu_samples_rejected - before
         self.samples += gyro.shape[0]
 
-    def propagate_calibrated(self, gyro, accel, k0, k1) -> None:
-        """Propagate already calibrated readings k0..k1-1 (the fast path of a whole flight)."""
-        f = self.filter
-        before = f.imu_samples_rejected
-        f.propagate(gyro, accel, k0, k1)
-        self.imu_samples_rejected += f.imu_samples_rejected - before
-        self.samples += k1 - k0
-
     def _outcome(self, upd) -> UpdateOutcome:
         return UpdateOutcome(bool(upd.accepted), float(upd.nis), upd.correction,
                              "" if upd.accepted else "rejected by chi-square gate")
@@ -239,5 +230,3 @@ def make_engine(name: str, setup: EngineSetup) -> PlEngine:
     module, attr = ENGINES[name][0].split(":")
     return getattr(importlib.import_module(module), attr)(setup)
 
-
-_ = math

@@ -45,7 +45,6 @@ the offset (|dlat| <= 0.02 rad: truncation < 7e-9).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -685,5 +684,3 @@ def latitude_series_bound(dlat_max: float) -> float:
     """Truncation of cos(d) ~ 1 - d^2/2 and sin(d) ~ d - d^3/6: <= d^4/24 (+ d^5/120)."""
     return dlat_max**4 / 24.0 + dlat_max**5 / 120.0
 
-
-_ = math

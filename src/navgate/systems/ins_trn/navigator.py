@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navgate.nav import eskf, strapdown
+from navgate.nav import eskf
 from navgate.nav.calibration import ImuCalibration
 from navgate.nav.earth import LocalTangent
 from navgate.nav.rotations import quat_to_dcm_array
@@ -240,5 +240,3 @@ def _euler(q):
     return (math.atan2(c[2, 1], c[2, 2]), -math.asin(max(-1.0, min(1.0, c[2, 0]))),
             math.atan2(c[1, 0], c[0, 0]))
 
-
-_ = strapdown

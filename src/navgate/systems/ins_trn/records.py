@@ -82,8 +82,7 @@ class RecordStream:
 # ------------------------------------------------------------------ stream from a simulated flight
 
 
-def stream_from_sensors(data, truth_every: int | None = None, header: dict | None = None
-                        ) -> RecordStream:
+def stream_from_sensors(data, truth_every: int | None, header: dict) -> RecordStream:
     """The record stream of a simulated flight (:class:`navgate.sim.flight.SensorData`).
 
     IMU sample k (0-based) covers [t_k, t_k+1] and is stamped ``t0 + (k + 1) dt``; a
@@ -94,8 +93,7 @@ def stream_from_sensors(data, truth_every: int | None = None, header: dict | Non
     truth = data.truth
     n = data.imu.gyro_words.shape[0]
     t0 = float(truth.t[0])
-    dt = float(truth.t[1] - truth.t[0]) if len(truth) > 1 else 0.0
-    dt = 1.0 / float(header["imu_rate_hz"]) if header and "imu_rate_hz" in header else dt
+    dt = 1.0 / float(header["imu_rate_hz"])
     # sort key: (boundary, order) with IMU sample k at boundary k+1 first
     keys = [np.arange(1, n + 1) * 4 + 0]
     kinds = [np.full(n, IMU, np.uint8)]
@@ -160,13 +158,6 @@ def make_header(cfg, data, init, calibration, reference) -> dict:
 
 
 # ------------------------------------------------------------------ writing and reading
-
-
-def _num(x) -> str:
-    x = float(x)
-    if x == int(x) and abs(x) < 2**53 and math.isfinite(x):
-        return str(int(x)) if not (x == 0 and math.copysign(1, x) < 0) else "-0.0"
-    return repr(x)
 
 
 def write_log(stream: RecordStream, path) -> None:
