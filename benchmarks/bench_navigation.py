@@ -140,6 +140,27 @@ def print_op_counts():
     cov = progs["propagate"].counts_by_module()
     muls = cov["covariance_propagator"]["mul"] + cov["phi_q_generation"]["mul"]
     print(f"covariance propagation (Phi/Q + P): {muls} multiplies per sample (target <= 1500)")
+    print_cycle_bounds(progs)
+
+
+def print_cycle_bounds(progs, units=None):
+    """Cycle lower bounds with the gateware/fp32 cores' latencies (pipelined units)."""
+    from navgate.gateware.fp32.add import Fp32Add
+    from navgate.gateware.fp32.compare import Fp32Compare
+    from navgate.gateware.fp32.convert import Fp32FromInt
+    from navgate.gateware.fp32.div import Fp32Div
+    from navgate.gateware.fp32.mul import Fp32Mul
+    from navgate.gateware.fp32.sqrt import Fp32Sqrt
+    from navgate.systems.ins_trn.fp32_program import schedule_bounds
+
+    lat = {"add": Fp32Add.LATENCY, "mul": Fp32Mul.LATENCY, "div": Fp32Div.LATENCY,
+           "sqrt": Fp32Sqrt.LATENCY, "cmp": Fp32Compare.LATENCY, "cvt": Fp32FromInt.LATENCY}
+    units = units or {"add": 2, "mul": 2, "div": 1, "sqrt": 1, "cmp": 1, "cvt": 1}
+    print(f"\ncycle lower bounds, units {units}, latencies {lat}:")
+    for key in ("propagate", "alt_gate", "alt_apply", "trn_gate", "trn_apply"):
+        b = schedule_bounds(progs[key], lat, units)
+        print(f"  {key:10s} critical path {b['critical_path']:5d}  resource {b['resource']:5d}"
+              f"  -> >= {b['bound']} cycles")
 
 
 def pyins_rows(traj, args):

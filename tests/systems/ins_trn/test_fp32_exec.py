@@ -246,3 +246,17 @@ def test_covariance_propagation_multiply_budget():
     assert counts["covariance_propagator"]["mul"] + counts["phi_q_generation"]["mul"] <= 1500
     total = fp.propagate_program().counts()
     assert total["div"] == 6 and total["sqrt"] == 2
+
+
+def test_schedule_bounds_on_a_small_program():
+    """a*b + c then sqrt: critical path mul + add + sqrt; resource bound from unit counts."""
+    b = fp.Builder("x", ("a", "b", "c"))
+    t = b.add(b.mul("a", "b"), "c")
+    b.sqrt(b.neg(t))
+    for _ in range(5):
+        b.mul("a", "c")
+    lat = {"add": 8, "mul": 5, "div": 30, "sqrt": 29, "cmp": 2, "cvt": 4}
+    got = fp.schedule_bounds(b.prog, lat, {"add": 1, "mul": 2, "div": 1, "sqrt": 1})
+    assert got["critical_path"] == 5 + 8 + 29
+    assert got["ops_per_unit"] == {"mul": 6, "add": 1, "sqrt": 1}
+    assert got["resource"] == 3 and got["bound"] == 42

@@ -669,6 +669,34 @@ def correction_program() -> Program:
     return b.prog
 
 
+# ------------------------------------------------------------------ cycle estimates
+
+
+def schedule_bounds(prog: Program, latency: dict, units: dict) -> dict:
+    """Lower bounds on one program's cycles on pipelined units (one issue per unit per
+    cycle): the dependency bound (critical path; state, input and constant operands ready at
+    cycle 0, ``neg`` free) and the resource bound (ops on a unit kind / units of that kind).
+
+    ``latency``: kind of unit (``UNIT`` values: add, mul, div, sqrt, cmp, cvt) -> cycles from
+    issue to a usable result; ``units``: unit kind -> count. Any schedule needs at least
+    ``max`` of the two; the list scheduler of the gateware issue reports the achieved count.
+    """
+    ready: dict = {}
+    for op in prog.ops:
+        start = max((ready.get(s, 0) for s in op.srcs), default=0)
+        unit = UNIT[op.kind]
+        ready[op.dst] = start + (0 if unit == "wire" else latency[unit])
+    path = max(ready.values(), default=0)
+    per_unit: dict = {}
+    for op in prog.ops:
+        unit = UNIT[op.kind]
+        if unit != "wire":
+            per_unit[unit] = per_unit.get(unit, 0) + 1
+    resource = max((-(-n // units[u]) for u, n in per_unit.items()), default=0)
+    return {"critical_path": path, "resource": resource, "bound": max(path, resource),
+            "ops_per_unit": per_unit}
+
+
 # ------------------------------------------------------------------ error bounds
 
 
