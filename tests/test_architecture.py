@@ -65,7 +65,7 @@ def _layer(module: str) -> str:
 def test_the_graph_is_read():
     graph = import_graph()
     # a few edges that must be there, so that an empty graph cannot pass the tests below
-    assert "navgate.nav.eskf" in graph["navgate.systems.ins_trn.navigation"]
+    assert "navgate.nav.eskf" in graph["navgate.systems.ins_trn.engine"]
     assert "navgate.devices.adis16500" in graph["navgate.nav.calibration"]
     assert "navgate.devices.adis16500" in graph["navgate.sim.sensors"]
     assert len(graph) > 60

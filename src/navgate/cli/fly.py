@@ -40,8 +40,15 @@ def _positive_float(ctx, param, value):
               show_default=True, help="AGL ranger preset.")
 @click.option("--speed", type=float, default=60.0, show_default=True, callback=_positive_float,
               help="Cruise speed (m/s).")
+@click.option("--engine", type=click.Choice(["reference", "fp32"]), default="reference",
+              show_default=True,
+              help="PL engine: float64 reference, or the float32 bit-true model (then the "
+                   "reference flies too, for the comparison in summary.json).")
+@click.option("--record", "record_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write the sensor record stream to this log file (navgate replay).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, ranger, speed, quiet):
+def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, ranger, speed,
+        engine, record_path, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -83,11 +90,20 @@ def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, rang
                   TimeElapsedColumn(), console=console, disable=quiet, transient=False) as bar:
         task = bar.add_task("simulating sensors", total=total)
         result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
-                            stage=lambda s: bar.update(task, description=s), route=route)
+                            stage=lambda s: bar.update(task, description=s), route=route,
+                            engine=engine)
         bar.update(task, description="writing report", completed=total)
         summary = result.summary()
         summary["wall_time_s"] = time.perf_counter() - start
         files = report.write_report(result, out)
+    if record_path is not None:
+        from navgate.systems.ins_trn.records import write_log
+
+        try:
+            write_log(result.stream, record_path)
+        except OSError as error:
+            raise CliError(f"cannot write {record_path}: {error.strerror}") from None
+        summary["record_log"] = str(record_path)
     summary_path = write_summary(out, summary)
     _print_table(console if not quiet else Console(), summary)
     click.echo(f"wrote {summary_path} and {', '.join(p.name for p in files.values())} in {out}")
@@ -112,4 +128,9 @@ def _print_table(console, s):
                       f"{r['rms_horizontal_error_second_half_m']:.1f}",
                       f"{r['nees_position_mean']:.2f}", fixes)
     console.print(table)
-    console.print(f"wall time {s['wall_time_s']:.1f} s")
+    console.print(f"wall time {s['wall_time_s']:.1f} s, engine {s.get('engine', 'reference')}")
+    if "fp32_vs_reference_max_position_difference_m" in s:
+        console.print(f"fp32 vs reference: max position difference "
+                      f"{s['fp32_vs_reference_max_position_difference_m']:.2f} m; engine wall "
+                      f"time {s['engine_wall_time_s']:.1f} s vs "
+                      f"{s['reference_engine_wall_time_s']:.1f} s")

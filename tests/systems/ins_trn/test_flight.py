@@ -32,6 +32,17 @@ def test_default_flight_meets_the_trn_targets(default_flight):
     assert trn["fixes_accepted"] + trn["fixes_rejected"] == trn["fixes_attempted"]
 
 
+def test_default_flight_figures_are_those_of_the_float64_loop(default_flight):
+    """The streaming navigator with the reference engine reproduces the batch loop's
+    figures (seed 0): INS-only final 406.8 m, TRN 2nd-half RMS 23.7 m, NEES 1.26, 47/8."""
+    s = default_flight.summary()
+    assert s["engine"] == "reference"
+    assert round(s["ins_only"]["final_horizontal_error_m"], 1) == 406.8
+    assert round(s["trn_aided"]["rms_horizontal_error_second_half_m"], 1) == 23.7
+    assert round(s["trn_aided"]["nees_position_mean"], 2) == 1.26
+    assert (s["trn_aided"]["fixes_accepted"], s["trn_aided"]["fixes_rejected"]) == (47, 8)
+
+
 def test_default_flight_position_nees_is_consistent_with_two_dof_chi_square(default_flight):
     """Mean NEES over the flight against chi-square(2).
 

@@ -24,7 +24,8 @@ from navgate.sim.flight import (
     score,
     simulate_sensors,
 )
-from navgate.systems.ins_trn.navigation import NavRun, run_navigation
+from navgate.systems.ins_trn.navigation import NavRun, flight_stream, run_navigation
+from navgate.systems.ins_trn.navigator import navigate
 from navgate.trn.dem import Dem
 
 
@@ -38,6 +39,9 @@ class FlightResult:
     scores: dict  #: name -> Score
     log_every: int
     wall_time_s: float
+    engine: str = "reference"
+    reference_runs: dict | None = None  #: name -> NavRun of the reference engine (fp32 runs)
+    stream: object = None  #: the sensor record stream (records.RecordStream)
 
     def summary(self) -> dict:
         cfg = self.config
@@ -47,6 +51,7 @@ class FlightResult:
             "imu_rate_hz": cfg.imu_rate_hz,
             "wall_time_s": self.wall_time_s,
             "seed": cfg.seed,
+            "engine": self.engine,
             "ideal_sensors": cfg.ideal_sensors,
             "dem": {"name": self.dem.name, "rows": self.dem.shape[0], "cols": self.dem.shape[1],
                     "post_spacing_m": list(self.dem.post_spacing_m()),
@@ -83,12 +88,39 @@ class FlightResult:
                 nis = [f["nis"] for f in applied]
                 s["nis_trn_mean"] = float(np.mean(nis)) if nis else None
             out[name] = s
+        if self.reference_runs:
+            diffs, ref_wall = [], 0.0
+            for name, run in self.runs.items():
+                ref = self.reference_runs[name]
+                diffs.append(max_position_difference(self.dem, run, ref))
+                ref_wall += ref.wall_time_s
+                out[name]["reference_wall_time_s"] = ref.wall_time_s
+            out["fp32_vs_reference_max_position_difference_m"] = float(max(diffs))
+            eng_wall = sum(r.wall_time_s for r in self.runs.values())
+            out["engine_wall_time_s"] = eng_wall
+            out["reference_engine_wall_time_s"] = ref_wall
+            out["engine_wall_time_ratio"] = eng_wall / ref_wall if ref_wall > 0 else None
         return out
 
 
-def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None
-        ) -> FlightResult:
-    """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done."""
+def max_position_difference(dem: Dem, a: NavRun, b: NavRun) -> float:
+    """Largest 3-D distance (m) between two runs' logged positions."""
+    from navgate.nav.earth import LocalTangent
+
+    tan = LocalTangent(*dem.center, 0.0)
+    an, ae = tan.to_ned(a.nav[:, 0], a.nav[:, 1])
+    bn, be = tan.to_ned(b.nav[:, 0], b.nav[:, 1])
+    d = np.sqrt((an - bn) ** 2 + (ae - be) ** 2 + (a.nav[:, 2] - b.nav[:, 2]) ** 2)
+    return float(np.max(d))
+
+
+def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None,
+        engine: str = "reference") -> FlightResult:
+    """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done.
+
+    ``engine``: the PL engine (``reference`` or ``fp32``); with a non-reference engine the
+    reference engine flies the same records too, for the comparison in the summary.
+    """
     start = _time.perf_counter()
     if route is None:
         if stage:
@@ -98,21 +130,32 @@ def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | N
         stage("simulating sensors")
     data = simulate_sensors(route, dem, cfg)
     init = initial_estimate(data, cfg)
-    runs = {}
-    if stage:
-        stage("navigating: INS only")
-    runs["ins_only"] = run_navigation(data, dem, cfg, init, use_trn=False, name="ins_only",
-                                      progress=progress)
-    if cfg.trn:
-        if stage:
-            stage("navigating: INS + TRN")
-        runs["trn_aided"] = run_navigation(data, dem, cfg, init, use_trn=True,
-                                           name="trn_aided", progress=progress)
+    stream = flight_stream(data, dem, cfg, init)
+    runs = fly_stream(stream, dem, cfg, engine=engine, progress=progress, stage=stage)
+    reference_runs = None
+    if engine != "reference":
+        reference_runs = fly_stream(stream, dem, cfg, engine="reference", stage=stage)
     log_every = max(1, int(round(cfg.imu_rate_hz / cfg.log_rate_hz)))
     scores = {name: score(run, data.truth, log_every) for name, run in runs.items()}
     return FlightResult(cfg, dem, route, data, runs, scores, log_every,
-                        _time.perf_counter() - start)
+                        _time.perf_counter() - start, engine, reference_runs, stream)
 
 
-__all__ = ["FlightConfig", "FlightResult", "NavRun", "RouteError", "fly", "plan_route",
-           "run_navigation"]
+def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progress=None,
+               stage=None) -> dict:
+    """The INS-only and (cfg.trn) INS+TRN runs over one record stream."""
+    runs = {}
+    if stage:
+        stage(f"navigating: INS only ({engine})")
+    runs["ins_only"] = navigate(stream, cfg, engine=engine, dem=None, use_trn=False,
+                                name="ins_only", progress=progress)
+    if cfg.trn:
+        if stage:
+            stage(f"navigating: INS + TRN ({engine})")
+        runs["trn_aided"] = navigate(stream, cfg, engine=engine, dem=dem, use_trn=True,
+                                     name="trn_aided", progress=progress)
+    return runs
+
+
+__all__ = ["FlightConfig", "FlightResult", "NavRun", "RouteError", "fly", "fly_stream",
+           "max_position_difference", "plan_route", "run_navigation"]
