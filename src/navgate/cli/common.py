@@ -270,7 +270,7 @@ def consoles(quiet: bool = False):
     both (errors and warnings are printed by :func:`navgate.cli.main`, not through them)."""
     from rich.console import Console
 
-    return Console(quiet=quiet), Console(stderr=True, quiet=quiet)
+    return Console(quiet=quiet), Console(stderr=True, quiet=quiet, soft_wrap=True)
 
 
 @contextlib.contextmanager
