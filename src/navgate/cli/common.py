@@ -106,6 +106,12 @@ def _sigint_held() -> Iterator[None]:
 
 def _stage_beside(target: Path, directory: bool) -> Path:
     parent = target.parent
+    what = "cannot create output directory" if directory else "cannot write"
+    for ancestor in (target, *target.parents) if directory else target.parents:
+        if ancestor.exists() or ancestor.is_symlink():
+            if not ancestor.is_dir() and ancestor != target:
+                raise CliError(f"{what} {target}: {ancestor} is not a directory")
+            break
     try:
         parent.mkdir(parents=True, exist_ok=True)
         prefix = f".{target.name}.navgate-tmp-"
@@ -115,7 +121,7 @@ def _stage_beside(target: Path, directory: bool) -> Path:
         os.close(fd)
         return Path(name)
     except OSError as error:
-        raise CliError(os_error_message(error, "cannot write beside")) from None
+        raise CliError(f"{what} {target}: {error.strerror or error}") from None
 
 
 def _remove(path: Path) -> None:
@@ -204,8 +210,14 @@ def check_writable_file(path: str | Path) -> Path:
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         raise CliError(f"cannot write {p}: directory {parent} does not exist")
-    if not os.access(parent, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
+    if p.exists() and not os.access(p, os.W_OK):
         raise CliError(f"cannot write {p}: permission denied")
+    try:  # the real test: create (and remove) a file beside it, as the atomic write will
+        fd, probe = tempfile.mkstemp(prefix=f".{p.name}.navgate-probe-", dir=parent)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as error:
+        raise CliError(f"cannot write {p}: {error.strerror or error}") from None
     return p
 
 
