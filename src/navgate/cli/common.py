@@ -88,6 +88,14 @@ def check_not_input(path: str | Path, inputs: Iterable[str | Path | None]) -> No
             raise CliError(f"output {p} is the input {q}; refusing to overwrite an input")
 
 
+def _regular_or_absent(path: Path) -> None:
+    """Outputs replace regular files only (never a device, FIFO or socket such as /dev/full)."""
+    if path.is_symlink():
+        raise CliError(f"cannot write {path}: it is a symbolic link")
+    if path.exists() and not path.is_file():
+        raise CliError(f"cannot write {path}: not a regular file")
+
+
 @contextlib.contextmanager
 def _sigint_held() -> Iterator[None]:
     """Defer SIGINT for the duration of the block (main thread only), then deliver it."""
@@ -166,6 +174,7 @@ def atomic_output_dir(out: str | Path, inputs: Iterable[str | Path | None] = ()
         for _, dest in moves:
             if dest.is_dir():
                 raise CliError(f"cannot write {dest}: a directory is in the way")
+            _regular_or_absent(dest)
             check_not_input(dest, inputs)
         try:
             with _sigint_held():
@@ -186,6 +195,7 @@ def atomic_output_file(path: str | Path, inputs: Iterable[str | Path | None] = (
     path = Path(path)
     if path.is_dir():
         raise CliError(f"cannot write {path}: it is a directory")
+    _regular_or_absent(path)
     check_not_input(path, inputs)
     stage = _stage_beside(path, directory=False)
     try:
@@ -207,6 +217,7 @@ def check_writable_file(path: str | Path) -> Path:
     p = Path(path)
     if p.is_dir():
         raise CliError(f"cannot write {p}: it is a directory")
+    _regular_or_absent(p)
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         raise CliError(f"cannot write {p}: directory {parent} does not exist")
