@@ -97,7 +97,7 @@ def gpsins(duration, seed, out, outage_start, outage_length, rate_hz, gyro_noise
                   f"seed {seed}, IMU model {imu}")
     start = time.perf_counter()
     stages = ["trajectory", "sensors", "GPS/INS", "scoring", "writing report"]
-    with numba_note(console), atomic_output_dir(out) as stage, Progress(
+    with numba_note(console), atomic_output_dir(out) as staging, Progress(
             TextColumn("{task.description}"), BarColumn(),
             TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
             console=console, disable=quiet) as bar:
@@ -111,10 +111,10 @@ def gpsins(duration, seed, out, outage_start, outage_length, rate_hz, gyro_noise
         summary = result.summary()
         summary["imu"] = imu
         summary["wall_time_s"] = time.perf_counter() - start
-        files = [write_trajectory_csv(result, stage / "trajectory.csv"),
-                 write_gps_csv(result, stage / "gps.csv"),
-                 plot_errors(result, stage / "errors.png")]
-        write_summary(stage, summary)
+        files = [write_trajectory_csv(result, staging / "trajectory.csv"),
+                 write_gps_csv(result, staging / "gps.csv"),
+                 plot_errors(result, staging / "errors.png")]
+        write_summary(staging, summary)
         bar.update(task, completed=len(stages))
     _print_table(table_console, summary)
     console.print(f"wrote summary.json, {', '.join(p.name for p in files)} in {out}",
