@@ -71,8 +71,8 @@ def main(argv: list[str] | None = None) -> None:
             cli.main(args=args, prog_name="navgate", standalone_mode=False)
     except click.exceptions.Exit as exit_:
         sys.exit(exit_.exit_code)
-    except click.exceptions.Abort:
-        click.echo(f"{prefix}: aborted", err=True)
+    except click.exceptions.Abort:  # click's form of KeyboardInterrupt
+        click.echo(f"{prefix}: interrupted (previous results left as they were)", err=True)
         sys.exit(130)
     except click.ClickException as error:
         click.echo(f"{prefix}: error: {_one_line(error.format_message())}", err=True)

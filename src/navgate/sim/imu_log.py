@@ -160,9 +160,9 @@ class ImuLogReader:
     """
 
     def __init__(self, path: str | Path, *, use_mag: bool = True, gyro_unit: str | None = None,
-                 chunk_rows: int = CHUNK_ROWS):
+                 chunk_rows: int | None = None):
         self.path = Path(path)
-        self.chunk_rows = int(chunk_rows)
+        self.chunk_rows = int(CHUNK_ROWS if chunk_rows is None else chunk_rows)
         self.skipped_rows = 0
         self.implausible_rows = 0
         self.mag_held_rows = 0
@@ -378,7 +378,7 @@ class ImuLogReader:
 
 
 def read_imu_csv(path: str | Path, *, use_mag: bool = True, gyro_unit: str | None = None,
-                 chunk_rows: int = CHUNK_ROWS) -> ImuLog:
+                 chunk_rows: int | None = None) -> ImuLog:
     """Read a whole IMU log (see :class:`ImuLogReader` for formats, checks and counts)."""
     reader = ImuLogReader(path, use_mag=use_mag, gyro_unit=gyro_unit, chunk_rows=chunk_rows)
     blocks = list(reader)
