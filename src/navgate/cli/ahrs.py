@@ -15,7 +15,13 @@ import click
 import numpy as np
 from rich.table import Table
 
-from navgate.cli.common import CliError, atomic_output_file, consoles, out_option
+from navgate.cli.common import (
+    CliError,
+    atomic_output_file,
+    consoles,
+    numba_note,
+    out_option,
+)
 
 
 def _nonneg(ctx, param, value):
@@ -75,8 +81,8 @@ def ahrs(input_csv, method, out, kp, ki, gain, axes, gyro_unit, no_mag, init, qu
                else contextlib.nullcontext(None))
     columns = (TextColumn("{task.description}"), BarColumn(), DownloadColumn())
     try:
-        with out_ctx as tmp, Progress(*columns, console=console, disable=quiet,
-                                      transient=True) as bar:
+        with numba_note(console), out_ctx as tmp, Progress(
+                *columns, console=console, disable=quiet, transient=True) as bar:
             fh = open(tmp, "w") if tmp is not None else None  # noqa: SIM115
             try:
                 task = bar.add_task(f"reading {input_csv}", total=reader.size or None)
