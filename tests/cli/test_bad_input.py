@@ -287,6 +287,11 @@ def test_output_directory_errors_are_one_line(name, tmp_path, capsys, monkeypatc
 
 def test_ahrs_output_file_errors(tmp_path, capsys):
     src = imu_csv(tmp_path / "log.csv")
+    code, _, err = run(["ahrs", src, "--out", tmp_path / "ok.csv", "--quiet"], capsys)
+    assert code == 0, err
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (tmp_path / "ok.csv").stat().st_mode & 0o777 == 0o666 & ~umask  # not mkstemp's 0600
     for bad, needle in ((tmp_path, "directory"), (Path("/dev/full"), "not a regular file"),
                         (tmp_path / "file" / "x.csv", "not a directory")):
         if bad.name == "x.csv":

@@ -88,6 +88,18 @@ def check_not_input(path: str | Path, inputs: Iterable[str | Path | None]) -> No
             raise CliError(f"output {p} is the input {q}; refusing to overwrite an input")
 
 
+def _set_mode(stage: Path, path: Path) -> None:
+    """Give the staged file the mode a plain ``open(path, "w")`` would have given it (the
+    existing file's, else 0666 less the umask), not mkstemp's 0600."""
+    if path.exists():
+        mode = path.stat().st_mode & 0o7777
+    else:
+        umask = os.umask(0)
+        os.umask(umask)
+        mode = 0o666 & ~umask
+    os.chmod(stage, mode)
+
+
 def _regular_or_absent(path: Path) -> None:
     """Outputs replace regular files only (never a device, FIFO or socket such as /dev/full)."""
     if path.is_symlink():
@@ -204,6 +216,7 @@ def atomic_output_file(path: str | Path, inputs: Iterable[str | Path | None] = (
         except OSError as error:
             raise _translate(error, stage, path) from None
         try:
+            _set_mode(stage, path)
             with _sigint_held():
                 os.replace(stage, path)
         except OSError as error:
