@@ -124,14 +124,28 @@ def _sigint_held() -> Iterator[None]:
             raise KeyboardInterrupt
 
 
-def _stage_beside(target: Path, directory: bool) -> Path:
-    parent = target.parent
+def check_out_dir(out: str | Path) -> Path:
+    """Fail early (before a long run prints anything) when ``out`` cannot be a directory."""
+    target = Path(out)
+    if target.exists() and not target.is_dir():
+        raise CliError(f"output path {target} exists and is not a directory")
+    _check_ancestors(target, True)
+    return target
+
+
+def _check_ancestors(target: Path, directory: bool) -> None:
     what = "cannot create output directory" if directory else "cannot write"
     for ancestor in (target, *target.parents) if directory else target.parents:
         if ancestor.exists() or ancestor.is_symlink():
             if not ancestor.is_dir() and ancestor != target:
                 raise CliError(f"{what} {target}: {ancestor} is not a directory")
             break
+
+
+def _stage_beside(target: Path, directory: bool) -> Path:
+    parent = target.parent
+    what = "cannot create output directory" if directory else "cannot write"
+    _check_ancestors(target, directory)
     try:
         parent.mkdir(parents=True, exist_ok=True)
         prefix = f".{target.name}.navgate-tmp-"

@@ -15,6 +15,7 @@ import click
 from navgate.cli.common import (
     CliError,
     atomic_output_dir,
+    check_out_dir,
     consoles,
     default_out_dir,
     non_finite_keys,
@@ -79,6 +80,7 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
         route = flight.plan_route(dem, cfg)
     except flight.RouteError as error:
         raise CliError(str(error)) from None
+    check_out_dir(out)
     console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
                   f"({dem.shape[0]} x {dem.shape[1]} posts), seed {seed}"
                   + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors"))

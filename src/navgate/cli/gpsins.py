@@ -21,6 +21,7 @@ import numpy as np
 from navgate.cli.common import (
     CliError,
     atomic_output_dir,
+    check_out_dir,
     consoles,
     default_out_dir,
     non_finite_keys,
@@ -92,6 +93,7 @@ def gpsins(duration, seed, out, outage_start, outage_length, rate_hz, gyro_noise
     cfg = scenario.config_for_imu(cfg, imu)
     if gyro_noise is not None:
         cfg = scenario.with_gyro_noise(cfg, gyro_noise)
+    check_out_dir(out)
     console.print(f"[bold]navgate gpsins[/]: {duration:g} s flight at {rate_hz:g} Hz, GPS 1 Hz "
                   f"(20 m), outage {outage_start:g}-{outage_start + outage_length:g} s, "
                   f"seed {seed}, IMU model {imu}")
