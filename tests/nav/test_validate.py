@@ -147,8 +147,11 @@ def test_eskf_rejects_latitude_and_covariance_and_rate():
     asym = np.eye(15)
     asym[0, 1] = 0.5
     raises_naming("p0", eskf.ErrorStateFilter, nav0(), asym, CFG)
+    from navgate.sim.sensors import ADIS16500
+
     for rate in (0.0, -1.0, NAN):
         raises_naming("rate_hz", eskf.ErrorStateFilter, nav0(), np.eye(15), CFG, rate_hz=rate)
+        raises_naming("rate_hz", eskf.FilterConfig.from_imu_spec, ADIS16500, rate_hz=rate)
 
 
 @pytest.mark.parametrize("rate", [0.0, -400.0, NAN])

@@ -85,9 +85,11 @@ class FilterConfig:
                       residual_gyro_bias=0.0, tau=3600.0, floor_scale=1.0, **kw):
         """Noise from an ImuSpec. Quantisation adds LSB^2/12 per sample to the white noise,
         i.e. a random-walk density of LSB sqrt(dt / 12) at the IMU rate."""
+        from navgate.nav import validate
+
         quant_g = spec.gyro_lsb**2 / 12.0 if spec.quantize else 0.0
         quant_a = spec.accel_lsb**2 / 12.0 if spec.quantize else 0.0
-        dt = 1.0 / rate_hz
+        dt = 1.0 / validate.positive("rate_hz", rate_hz)
         arw = math.sqrt(spec.gyro_arw**2 + quant_g * dt) * floor_scale
         vrw = math.sqrt(spec.accel_vrw**2 + quant_a * dt) * floor_scale
         bg = math.sqrt(spec.gyro_bias_instability**2 + residual_gyro_bias**2)
