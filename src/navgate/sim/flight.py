@@ -81,12 +81,6 @@ class FlightConfig:
             raise ValueError(f"duration_s {self.duration_s:g} s is too short for the scenario: "
                              f"at least {self.min_duration_s:g} s (two periods of the slowest "
                              "sensor or log)")
-
-    @property
-    def min_duration_s(self) -> float:
-        """The shortest flight with at least two samples of every sensor and of the log."""
-        slowest = min(self.baro_rate_hz, self.ranger_rate_hz, self.log_rate_hz)
-        return 2.0 / slowest
         from navgate.trn.correlators import METHODS
 
         if self.trn_method not in METHODS:
@@ -95,6 +89,12 @@ class FlightConfig:
         if self.ranger not in sensors.RANGER_PRESETS:
             raise ValueError(f"unknown ranger {self.ranger!r}; choose from "
                              f"{', '.join(sensors.RANGER_PRESETS)}")
+
+    @property
+    def min_duration_s(self) -> float:
+        """The shortest flight with at least two samples of every sensor and of the log."""
+        slowest = min(self.baro_rate_hz, self.ranger_rate_hz, self.log_rate_hz)
+        return 2.0 / slowest
 
 
 @dataclass
