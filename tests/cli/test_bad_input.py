@@ -407,6 +407,8 @@ def test_library_warnings_are_one_line_each(capsys):
         np.log(np.zeros(2))  # RuntimeWarning: divide by zero
         np.log(np.zeros(2))  # the same warning again: shown once
         warnings.warn("a library\nsays\nthis", UserWarning, stacklevel=1)
+        warnings.warn("use @ instead of *", PendingDeprecationWarning, stacklevel=1)
+        warnings.warn("old API", DeprecationWarning, stacklevel=1)
         import logging
 
         logging.getLogger("rasterio._env").warning("CPLE_AppDefined in\nsomething")

@@ -400,7 +400,9 @@ def warning_handler(prefix: str) -> Iterator[None]:
     handler = _OneLineHandler(prefix)
     level = root.level
     with warnings.catch_warnings():
-        warnings.simplefilter("default")
+        # library API deprecations are for navgate's developers, not its users
+        for category in (DeprecationWarning, PendingDeprecationWarning, FutureWarning):
+            warnings.simplefilter("ignore", category)
         warnings.showwarning = show
         root.addHandler(handler)
         if level == logging.NOTSET or level > logging.WARNING:
