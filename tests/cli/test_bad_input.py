@@ -194,6 +194,10 @@ def test_ahrs_failed_run_keeps_previous_output(tmp_path, capsys, monkeypatch):
     code, _, err = run(["ahrs", ok, "--out", out / "att.csv"], capsys)
     assert code == 2 and "Traceback" not in err
     assert_untouched(out, old)
+    monkeypatch.setattr(np, "savetxt", interrupt)
+    code, _, err = run(["ahrs", ok, "--out", out / "att.csv"], capsys)
+    assert_one_line(err, code, 130, "interrupted")
+    assert_untouched(out, old)
 
 
 def test_real_sigint_during_a_flight(tmp_path):

@@ -160,9 +160,13 @@ def test_imu_model_rate(rate):
         ImuModel(rate_hz=rate)
 
 
-def test_local_tangent_latitude():
+def test_local_tangent_and_trajectory_latitude():
+    from navgate.sim import trajectory as tr
+
     raises_naming("lat0", LocalTangent, math.radians(91.0), 0.0)
     raises_naming("lat0", LocalTangent, NAN, 0.0)
+    raises_naming("lat0", tr.generate, [tr.straight(5)], lat0=2.0, lon0=0.0, h0=100.0,
+                  heading0=0.0, speed0=50.0)
 
 
 # -- GPS/INS ----------------------------------------------------------------------------------
