@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> None:
     except click.exceptions.Exit as exit_:
         sys.exit(exit_.exit_code)
     except click.exceptions.Abort:  # click's form of KeyboardInterrupt
-        click.echo(f"{prefix}: interrupted (previous results left as they were)", err=True)
+        click.echo(f"{prefix}: interrupted (no partial results written)", err=True)
         sys.exit(130)
     except click.ClickException as error:
         click.echo(f"{prefix}: error: {_one_line(error.format_message())}", err=True)
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> None:
         click.echo(f"{prefix}: error: {_one_line(str(error))}", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
-        click.echo(f"{prefix}: interrupted (previous results left as they were)", err=True)
+        click.echo(f"{prefix}: interrupted (no partial results written)", err=True)
         sys.exit(130)
     except OSError as error:
         click.echo(f"{prefix}: error: {_one_line(os_error_message(error, 'cannot access'))}",
