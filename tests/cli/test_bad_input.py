@@ -611,3 +611,27 @@ def test_every_command_routes_errors_through_one_line():
     """Every registered command is a click command with --help (so main() owns its errors)."""
     for name in COMMANDS:
         assert isinstance(command(name), click.Command)
+
+
+def test_report_parallel_blocks_progress_and_order(tmp_path, capsys, monkeypatch):
+    """``report -j 3`` (synthesis replaced by a stub): one progress line per block on stderr,
+    the table on stdout in registry order, the same table as ``-j 1``."""
+    import navgate.hw.flow as flow
+    from navgate.hw.blocks import all_blocks
+
+    monkeypatch.setattr(flow, "synthesize", lambda text, name, *a: {
+        "lut": len(name), "ff": 1, "dsp": 0, "carry4": 0, "bram36": 0})
+    monkeypatch.setattr(flow, "emit_verilog", lambda component, name: f"module {name};")
+    monkeypatch.setattr(flow, "describe_block", lambda component, name, description, text: {
+        "block": name, "latency_cycles": 1, "throughput": "1"})
+    tables = {}
+    for jobs in (1, 3):
+        code, out, err = run(["report", "-j", jobs, "--out", tmp_path / f"r{jobs}.md"], capsys)
+        assert code == 0, err
+        names = list(all_blocks())
+        assert sum(" done (" in ln for ln in err.splitlines()) == len(names)
+        rows = [ln.split("|")[1].strip() for ln in out.splitlines()[2:]]
+        assert rows == names
+        assert (tmp_path / f"r{jobs}.md").read_text() == out
+        tables[jobs] = out
+    assert tables[1] == tables[3]
