@@ -64,6 +64,8 @@ def main(argv: list[str] | None = None) -> None:
     (:func:`navgate.cli.common.warning_handler`).
     """
     args = sys.argv[1:] if argv is None else list(argv)
+    if not args:  # plain ``navgate``: the help, not a usage error squeezed into one line
+        args = ["--help"]
     command = args[0] if args and not args[0].startswith("-") else None
     prefix = f"navgate {command}" if command in COMMANDS else "navgate"
     try:
