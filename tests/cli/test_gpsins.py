@@ -43,7 +43,8 @@ def test_writes_report(tmp_path, capsys):
     with open(out / "trajectory.csv") as fh:
         header = fh.readline().strip().split(",")
     assert {"t_s", "err_north_m", "sigma_north_m", "gps_outage"} <= set(header)
-    assert "wrote" in stdout
+    assert "wrote" not in stdout  # --quiet: table and progress hidden, stdout empty
+    assert stdout == ""
 
 
 def test_same_seed_same_numbers(tmp_path, capsys):

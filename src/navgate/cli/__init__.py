@@ -12,12 +12,13 @@ with exit status 2 and no traceback.
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 
 import click
 
 from navgate import __version__
-from navgate.cli.common import CliError
+from navgate.cli.common import CliError, os_error_message, warning_handler
 
 #: command name -> "module:attribute" of a click command
 COMMANDS: dict[str, str] = {
@@ -56,16 +57,25 @@ def _one_line(message: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Entry point: run the group, turning every expected failure into one stderr line."""
+    """Entry point: run the group, turning every failure into one stderr line.
+
+    Expected failures (CliError, click usage errors, any OSError) exit 2; an interrupt exits
+    130; anything else is a bug, reported as one ``internal error`` line with exit 3 (set
+    ``NAVGATE_DEBUG=1`` to see the traceback). Library warnings become one line each
+    (:func:`navgate.cli.common.warning_handler`).
+    """
     args = sys.argv[1:] if argv is None else list(argv)
+    if not args:  # plain ``navgate``: the help, not a usage error squeezed into one line
+        args = ["--help"]
     command = args[0] if args and not args[0].startswith("-") else None
     prefix = f"navgate {command}" if command in COMMANDS else "navgate"
     try:
-        cli.main(args=args, prog_name="navgate", standalone_mode=False)
+        with warning_handler(prefix):
+            cli.main(args=args, prog_name="navgate", standalone_mode=False)
     except click.exceptions.Exit as exit_:
         sys.exit(exit_.exit_code)
-    except click.exceptions.Abort:
-        click.echo(f"{prefix}: aborted", err=True)
+    except click.exceptions.Abort:  # click's form of KeyboardInterrupt
+        click.echo(f"{prefix}: interrupted (no partial results written)", err=True)
         sys.exit(130)
     except click.ClickException as error:
         click.echo(f"{prefix}: error: {_one_line(error.format_message())}", err=True)
@@ -74,8 +84,22 @@ def main(argv: list[str] | None = None) -> None:
         click.echo(f"{prefix}: error: {_one_line(str(error))}", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
-        click.echo(f"{prefix}: interrupted", err=True)
+        click.echo(f"{prefix}: interrupted (no partial results written)", err=True)
         sys.exit(130)
+    except OSError as error:
+        click.echo(f"{prefix}: error: {_one_line(os_error_message(error, 'cannot access'))}",
+                   err=True)
+        sys.exit(2)
+    except MemoryError:
+        click.echo(f"{prefix}: error: out of memory", err=True)
+        sys.exit(2)
+    except Exception as error:  # noqa: BLE001 - the last line of defence against tracebacks
+        if os.environ.get("NAVGATE_DEBUG"):
+            raise
+        click.echo(f"{prefix}: internal error: {type(error).__name__}: "
+                   f"{_one_line(str(error))[:300]} (a bug; NAVGATE_DEBUG=1 shows the traceback)",
+                   err=True)
+        sys.exit(3)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -7,13 +7,21 @@ Input formats and error handling: :mod:`navgate.sim.imu_log`; axes and filters:
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 
 import click
 import numpy as np
+from rich.table import Table
 
-from navgate.cli.common import CliError
+from navgate.cli.common import (
+    CliError,
+    atomic_output_file,
+    consoles,
+    numba_note,
+    out_option,
+)
 
 
 def _nonneg(ctx, param, value):
@@ -28,10 +36,10 @@ def _nonneg(ctx, param, value):
 @click.argument("input_csv", type=click.Path(dir_okay=False))
 @click.option("--filter", "method", type=click.Choice(["mahony", "complementary"]),
               default="mahony", show_default=True, help="Attitude filter.")
-@click.option("--out", "out_csv", type=click.Path(dir_okay=False), default=None,
-              help="Output CSV (t, qw..qz, roll/pitch/yaw in deg). Default: summary only.")
+@out_option(None, "Output CSV (t, qw..qz, roll/pitch/yaw in deg), written atomically; never "
+                  "the input. Default: summary only.", kind="file")
 @click.option("--kp", type=float, default=1.0, show_default=True, callback=_nonneg,
-              help="Mahony proportional gain (rad/s per unit error).")
+              help="Mahony proportional gain (rad/s per unit error); kp * dt must be < 1.")
 @click.option("--ki", type=float, default=0.1, show_default=True, callback=_nonneg,
               help="Mahony integral gain.")
 @click.option("--gain", type=float, default=0.02, show_default=True, callback=_nonneg,
@@ -40,54 +48,117 @@ def _nonneg(ctx, param, value):
               show_default=True,
               help="Sensor axes: frd (level accel reads -g on z), flu (+g on z, e.g. x-io); "
                    "auto = flu for x-io headers.")
-@click.option("--no-mag", is_flag=True, help="Ignore magnetometer columns.")
+@click.option("--gyro-unit", type=click.Choice(["rad/s", "deg/s"]), default=None,
+              help="Unit of plain gx/gy/gz columns (default rad/s; a log that plainly holds "
+                   "deg/s is rejected without this).")
+@click.option("--no-mag", is_flag=True, help="Ignore magnetometer columns (rows kept).")
 @click.option("--init", type=click.Choice(["accel", "identity"]), default="accel",
-              show_default=True, help="Initial attitude.")
-@click.option("--quiet", is_flag=True, help="No summary table.")
-def ahrs(input_csv, method, out_csv, kp, ki, gain, axes, no_mag, init, quiet):
-    """Estimate attitude from an IMU log (CSV)."""
-    from rich.console import Console
-    from rich.table import Table
+              show_default=True, help="Initial attitude (also after a time gap).")
+@click.option("--quiet", is_flag=True, help="No summary table and no progress.")
+def ahrs(input_csv, method, out, kp, ki, gain, axes, gyro_unit, no_mag, init, quiet):
+    """Estimate attitude from an IMU log (CSV), streamed in blocks (bounded memory)."""
+    from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn
 
-    from navgate.sim.imu_log import LogError, read_imu_csv, write_attitude_csv
-    from navgate.systems.attitude.estimate import estimate_attitude
+    from navgate.sim.imu_log import ImuLogReader, LogError
+    from navgate.systems.attitude.estimate import (
+        GAP_PERIODS,
+        AttitudeStream,
+        euler_deg,
+        resolve_axes,
+    )
 
     if method == "complementary" and gain > 1:
         raise CliError(f"--gain must be between 0 and 1, got {gain:g}")
-    console = Console(stderr=True, quiet=quiet)
+    table_console, console = consoles(quiet)
     start = time.perf_counter()
     try:
-        log = read_imu_csv(input_csv)
+        reader = ImuLogReader(input_csv, use_mag=not no_mag, gyro_unit=gyro_unit)
     except LogError as error:
         raise CliError(str(error)) from None
-    if len(log) < 2:
-        raise CliError(f"{input_csv}: need at least two samples")
+    stats = {"rows": 0, "t0": None, "t1": None, "last": None}
+    stream = None
+    out_ctx = (atomic_output_file(out, inputs=[input_csv]) if out is not None
+               else contextlib.nullcontext(None))
+    columns = (TextColumn("{task.description}"), BarColumn(), DownloadColumn())
     try:
-        res = estimate_attitude(log, method, axes=axes, kp=kp, ki=ki, gain=gain,
-                                use_mag=not no_mag, init=init)
+        with numba_note(console), out_ctx as tmp, Progress(
+                *columns, console=console, disable=quiet, transient=True) as bar:
+            fh = open(tmp, "w") if tmp is not None else None  # noqa: SIM115
+            try:
+                task = bar.add_task(f"reading {input_csv}", total=reader.size or None)
+                if fh is not None:
+                    fh.write(HEADER + "\n")
+                for block in reader:
+                    if stream is None:
+                        stream = _make_stream(AttitudeStream, reader, block, method, axes, kp,
+                                              ki, gain, no_mag, init, GAP_PERIODS,
+                                              resolve_axes)
+                    q = stream.update(block.t, block.gyro, block.acc, block.mag)
+                    if not np.isfinite(q).all():
+                        raise CliError("the filter diverged (non-finite attitude); check "
+                                       "units and --kp/--ki")
+                    roll, pitch, yaw = euler_deg(q)
+                    if fh is not None:
+                        np.savetxt(fh, np.column_stack([block.t, q, roll, pitch, yaw]),
+                                   delimiter=",", fmt=FMT)
+                    stats["rows"] += len(block.t)
+                    stats["t0"] = block.t[0] if stats["t0"] is None else stats["t0"]
+                    stats["t1"] = block.t[-1]
+                    stats["last"] = (roll[-1], pitch[-1], yaw[-1])
+                    bar.update(task, completed=reader.bytes_read)
+                if stats["rows"] < 2:
+                    if stats["rows"] == 0 and not (reader.skipped_rows
+                                                   or reader.implausible_rows):
+                        raise CliError(f"{input_csv}: no data rows after the header")
+                    raise CliError(f"{input_csv}: fewer than two usable data rows "
+                                   f"({reader.skipped_rows} skipped, {reader.implausible_rows} "
+                                   "implausible)")
+            finally:
+                if fh is not None:
+                    fh.close()
+    except LogError as error:
+        raise CliError(str(error)) from None
     except ValueError as error:
         raise CliError(str(error)) from None
-    if not np.isfinite(res.q).all():
-        raise CliError("the filter diverged (non-finite attitude); check units and --kp/--ki")
     elapsed = time.perf_counter() - start
-    if out_csv is not None:
-        try:
-            write_attitude_csv(out_csv, res.t, res.q, res.roll_deg, res.pitch_deg, res.yaw_deg)
-        except OSError as error:
-            raise CliError(f"cannot write {out_csv}: {error.strerror}") from None
-    dt = np.diff(res.t)
+    n, duration = stats["rows"], float(stats["t1"] - stats["t0"])
+    roll, pitch, yaw = stats["last"]
     table = Table(title=f"navgate ahrs: {method} on {input_csv}")
     table.add_column("item")
     table.add_column("value", justify="right")
-    table.add_row("samples", f"{len(res.t)}")
-    table.add_row("skipped rows", f"{log.skipped_rows}")
-    table.add_row("duration", f"{res.t[-1] - res.t[0]:.2f} s")
-    table.add_row("mean rate", f"{1.0 / float(np.mean(dt)):.1f} Hz")
-    table.add_row("header style / axes", f"{log.style} / {res.axes}")
-    table.add_row("magnetometer", "used" if res.used_mag else "not used")
+    table.add_row("samples", f"{n}")
+    table.add_row("skipped rows", f"{reader.skipped_rows}")
+    table.add_row("implausible rows (beyond sensor range, dropped)",
+                  f"{reader.implausible_rows}")
+    table.add_row("time gaps (filter restarted)", f"{stream.gaps}")
+    table.add_row("duration", f"{duration:.2f} s")
+    table.add_row("mean rate", f"{(n - 1) / duration:.1f} Hz")
+    table.add_row("header style / axes", f"{reader.style} / {stream.axes}")
+    mag_state = "used" if stream.used_mag else "not used"
+    if stream.used_mag and reader.mag_held_rows:
+        mag_state += f" (held over {reader.mag_held_rows} rows)"
+    table.add_row("magnetometer", mag_state)
     table.add_row("final roll / pitch / yaw",
-                  f"{res.roll_deg[-1]:.2f} / {res.pitch_deg[-1]:.2f} / {res.yaw_deg[-1]:.2f} deg")
+                  f"{roll:.2f} / {pitch:.2f} / {yaw:.2f} deg")
     table.add_row("wall time", f"{elapsed:.2f} s")
-    console.print(table)
-    if out_csv is not None:
-        click.echo(f"wrote {len(res.t)} rows to {out_csv}")
+    table_console.print(table)
+    if out is not None:
+        console.print(f"wrote {n} rows to {out}", highlight=False)
+
+
+HEADER = "t,qw,qx,qy,qz,roll_deg,pitch_deg,yaw_deg"
+FMT = ["%.6f"] + ["%.9f"] * 4 + ["%.5f"] * 3
+
+
+def _make_stream(cls, reader, block, method, axes, kp, ki, gain, no_mag, init, gap_periods,
+                 resolve_axes):
+    """The filter for this log: axes resolved, gap threshold and the kp*dt check from the
+    log's nominal period."""
+    dt = reader.nominal_dt
+    if not (math.isfinite(dt) and dt > 0):
+        dt = 0.01
+    if method == "mahony" and kp * dt >= 1.0:
+        raise CliError(f"--kp {kp:g} with a {dt:g} s sample period gives kp * dt = {kp * dt:.3g};"
+                       f" the discrete filter needs kp * dt < 1 (here kp < {1 / dt:.4g})")
+    return cls(method, axes=resolve_axes(block, axes), kp=kp, ki=ki, gain=gain,
+               use_mag=not no_mag, init=init, gap_s=gap_periods * dt)

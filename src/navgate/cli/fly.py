@@ -9,10 +9,21 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 
 import click
 
-from navgate.cli.common import CliError, prepare_out_dir, write_summary
+from navgate.cli.common import (
+    CliError,
+    atomic_output_dir,
+    check_out_dir,
+    consoles,
+    default_out_dir,
+    non_finite_keys,
+    numba_note,
+    out_option,
+    write_summary,
+)
 
 
 def _positive_float(ctx, param, value):
@@ -30,8 +41,7 @@ def _positive_float(ctx, param, value):
 @click.option("--duration", type=float, default=600.0, show_default=True,
               callback=_positive_float, help="Flight duration after GPS loss (s).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="navgate-out",
-              show_default=True, help="Output directory.")
+@out_option(default_out_dir("fly"), "Output directory (written atomically).")
 @click.option("--ideal-sensors", is_flag=True, help="No sensor errors and no quantisation.")
 @click.option("--no-trn", is_flag=True, help="Run INS-only (with baro) and skip TRN.")
 @click.option("--imu-rate", type=float, default=400.0, show_default=True,
@@ -46,17 +56,16 @@ def _positive_float(ctx, param, value):
                    "reference flies too, for the comparison in summary.json).")
 @click.option("--record", "record_path", type=click.Path(dir_okay=False), default=None,
               help="Also write the sensor record stream to this log file (navgate replay).")
-@click.option("--quiet", is_flag=True, help="No progress bar.")
-def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, ranger, speed,
+@click.option("--quiet", is_flag=True, help="No progress bar and no table.")
+def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, speed,
         engine, record_path, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
-    from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from navgate.systems.ins_trn import flight, report
     from navgate.trn.dem import Dem, DemError
 
-    console = Console(stderr=True, quiet=quiet)
+    table_console, console = consoles(quiet)
     if duration > 4 * 3600:
         raise CliError(f"--duration {duration:g} s is longer than the 4 h this command supports")
     if not 50 <= imu_rate <= 4000:
@@ -69,25 +78,28 @@ def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, rang
         dem = Dem.default() if dem_path is None else Dem.from_file(dem_path)
     except DemError as error:
         raise CliError(str(error)) from None
-    cfg = flight.FlightConfig(duration_s=duration, imu_rate_hz=imu_rate, seed=seed,
-                              ideal_sensors=ideal_sensors, trn=not no_trn, ranger=ranger,
-                              speed_mps=speed)
+    try:
+        cfg = flight.FlightConfig(duration_s=duration, imu_rate_hz=imu_rate, seed=seed,
+                                  ideal_sensors=ideal_sensors, trn=not no_trn, ranger=ranger,
+                                  speed_mps=speed)
+    except ValueError as error:
+        raise CliError(str(error).replace("duration_s", "--duration")) from None
     try:
         route = flight.plan_route(dem, cfg)
     except flight.RouteError as error:
         raise CliError(str(error)) from None
-    out = prepare_out_dir(out_dir)
+    check_out_dir(out)
     console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
                   f"({dem.shape[0]} x {dem.shape[1]} posts), seed {seed}"
                   + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors"))
-    console.print("first run compiles the Numba kernels (cached afterwards)", style="dim")
     runs = 1 if no_trn else 2
     total = runs * int(round(duration * imu_rate))
     start = time.perf_counter()
     columns = (TextColumn("{task.description}"), BarColumn(),
                TextColumn("{task.percentage:>3.0f}%"))
-    with Progress(*columns,
-                  TimeElapsedColumn(), console=console, disable=quiet, transient=False) as bar:
+    with numba_note(console), atomic_output_dir(out, inputs=[dem_path]) as stage, Progress(
+            *columns, TimeElapsedColumn(), console=console, disable=quiet,
+            transient=False) as bar:
         task = bar.add_task("simulating sensors", total=total)
         result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
                             stage=lambda s: bar.update(task, description=s), route=route,
@@ -95,18 +107,25 @@ def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, rang
         bar.update(task, description="writing report", completed=total)
         summary = result.summary()
         summary["wall_time_s"] = time.perf_counter() - start
-        files = report.write_report(result, out)
-    if record_path is not None:
-        from navgate.systems.ins_trn.records import write_log
+        files = report.write_report(result, stage)
+        if record_path is not None:
+            from navgate.systems.ins_trn.records import write_log
 
-        try:
-            write_log(result.stream, record_path)
-        except OSError as error:
-            raise CliError(f"cannot write {record_path}: {error.strerror}") from None
-        summary["record_log"] = str(record_path)
-    summary_path = write_summary(out, summary)
-    _print_table(console if not quiet else Console(), summary)
-    click.echo(f"wrote {summary_path} and {', '.join(p.name for p in files.values())} in {out}")
+            if dem_path is not None and Path(record_path).resolve() == Path(dem_path).resolve():
+                raise CliError(f"--record {record_path} would overwrite the input DEM")
+            try:
+                write_log(result.stream, record_path)
+            except OSError as error:
+                raise CliError(f"cannot write {record_path}: {error.strerror}") from None
+            summary["record_log"] = str(record_path)
+        write_summary(stage, summary)
+    _print_table(table_console, summary)
+    console.print(f"wrote summary.json, {', '.join(p.name for p in files.values())} in {out}",
+                  highlight=False)
+    bad = non_finite_keys(summary)
+    if bad:
+        raise CliError(f"the run produced non-finite results ({', '.join(bad[:4])}); "
+                       f"check the DEM heights and options (files in {out})")
 
 
 def _print_table(console, s):
@@ -123,11 +142,19 @@ def _print_table(console, s):
             continue
         r = s[name]
         fixes = f"{r['fixes_accepted']}/{r['fixes_rejected']}" if name == "trn_aided" else "-"
+        if name == "trn_aided" and r["fixes_accepted"] + r["fixes_rejected"] == 0:
+            fixes = "0 (no fix attempted)"
         table.add_row(label, f"{r['final_horizontal_error_m']:.1f}",
                       f"{r['rms_horizontal_error_m']:.1f}",
                       f"{r['rms_horizontal_error_second_half_m']:.1f}",
                       f"{r['nees_position_mean']:.2f}", fixes)
     console.print(table)
+    ranger = s.get("sensors", {})
+    if "trn_aided" in s and ranger.get("ranger_valid_fraction", 1.0) < 0.5:
+        console.print(f"ranger {ranger.get('ranger')}: only "
+                      f"{100 * ranger['ranger_valid_fraction']:.0f} % of its samples were valid "
+                      f"(out of range at this height above ground): TRN had "
+                      f"{s['trn_aided']['fixes_accepted']} accepted fixes", highlight=False)
     console.print(f"wall time {s['wall_time_s']:.1f} s, engine {s.get('engine', 'reference')}")
     if "fp32_vs_reference_max_position_difference_m" in s:
         console.print(f"fp32 vs reference: max position difference "

@@ -22,7 +22,17 @@ from pathlib import Path
 import click
 import numpy as np
 
-from navgate.cli.common import CliError, prepare_out_dir, write_summary
+from navgate.cli.common import (
+    CliError,
+    atomic_output_dir,
+    check_out_dir,
+    consoles,
+    default_out_dir,
+    non_finite_keys,
+    numba_note,
+    out_option,
+    write_summary,
+)
 
 
 def _finite(ctx, param, value):
@@ -35,8 +45,7 @@ def _finite(ctx, param, value):
 @click.option("--duration", type=float, default=300.0, show_default=True, callback=_finite,
               help="Flight duration (s); at least 250 s as in the seed.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="navgate-out",
-              show_default=True, help="Output directory.")
+@out_option(default_out_dir("gpsins"), "Output directory (written atomically).")
 @click.option("--outage-start", type=float, default=240.0, show_default=True,
               callback=_finite, help="GPS outage start (s).")
 @click.option("--outage-length", type=float, default=30.0, show_default=True,
@@ -63,15 +72,14 @@ def _finite(ctx, param, value):
 @click.option("--lag", "lag_s", type=float, default=None, callback=_finite,
               help="Fixed-lag smoother's lag (s, whole GPS periods; default 10).")
 @click.option("--quiet", is_flag=True, help="No progress or table.")
-def gpsins(duration, seed, out_dir, outage_start, outage_length, rate_hz, gyro_noise, imu,
+def gpsins(duration, seed, out, outage_start, outage_length, rate_hz, gyro_noise, imu,
            ideal_sensors, filter_kind, smoother, lag_s, quiet):
     """Seed 002: GPS/INS Kalman filter (and smoother) vs GPS alone, with a GPS outage."""
-    from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from navgate.systems.gpsins import scenario
 
-    console = Console(stderr=True, quiet=quiet)
+    table_console, console = consoles(quiet)
     if duration < 250:
         raise CliError(f"--duration must be at least 250 s (seed 002's flight), got {duration:g}")
     if duration > 3600:
@@ -108,16 +116,16 @@ def gpsins(duration, seed, out_dir, outage_start, outage_length, rate_hz, gyro_n
     cfg = scenario.config_for_imu(cfg, imu)
     if gyro_noise is not None:
         cfg = scenario.with_gyro_noise(cfg, gyro_noise)
-    out = prepare_out_dir(out_dir)
+    check_out_dir(out)
     console.print(f"[bold]navgate gpsins[/]: {duration:g} s flight at {rate_hz:g} Hz, GPS 1 Hz "
                   f"(20 m), outage {outage_start:g}-{outage_start + outage_length:g} s, "
                   f"seed {seed}, IMU model {imu}")
-    console.print("first run compiles the Numba kernels (cached afterwards)", style="dim")
     start = time.perf_counter()
     stages = ["trajectory", "sensors", "GPS/INS", "scoring", "smoothing", "writing report"]
-    with Progress(TextColumn("{task.description}"), BarColumn(),
-                  TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
-                  console=console, disable=quiet) as bar:
+    with numba_note(console), atomic_output_dir(out) as staging, Progress(
+            TextColumn("{task.description}"), BarColumn(),
+            TextColumn("{task.completed}/{task.total}"), TimeElapsedColumn(),
+            console=console, disable=quiet) as bar:
         task = bar.add_task(stages[0], total=len(stages))
 
         def stage(name):
@@ -129,14 +137,18 @@ def gpsins(duration, seed, out_dir, outage_start, outage_length, rate_hz, gyro_n
         summary["imu"] = imu
         summary["smoother"] = smoother
         summary["wall_time_s"] = time.perf_counter() - start
-        files = [write_trajectory_csv(result, out / "trajectory.csv"),
-                 write_gps_csv(result, out / "gps.csv"),
-                 plot_errors(result, out / "errors.png")]
+        files = [write_trajectory_csv(result, staging / "trajectory.csv"),
+                 write_gps_csv(result, staging / "gps.csv"),
+                 plot_errors(result, staging / "errors.png")]
+        write_summary(staging, summary)
         bar.update(task, completed=len(stages))
-    path = write_summary(out, summary)
-    if not quiet:
-        _print_table(Console(), summary)
-    click.echo(f"wrote {path} and {', '.join(p.name for p in files)} in {out}")
+    _print_table(table_console, summary)
+    console.print(f"wrote summary.json, {', '.join(p.name for p in files)} in {out}",
+                  highlight=False)
+    bad = non_finite_keys(summary)
+    if bad:
+        raise CliError(f"the run produced non-finite results ({', '.join(bad[:4])}); "
+                       f"files in {out}")
 
 
 def write_trajectory_csv(result, path: Path) -> Path:

@@ -18,7 +18,14 @@ from pathlib import Path
 import click
 import numpy as np
 
-from navgate.cli.common import CliError, prepare_out_dir, write_summary
+from navgate.cli.common import (
+    CliError,
+    atomic_output_dir,
+    consoles,
+    default_out_dir,
+    out_option,
+    write_summary,
+)
 
 SIGMA_PROCESS = 0.1
 SIGMA_MEAS = 1.0
@@ -57,8 +64,9 @@ def _plot(path: Path, sc, x_fix, x_flt, r_fix, step_frame) -> None:
 
 @click.command()
 @click.option("--frames", type=int, default=4000, show_default=True, help="Frames to run.")
-@click.option("--n", "n", type=int, default=20, show_default=True, help="Word length N.")
-@click.option("--frac", type=int, default=10, show_default=True, help="Fraction bits FRAC.")
+@click.option("--n", "n", type=int, default=20, show_default=True, help="Word length N (9..29).")
+@click.option("--frac", type=int, default=10, show_default=True,
+              help="Fraction bits FRAC (1..N-2; the demo needs N-1-FRAC >= 5 integer bits).")
 @click.option("--engine", type=click.Choice(["model", "amaranth", "verilator"]),
               default="model", show_default=True,
               help="model: bit-true model only; amaranth / verilator: also run the gateware "
@@ -66,12 +74,12 @@ def _plot(path: Path, sc, x_fix, x_flt, r_fix, step_frame) -> None:
 @click.option("--adapt-q/--no-adapt-q", default=False, show_default=True,
               help="Adapt Q from the corrections (R is always adapted).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="navgate-out/kf2x2",
-              show_default=True, help="Output directory.")
+@out_option(default_out_dir("kf2x2"), "Output directory (written atomically).")
+@click.option("--accept-overflow", is_flag=True,
+              help="Exit 0 even when the word length overflows (results flagged).")
 @click.option("--quiet", is_flag=True, help="No table.")
-def kf2x2(frames, n, frac, engine, adapt_q, seed, out_dir, quiet):
+def kf2x2(frames, n, frac, engine, adapt_q, seed, out, accept_overflow, quiet):
     """Seed 004: 2x2 adaptive fixed-point Kalman filter (34 cycles a frame) on an RLC circuit."""
-    from rich.console import Console
     from rich.table import Table
 
     from navgate.systems.kf2x2.model import (
@@ -83,7 +91,7 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out_dir, quiet):
         run_frames_float,
     )
 
-    console = Console(stderr=True, quiet=quiet)
+    table_console, console = consoles(quiet)
     if not 10 <= frames <= 100_000:
         raise CliError(f"--frames must be between 10 and 100000, got {frames}")
     if seed < 0:
@@ -91,12 +99,11 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out_dir, quiet):
     try:
         params = KfParams(n=n, frac=frac)
     except ValueError as error:
-        raise CliError(f"bad word length: {error}") from None
+        raise CliError(f"bad word length Q({n}, {frac}): {error}") from None
     if params.max_int / params.scale < 16:
         raise CliError(f"Q({n}, {frac}) holds values only up to "
                        f"{params.max_int / params.scale:g}; the RLC demo needs at least 16 "
                        "(use fewer fraction bits)")
-    out = prepare_out_dir(out_dir)
     step = frames // 2
     sc = rlc_scenario(frames, seed=seed, sigma_process=SIGMA_PROCESS,
                       sigma_meas=(SIGMA_MEAS, SIGMA_MEAS), step_frame=step, step_factor=2.0)
@@ -153,15 +160,18 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out_dir, quiet):
         "model_seconds": round(t_model, 3),
         "gateware_seconds": None if gate_seconds is None else round(gate_seconds, 3),
     }
-    write_summary(out, summary)
-    with open(out / "frames.csv", "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["frame", "v_true", "i_true", "v_meas", "i_meas", "v_fixed", "i_fixed",
-                    "v_float", "i_float", "R00_fixed", "R11_fixed"])
-        for k in range(frames):
-            w.writerow([k, *(f"{v:.6f}" for v in (*sc.x[k], *sc.z[k], *x_fix[k], *fl["x"][k],
-                                                   *r_fix[k]))])
-    _plot(out / "rlc.png", sc, x_fix, fl["x"], r_fix, step)
+    overflow = summary["overflow_frames"]
+    summary["overflow_accepted"] = bool(overflow and accept_overflow)
+    with atomic_output_dir(out) as stage:
+        write_summary(stage, summary)
+        with open(stage / "frames.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["frame", "v_true", "i_true", "v_meas", "i_meas", "v_fixed", "i_fixed",
+                        "v_float", "i_float", "R00_fixed", "R11_fixed"])
+            for k in range(frames):
+                w.writerow([k, *(f"{v:.6f}" for v in (*sc.x[k], *sc.z[k], *x_fix[k],
+                                                       *fl["x"][k], *r_fix[k]))])
+        _plot(stage / "rlc.png", sc, x_fix, fl["x"], r_fix, step)
     table = Table(title=f"kf2x2 Q({n}, {frac}), {frames} frames, engine {engine}")
     table.add_column("quantity")
     table.add_column("v_C")
@@ -173,10 +183,16 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out_dir, quiet):
                        ("R estimate before step", "r_estimate_before_step"),
                        ("R estimate after step", "r_estimate_after_step")):
         table.add_row(label, *(f"{v:.4f}" for v in summary[key]))
-    console.print(table)
+    table.add_row("overflow frames", f"{overflow} of {frames}"
+                  + (" (OVERFLOW: results invalid)" if overflow else ""), "")
+    table_console.print(table)
     if mismatches is not None:
-        console.print(f"gateware ({engine}): {mismatches} mismatching frames of {frames}, "
+        table_console.print(f"gateware ({engine}): {mismatches} mismatching frames of {frames}, "
                       "34 cycles each")
-    console.print(f"wrote {out / 'summary.json'}, frames.csv, rlc.png")
+    console.print(f"wrote summary.json, frames.csv, rlc.png in {out}", highlight=False)
+    if overflow and not accept_overflow:
+        raise CliError(f"Q({n}, {frac}) overflows in {overflow} of {frames} frames (RMS error "
+                       f"{max(summary['rms_error_fixed']):.3g}); use a longer word or fewer "
+                       "fraction bits, or --accept-overflow")
     if mismatches:
         raise CliError(f"{mismatches} frames differ from the bit-true model")

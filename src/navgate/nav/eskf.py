@@ -85,9 +85,11 @@ class FilterConfig:
                       residual_gyro_bias=0.0, tau=3600.0, floor_scale=1.0, **kw):
         """Noise from an ImuSpec. Quantisation adds LSB^2/12 per sample to the white noise,
         i.e. a random-walk density of LSB sqrt(dt / 12) at the IMU rate."""
+        from navgate.nav import validate
+
         quant_g = spec.gyro_lsb**2 / 12.0 if spec.quantize else 0.0
         quant_a = spec.accel_lsb**2 / 12.0 if spec.quantize else 0.0
-        dt = 1.0 / rate_hz
+        dt = 1.0 / validate.positive("rate_hz", rate_hz)
         arw = math.sqrt(spec.gyro_arw**2 + quant_g * dt) * floor_scale
         vrw = math.sqrt(spec.accel_vrw**2 + quant_a * dt) * floor_scale
         bg = math.sqrt(spec.gyro_bias_instability**2 + residual_gyro_bias**2)
@@ -249,15 +251,18 @@ class ErrorStateFilter:
 
     def __init__(self, nav0, p0, config: FilterConfig, *, rate_hz: float = 400.0,
                  bias_a0=None, bias_g0=None):
+        from navgate.nav import validate
+
         self.nav = np.array(nav0, dtype=float)
         if self.nav.shape != (strapdown.NAV_SIZE,):
             raise ValueError("nav0 must be [lat, lon, h, vN, vE, vD, q0, q1, q2, q3]")
-        self.p = np.array(p0, dtype=float)
-        if self.p.shape != (N_STATES, N_STATES) or not np.all(np.isfinite(self.p)):
-            raise ValueError("P0 must be a finite 15x15 matrix")
+        validate.finite_array("nav0", self.nav)
+        validate.latitude_rad("nav0[0] (latitude)", self.nav[0])
+        validate.unit_quaternion("nav0[6:10] (attitude quaternion)", self.nav[6:10])
+        self.p = np.array(validate.covariance("p0", p0, N_STATES), dtype=float)
         self.p = 0.5 * (self.p + self.p.T)
         self.config = config
-        self.dt = 1.0 / rate_hz
+        self.dt = 1.0 / validate.positive("rate_hz", rate_hz)
         self.bias_a = np.zeros(3) if bias_a0 is None else np.array(bias_a0, float)
         self.bias_g = np.zeros(3) if bias_g0 is None else np.array(bias_g0, float)
         c = config

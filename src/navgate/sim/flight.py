@@ -77,6 +77,10 @@ class FlightConfig:
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"invalid {name}: {getattr(self, name)}")
+        if self.duration_s < self.min_duration_s:
+            raise ValueError(f"duration_s {self.duration_s:g} s is too short for the scenario: "
+                             f"at least {self.min_duration_s:g} s (two periods of the slowest "
+                             "sensor or log)")
         from navgate.trn.correlators import METHODS
 
         if self.trn_method not in METHODS:
@@ -85,6 +89,12 @@ class FlightConfig:
         if self.ranger not in sensors.RANGER_PRESETS:
             raise ValueError(f"unknown ranger {self.ranger!r}; choose from "
                              f"{', '.join(sensors.RANGER_PRESETS)}")
+
+    @property
+    def min_duration_s(self) -> float:
+        """The shortest flight with at least two samples of every sensor and of the log."""
+        slowest = min(self.baro_rate_hz, self.ranger_rate_hz, self.log_rate_hz)
+        return 2.0 / slowest
 
 
 @dataclass

@@ -170,8 +170,11 @@ def generate(segments, *, lat0: float, lon0: float, h0: float, heading0: float,
     ``duration_s`` defaults to the sum of segment durations; if longer, the segment list is
     repeated (a circuit); if shorter, the flight is cut.
     """
+    from navgate.nav import validate
+
     if not segments:
         raise ValueError("a trajectory needs at least one segment")
+    validate.latitude_rad("lat0", lat0)
     if not (rate_hz > 0 and speed0 > 0):
         raise ValueError("rate and initial speed must be positive")
     total = sum(s.duration_s for s in segments)

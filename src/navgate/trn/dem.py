@@ -32,6 +32,12 @@ from navgate.nav.earth import radii
 SRTM_VOID = -32768
 
 
+#: plausible terrain heights in metres: Everest 8,849 m; the deepest land depression (Dead Sea
+#: shore, -431 m) and bathymetric DEMs (Challenger Deep, -10,935 m) with some margin
+MAX_TERRAIN_M = 9000.0
+MIN_TERRAIN_M = -11500.0
+
+
 class DemError(ValueError):
     """A file that cannot serve as a DEM (missing, unreadable, not geographic, empty)."""
 
@@ -93,6 +99,12 @@ class Dem:
         if not np.any(np.isfinite(h)):
             raise DemError(f"{self.name}: the DEM holds no valid heights (all voids)")
         h[~np.isfinite(h)] = np.nan
+        lo, hi = float(np.nanmin(h)), float(np.nanmax(h))
+        if hi > MAX_TERRAIN_M or lo < MIN_TERRAIN_M:
+            raise DemError(f"{self.name}: heights from {lo:.4g} to {hi:.4g} are not terrain "
+                           f"heights in metres (Earth's land surface spans {MIN_TERRAIN_M:g} to "
+                           f"{MAX_TERRAIN_M:g} m); the DEM looks scaled (centimetres or "
+                           "millimetres?) or is not a DEM")
         self.heights = h
 
     # -- construction ---------------------------------------------------------------------

@@ -103,6 +103,23 @@ class TercomConfig:
     cov_inflation: float = 1.5
     roughness_scale_m: float = 30.0  #: covariance x (1 + (scale / roughness)^2); 0 disables
 
+    def __post_init__(self):
+        from navgate.nav import validate
+
+        for name in ("min_track_m", "k_sigma", "margin_m", "min_half_width_m",
+                     "max_half_width_m", "min_roughness_m", "roughness_scale_m"):
+            validate.non_negative(name, getattr(self, name))
+        for name in ("grid_step_m", "exclusion_radius_m"):
+            if getattr(self, name) is not None:
+                validate.positive(name, getattr(self, name))
+        validate.positive("ambiguity_ratio", self.ambiguity_ratio)
+        validate.positive("cov_inflation", self.cov_inflation)
+        if not 0 <= self.min_valid_fraction <= 1:
+            raise ValueError(f"min_valid_fraction: must be in [0, 1], got "
+                             f"{self.min_valid_fraction}")
+        if self.max_half_width_m < self.min_half_width_m:
+            raise ValueError("max_half_width_m: must be at least min_half_width_m")
+
 
 @dataclass
 class TercomResult:
@@ -162,14 +179,18 @@ class TercomCorrelator:
         return self.dem.height(lat, lon)
 
     def correlate(self, profile: ProfileSnapshot, sigma_max_m: float) -> TercomResult:
+        for name in ("time", "pos_n", "pos_e"):
+            if not np.all(np.isfinite(getattr(profile, name))):
+                raise ValueError(f"profile.{name}: non-finite values in the terrain profile")
         cfg = self.config
         now = float(profile.time[-1]) if len(profile) else math.nan
         if len(profile) < cfg.min_samples:
             return TercomResult(False, "too few samples", now, samples=len(profile))
         if profile.track_length_m < cfg.min_track_m:
             return TercomResult(False, "track too short", now, samples=len(profile))
-        if not math.isfinite(sigma_max_m):
-            raise ValueError("position sigma must be finite")
+        if not (math.isfinite(sigma_max_m) and sigma_max_m >= 0):
+            raise ValueError(f"sigma_max_m: position sigma must be finite and non-negative, "
+                             f"got {sigma_max_m}")
         half = min(max(cfg.k_sigma * sigma_max_m + cfg.margin_m, cfg.min_half_width_m),
                    cfg.max_half_width_m)
         steps = int(math.ceil(half / self.step))

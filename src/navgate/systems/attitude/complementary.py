@@ -75,15 +75,12 @@ def accel_mag_quat(acc, mag=None) -> np.ndarray:
 
 
 @njit(cache=True)
-def complementary_batch(gyro, acc, mag, dt, q0, alpha, use_mag):
-    """Run the filter over a log: (N, 4) quaternions; Q[0] = q0, sample k >= 1 updates."""
-    n = gyro.shape[0]
-    out = np.empty((n, 4))
-    a0, a1, a2, a3 = q0[0], q0[1], q0[2], q0[3]
-    nq = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3)
-    a0, a1, a2, a3 = a0 / nq, a1 / nq, a2 / nq, a3 / nq
-    out[0, 0], out[0, 1], out[0, 2], out[0, 3] = a0, a1, a2, a3
-    for k in range(1, n):
+def complementary_steps(gyro, acc, mag, dt, state, alpha, use_mag, out):
+    """Advance the quaternion ``state`` (4,) by every sample, in place, writing the attitude
+    after sample k into ``out[k]`` (no renormalisation of the incoming state: a log in pieces
+    gives the same bits as the whole log)."""
+    a0, a1, a2, a3 = state[0], state[1], state[2], state[3]
+    for k in range(gyro.shape[0]):
         h = dt[k]
         tx, ty, tz = gyro[k, 0] * h, gyro[k, 1] * h, gyro[k, 2] * h
         ang = math.sqrt(tx * tx + ty * ty + tz * tz)
@@ -112,21 +109,43 @@ def complementary_batch(gyro, acc, mag, dt, q0, alpha, use_mag):
         nr = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2 + p3 * p3)
         a0, a1, a2, a3 = p0 / nr, p1 / nr, p2 / nr, p3 / nr
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = a0, a1, a2, a3
+    state[0], state[1], state[2], state[3] = a0, a1, a2, a3
+
+
+@njit(cache=True)
+def complementary_batch(gyro, acc, mag, dt, q0, alpha, use_mag):
+    """Run the filter over a log: (N, 4) quaternions; Q[0] = q0, sample k >= 1 updates."""
+    n = gyro.shape[0]
+    out = np.empty((n, 4))
+    nq = math.sqrt(q0[0] * q0[0] + q0[1] * q0[1] + q0[2] * q0[2] + q0[3] * q0[3])
+    state = np.zeros(4)
+    for i in range(4):
+        state[i] = q0[i] / nq
+        out[0, i] = state[i]
+    complementary_steps(gyro[1:], acc[1:], mag[1:], dt[1:], state, alpha, use_mag, out[1:])
     return out
 
 
 def run_complementary(gyro, acc, mag=None, *, t, alpha: float = 0.02, q0=None) -> np.ndarray:
     """Convenience wrapper: ``t`` (N,) s, gyro rad/s, specific force, optional magnetometer
     (FRD). ``q0`` defaults to the accelerometer/magnetometer attitude of the first sample."""
+    from navgate.nav import validate
+
     if not 0.0 <= alpha <= 1.0:
-        raise ValueError(f"complementary gain must be in [0, 1], got {alpha}")
-    gyro = np.ascontiguousarray(gyro, dtype=np.float64)
-    acc = np.ascontiguousarray(acc, dtype=np.float64)
+        raise ValueError(f"alpha: complementary gain must be in [0, 1], got {alpha}")
+    gyro = np.ascontiguousarray(validate.finite_array("gyro", gyro, (-1, 3)))
+    n = gyro.shape[0]
+    acc = np.ascontiguousarray(validate.finite_array("acc", acc, (n, 3)))
     use_mag = mag is not None
-    m = np.ascontiguousarray(mag, dtype=np.float64) if use_mag else np.zeros_like(gyro)
-    t = np.asarray(t, dtype=np.float64)
+    m = (np.ascontiguousarray(validate.finite_array("mag", mag, (n, 3))) if use_mag
+         else np.zeros_like(gyro))
+    t = validate.finite_array("t", t, (n,))
     dts = np.concatenate([[0.0], np.diff(t)])
+    if n > 1 and not (dts[1:] > 0).all():
+        raise ValueError("t: time must strictly increase")
     if q0 is None:
         q0 = accel_mag_quat(acc[0], m[0] if use_mag else None)
+    else:
+        q0 = validate.unit_quaternion("q0", q0)
     return complementary_batch(gyro, acc, m, dts, np.asarray(q0, dtype=np.float64), alpha,
                                use_mag)

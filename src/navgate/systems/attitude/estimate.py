@@ -14,14 +14,15 @@ accelerometer/magnetometer attitude of the first sample (``init="accel"``) or fr
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from navgate.nav.rotations import dcm_to_euler_array, quat_to_dcm_array
-from navgate.sim.imu_log import ImuLog
-from navgate.systems.attitude.complementary import accel_mag_quat, run_complementary
-from navgate.systems.attitude.mahony import NED_SI, run_mahony
+from navgate.sim.imu_log import ImuLog, nominal_period
+from navgate.systems.attitude.complementary import accel_mag_quat, complementary_steps
+from navgate.systems.attitude.mahony import NED_SI, mahony_steps
 
 FLU_TO_FRD = np.array([1.0, -1.0, -1.0])
 
@@ -35,6 +36,7 @@ class AttitudeResult:
     yaw_deg: np.ndarray  #: (-180, 180], from magnetic north when a magnetometer was used
     axes: str
     used_mag: bool
+    gaps: int = 0  #: filter restarts at time gaps
 
 
 def resolve_axes(log: ImuLog, axes: str) -> str:
@@ -45,26 +47,122 @@ def resolve_axes(log: ImuLog, axes: str) -> str:
     return axes
 
 
+#: a step longer than this many nominal sample periods is a gap: the filter restarts
+GAP_PERIODS = 5.0
+
+
+class AttitudeStream:
+    """Run an attitude filter over a log delivered in blocks, carrying the filter state, so
+    that any split of the log gives the same bits as the whole log in one call.
+
+    A time step longer than ``gap_s`` restarts the filter at the sample after the gap (from
+    that sample's accelerometer/magnetometer attitude with ``init="accel"``, identity
+    otherwise; Mahony's integral term zeroed), instead of integrating the gyro across it;
+    ``gaps`` counts the restarts. ``mag`` blocks may be None (no magnetometer).
+    """
+
+    def __init__(self, method: str = "mahony", *, axes: str = "frd", kp: float = NED_SI.kp,
+                 ki: float = NED_SI.ki, gain: float = 0.02, use_mag: bool = True,
+                 init: str = "accel", gap_s: float = math.inf):
+        from navgate.nav import validate
+
+        if method not in ("mahony", "complementary"):
+            raise ValueError(f"method: unknown filter {method!r} (mahony or complementary)")
+        if axes not in ("frd", "flu"):
+            raise ValueError(f"axes: must be frd or flu, got {axes!r}")
+        if init not in ("accel", "identity"):
+            raise ValueError(f"init: must be accel or identity, got {init!r}")
+        if method == "complementary" and not 0.0 <= gain <= 1.0:
+            raise ValueError(f"gain: complementary gain must be in [0, 1], got {gain}")
+        self.method, self.axes, self.init, self.use_mag = method, axes, init, use_mag
+        self.params = replace(NED_SI, kp=validate.non_negative("kp", kp),
+                              ki=validate.non_negative("ki", ki))
+        self.gain = gain
+        self.gap_s = validate.positive("gap_s", gap_s) if math.isfinite(gap_s) else math.inf
+        if method == "mahony" and math.isfinite(self.gap_s) and self.params.kp * self.gap_s >= 2:
+            raise ValueError(f"kp: kp * dt can reach {self.params.kp * self.gap_s:.3g} >= 2 "
+                             "(unstable discrete filter); lower kp")
+        self.state = np.zeros(7)
+        self.last_t = None
+        self.gaps = 0
+        self.used_mag = False
+
+    def _start(self, acc, mag) -> None:
+        if self.init == "accel":
+            q0 = accel_mag_quat(acc, mag)
+        else:
+            q0 = np.array([1.0, 0.0, 0.0, 0.0])
+        nq = math.sqrt(q0[0] * q0[0] + q0[1] * q0[1] + q0[2] * q0[2] + q0[3] * q0[3])
+        self.state[:] = 0.0
+        for i in range(4):
+            self.state[i] = q0[i] / nq
+
+    def update(self, t, gyro, acc, mag=None) -> np.ndarray:
+        """Quaternions (N, 4) of C_b^n after each sample of the block."""
+        s = FLU_TO_FRD if self.axes == "flu" else np.ones(3)
+        t = np.asarray(t, dtype=np.float64)
+        gyro = np.ascontiguousarray(gyro * s)
+        acc = np.ascontiguousarray(acc * s)
+        use_mag = self.use_mag and mag is not None
+        m = np.ascontiguousarray(mag * s) if use_mag else np.zeros_like(gyro)
+        self.used_mag = self.used_mag or use_mag
+        n = t.size
+        out = np.empty((n, 4))
+        if n == 0:
+            return out
+        prev = self.last_t
+        dts = np.empty(n)
+        dts[0] = math.inf if prev is None else t[0] - prev
+        dts[1:] = np.diff(t)
+        restart = dts > self.gap_s
+        restart[0] = restart[0] or prev is None
+        starts = np.flatnonzero(restart)
+        self.gaps += starts.size - (1 if prev is None else 0)
+        bounds = [0, *starts.tolist(), n]
+        pieces = [(bounds[i], bounds[i + 1]) for i in range(len(bounds) - 1)
+                  if bounds[i + 1] > bounds[i]]
+        p = self.params
+        for lo, hi in pieces:
+            first = lo
+            if restart[lo]:
+                self._start(acc[lo], m[lo] if use_mag else None)
+                out[lo] = self.state[:4]
+                first = lo + 1
+            if hi > first:
+                if self.method == "mahony":
+                    mahony_steps(gyro[first:hi], acc[first:hi], m[first:hi], dts[first:hi],
+                                 self.state, p.kp, p.ki, p.gyro_scale,
+                                 np.asarray(p.mag_sign, dtype=np.float64), p.accel_sign,
+                                 use_mag, out[first:hi])
+                else:
+                    q = self.state[:4].copy()
+                    complementary_steps(gyro[first:hi], acc[first:hi], m[first:hi],
+                                        dts[first:hi], q, self.gain, use_mag, out[first:hi])
+                    self.state[:4] = q
+        self.last_t = float(t[-1])
+        return out
+
+
+def euler_deg(q):
+    """(roll, pitch, yaw) in degrees of quaternions (N, 4)."""
+    roll, pitch, yaw = dcm_to_euler_array(quat_to_dcm_array(q))
+    return np.degrees(roll), np.degrees(pitch), np.degrees(yaw)
+
+
 def estimate_attitude(log: ImuLog, method: str = "mahony", *, axes: str = "auto",
                       kp: float = NED_SI.kp, ki: float = NED_SI.ki, gain: float = 0.02,
-                      use_mag: bool = True, init: str = "accel") -> AttitudeResult:
+                      use_mag: bool = True, init: str = "accel",
+                      gap_periods: float | None = GAP_PERIODS) -> AttitudeResult:
+    """The whole log in one call (same result as :class:`AttitudeStream` over any blocks).
+    ``gap_periods`` x the nominal period (:func:`navgate.sim.imu_log.nominal_period`) is the
+    gap that restarts the filter; None never restarts."""
     axes = resolve_axes(log, axes)
-    s = FLU_TO_FRD if axes == "flu" else np.ones(3)
-    gyro, acc = log.gyro * s, log.acc * s
-    mag = log.mag * s if (use_mag and log.mag is not None) else None
-    if init == "accel":
-        q0 = accel_mag_quat(acc[0], None if mag is None else mag[0])
-    elif init == "identity":
-        q0 = np.array([1.0, 0.0, 0.0, 0.0])
-    else:
-        raise ValueError(f"init must be accel or identity, got {init!r}")
-    if method == "mahony":
-        params = replace(NED_SI, kp=kp, ki=ki)
-        q = run_mahony(gyro, acc, mag, t=log.t, params=params, q0=q0)
-    elif method == "complementary":
-        q = run_complementary(gyro, acc, mag, t=log.t, alpha=gain, q0=q0)
-    else:
-        raise ValueError(f"unknown filter {method!r} (mahony or complementary)")
-    roll, pitch, yaw = dcm_to_euler_array(quat_to_dcm_array(q))
-    return AttitudeResult(log.t, q, np.degrees(roll), np.degrees(pitch), np.degrees(yaw), axes,
-                          mag is not None)
+    gap = (math.inf if gap_periods is None
+           else gap_periods * nominal_period(log.t))
+    stream = AttitudeStream(method, axes=axes, kp=kp, ki=ki, gain=gain, use_mag=use_mag,
+                            init=init, gap_s=gap if math.isfinite(gap) else math.inf)
+    q = stream.update(log.t, log.gyro, log.acc, log.mag if use_mag else None)
+    roll, pitch, yaw = euler_deg(q)
+    res = AttitudeResult(log.t, q, roll, pitch, yaw, axes, stream.used_mag)
+    res.gaps = stream.gaps
+    return res

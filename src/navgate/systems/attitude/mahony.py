@@ -219,26 +219,17 @@ class MahonyCircuitReference:
 
 
 @njit(cache=True)
-def mahony_batch(gyro, acc, mag, dt, q0, kp, ki, gyro_scale, mag_sign, accel_sign, use_mag):
-    """Run the seed-003 filter over a log; returns (N, 4) quaternions (of C_b^n).
-
-    ``gyro``, ``acc``, ``mag``: (N, 3) float64; ``dt``: (N,) step into each sample (dt[0]
-    is unused: Q[0] = q0, the attitude before the first update). Sample k >= 1 updates
-    Q[k-1] with its own gyro/acc/mag and period dt[k]. A zero accelerometer (or
-    magnetometer) vector skips that correction for the sample; ``use_mag`` False runs the
-    accelerometer-only (IMU) variant. Same equations, same order as
-    :class:`MahonyCircuitReference`.
-    """
-    n = gyro.shape[0]
-    out = np.empty((n, 4))
-    q0_, q1, q2, q3 = q0[0], q0[1], q0[2], q0[3]
-    nq = math.sqrt(q0_ * q0_ + q1 * q1 + q2 * q2 + q3 * q3)
-    q0_, q1, q2, q3 = q0_ / nq, q1 / nq, q2 / nq, q3 / nq
-    ix = 0.0
-    iy = 0.0
-    iz = 0.0
-    out[0, 0], out[0, 1], out[0, 2], out[0, 3] = q0_, q1, q2, q3
-    for k in range(1, n):
+def mahony_steps(gyro, acc, mag, dt, state, kp, ki, gyro_scale, mag_sign, accel_sign, use_mag,
+                 out):
+    """Advance ``state`` = (q0, q1, q2, q3, Ix, Iy, Iz) by every sample of the arrays, in
+    place, writing the quaternion after sample k into ``out[k]``. The state's quaternion is
+    used as is (not renormalised), so a log processed in pieces gives the same bits as the
+    whole log (:class:`navgate.systems.attitude.estimate.AttitudeStream`)."""
+    q0_, q1, q2, q3 = state[0], state[1], state[2], state[3]
+    ix = state[4]
+    iy = state[5]
+    iz = state[6]
+    for k in range(gyro.shape[0]):
         # previous C_n^b (1 - 2(...) form)
         c11 = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
         c12 = 2.0 * (q1 * q2 + q0_ * q3)
@@ -290,31 +281,68 @@ def mahony_batch(gyro, acc, mag, dt, q0, kp, ki, gyro_scale, mag_sign, accel_sig
         r2 = q2 + (q0_ * gy - q1 * gz + q3 * gx) * ht
         r3 = q3 + (q0_ * gz + q1 * gy - q2 * gx) * ht
         nr = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
+        if not (nr > 0.0 and nr < math.inf):
+            raise ValueError("gyro/acc/mag: the attitude update overflowed (inputs or gains "
+                             "far out of range)")
         q0_, q1, q2, q3 = r0 / nr, r1 / nr, r2 / nr, r3 / nr
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = q0_, q1, q2, q3
+    state[0], state[1], state[2], state[3] = q0_, q1, q2, q3
+    state[4], state[5], state[6] = ix, iy, iz
+
+
+@njit(cache=True)
+def mahony_batch(gyro, acc, mag, dt, q0, kp, ki, gyro_scale, mag_sign, accel_sign, use_mag):
+    """Run the seed-003 filter over a log; returns (N, 4) quaternions (of C_b^n).
+
+    ``gyro``, ``acc``, ``mag``: (N, 3) float64; ``dt``: (N,) step into each sample (dt[0]
+    is unused: Q[0] = q0, the attitude before the first update). Sample k >= 1 updates
+    Q[k-1] with its own gyro/acc/mag and period dt[k]. A zero accelerometer (or
+    magnetometer) vector skips that correction for the sample; ``use_mag`` False runs the
+    accelerometer-only (IMU) variant. Same equations, same order as
+    :class:`MahonyCircuitReference`; the loop is :func:`mahony_steps`.
+    """
+    n = gyro.shape[0]
+    out = np.empty((n, 4))
+    nq = math.sqrt(q0[0] * q0[0] + q0[1] * q0[1] + q0[2] * q0[2] + q0[3] * q0[3])
+    state = np.zeros(7)
+    for i in range(4):
+        state[i] = q0[i] / nq
+        out[0, i] = state[i]
+    mahony_steps(gyro[1:], acc[1:], mag[1:], dt[1:], state, kp, ki, gyro_scale, mag_sign,
+                 accel_sign, use_mag, out[1:])
     return out
 
 
 def run_mahony(gyro, acc, mag=None, dt=None, *, t=None, params: MahonyParams = NED_SI,
                q0=None) -> np.ndarray:
-    """Convenience wrapper around :func:`mahony_batch` (checks shapes, builds dt)."""
-    gyro = np.ascontiguousarray(gyro, dtype=np.float64)
-    acc = np.ascontiguousarray(acc, dtype=np.float64)
+    """Convenience wrapper around :func:`mahony_batch` (checks shapes, builds dt).
+
+    Validates its arguments (ValueError naming the argument): finite (N, 3) gyro/acc/mag,
+    finite strictly increasing ``t`` or a positive ``dt``, a unit ``q0``, and a stable gain:
+    ``kp * dt < 2`` for every step (the error feedback of the Euler step multiplies the
+    attitude error by about 1 - kp dt per sample)."""
+    from navgate.nav import validate
+
+    gyro = np.ascontiguousarray(validate.finite_array("gyro", gyro, (-1, 3)))
     n = gyro.shape[0]
-    if gyro.ndim != 2 or gyro.shape[1] != 3 or acc.shape != gyro.shape:
-        raise ValueError("gyro and acc must be (N, 3) arrays of the same shape")
+    acc = np.ascontiguousarray(validate.finite_array("acc", acc, (n, 3)))
     use_mag = mag is not None
-    mag = (np.ascontiguousarray(mag, dtype=np.float64) if use_mag else np.zeros((n, 3)))
-    if mag.shape != gyro.shape:
-        raise ValueError("mag must be (N, 3) like gyro")
+    mag = (np.ascontiguousarray(validate.finite_array("mag", mag, (n, 3))) if use_mag
+           else np.zeros((n, 3)))
     if t is not None:
-        t = np.asarray(t, dtype=np.float64)
+        t = validate.finite_array("t", t, (n,))
         dts = np.empty(n)
         dts[0] = 0.0
         dts[1:] = np.diff(t)
+        if n > 1 and not (dts[1:] > 0).all():
+            raise ValueError("t: time must strictly increase")
     else:
-        dts = np.full(n, params.dt if dt is None else float(dt))
-    q_init = np.array([1.0, 0.0, 0.0, 0.0]) if q0 is None else np.asarray(q0, dtype=np.float64)
+        dts = np.full(n, validate.positive("dt", params.dt if dt is None else dt))
+    q_init = (np.array([1.0, 0.0, 0.0, 0.0]) if q0 is None
+              else validate.unit_quaternion("q0", q0))
+    if n > 1 and params.kp * float(np.max(dts[1:])) >= 2.0:
+        raise ValueError(f"kp: kp * dt = {params.kp * float(np.max(dts[1:])):.3g} >= 2, the "
+                         "discrete filter is unstable (lower kp)")
     return mahony_batch(gyro, acc, mag, dts, q_init, params.kp, params.ki, params.gyro_scale,
                         np.asarray(params.mag_sign, dtype=np.float64), params.accel_sign,
                         use_mag)

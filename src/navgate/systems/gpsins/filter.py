@@ -178,7 +178,13 @@ def measurement_scale(x):
 @njit(cache=True)
 def gps_update(P, x, gps, sigma):
     """Kalman update with a GPS fix ``gps = (lat, lon, h)``; returns (dx, innovation z,
-    innovation covariance S). Joseph form; P updated in place."""
+    innovation covariance S). Joseph form; P updated in place. A non-finite fix or a
+    negative sigma raises ValueError (caught where it would enter the filter)."""
+    for i in range(3):
+        if not math.isfinite(gps[i]):
+            raise ValueError("gps: the fix has a non-finite component")
+        if not sigma[i] >= 0.0:
+            raise ValueError("sigma: GPS sigmas must be non-negative")
     hd = measurement_scale(x)
     z = np.empty(3)
     z[0] = hd[0] * (x[0] - gps[0])
@@ -235,4 +241,6 @@ def apply_correction(x, dx):
     r2 = a0 * q2 - a1 * q3 + a2 * q0 + a3 * q1
     r3 = a0 * q3 + a1 * q2 - a2 * q1 + a3 * q0
     n = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
+    if not (n > 0.0 and n < math.inf):
+        raise ValueError("x: the attitude quaternion x[6:10] is zero or not finite")
     x[6], x[7], x[8], x[9] = r0 / n, r1 / n, r2 / n, r3 / n

@@ -188,7 +188,7 @@ class GpsInsConfig:
         if not (self.duration_s >= 60 and math.isfinite(self.duration_s)):
             raise ValueError(f"duration must be at least 60 s, got {self.duration_s}")
         if not 10 <= self.rate_hz <= 1000:
-            raise ValueError("INS rate must be within 10..1000 Hz")
+            raise ValueError(f"rate_hz: INS rate must be within 10..1000 Hz, got {self.rate_hz}")
         if not 0 < self.gps_rate_hz <= self.rate_hz:
             raise ValueError("GPS rate must be positive and at most the INS rate")
         if self.outage_s < 0 or self.outage_start_s < 0:

@@ -4,10 +4,14 @@
   degrees, north/east metres in the DEM's local frame, height), horizontal errors and the
   filters' 1-sigma north/east position uncertainty;
 - ``trn_fixes.csv``: every TRN attempt with its outcome and reason;
-- ``track.png``: hillshaded terrain with the truth, INS-only and INS+TRN tracks and the
-  accepted / rejected fixes;
-- ``errors.png``: horizontal error against time with each filter's 3-sigma bound
-  (3 sqrt(lambda_max) of the 2x2 horizontal position covariance).
+- ``track.png``: hillshaded terrain (elevation colour bar) with the truth, INS-only and
+  INS+TRN tracks, start/end markers, arrows giving the direction of flight, the accepted /
+  rejected fixes (the rejected count is the summary's ``fixes_rejected``: every attempt not
+  applied, whether or not it produced a position to plot) and a zoomed inset around the end
+  of the flight, where the metre-level errors are visible;
+- ``errors.png``: horizontal error (m) against time since GPS loss (s) with each filter's
+  3-sigma bound (3 sqrt(lambda_max) of the 2x2 horizontal position covariance) and the
+  applied TRN fixes as vertical lines (named in the legend).
 """
 
 from __future__ import annotations
@@ -90,32 +94,69 @@ def plot_track(result, path: Path) -> Path:
     north_top, east_left = tan.to_ned(dem.lat_north, dem.lon_west)
     north_bottom, east_right = tan.to_ned(dem.lat_south, dem.lon_east)
     extent = [east_left / 1000, east_right / 1000, north_bottom / 1000, north_top / 1000]
-    fig, ax = plt.subplots(figsize=(9, 8.5), dpi=110)
-    ax.imshow(dem.heights, cmap="terrain", extent=extent, origin="upper", alpha=0.85)
+    fig, ax = plt.subplots(figsize=(10, 8.5), dpi=110)
+    terrain = ax.imshow(dem.heights, cmap="terrain", extent=extent, origin="upper", alpha=0.85)
     ax.imshow(shade, cmap="gray", extent=extent, origin="upper", alpha=0.35)
+    fig.colorbar(terrain, ax=ax, shrink=0.8, label="terrain elevation (m)")
     truth = result.data.truth
     tn, te = tan.to_ned(truth.lat[::40], truth.lon[::40])
-    ax.plot(te / 1000, tn / 1000, "k-", lw=2.0, label="truth")
+    tracks = [(te / 1000, tn / 1000, "k", "truth", 2.0)]
     styles = {"ins_only": ("tab:red", "INS only"), "trn_aided": ("tab:blue", "INS + TRN")}
     for name, run in result.runs.items():
         n, e = tan.to_ned(run.nav[:, 0], run.nav[:, 1])
         color, label = styles.get(name, ("tab:gray", name))
-        ax.plot(e / 1000, n / 1000, "-", color=color, lw=1.4, label=label)
+        tracks.append((e / 1000, n / 1000, color, label, 1.4))
+    fixes = []
     run = result.runs.get("trn_aided")
     if run is not None:
         acc = [f for f in run.fixes if f["applied"]]
-        rej = [f for f in run.fixes if not f["applied"] and math.isfinite(f["fix_north_m"])]
+        rej_all = [f for f in run.fixes if not f["applied"]]
+        rej = [f for f in rej_all if math.isfinite(f["fix_north_m"])]
         if acc:
-            ax.plot([f["fix_east_m"] / 1000 for f in acc], [f["fix_north_m"] / 1000 for f in acc],
-                    "o", ms=4, mfc="white", mec="tab:green", label=f"TRN fix accepted ({len(acc)})")
-        if rej:
-            ax.plot([f["fix_east_m"] / 1000 for f in rej], [f["fix_north_m"] / 1000 for f in rej],
-                    "x", ms=6, color="tab:orange", label=f"TRN fix rejected ({len(rej)})")
+            fixes.append(([f["fix_east_m"] / 1000 for f in acc],
+                          [f["fix_north_m"] / 1000 for f in acc],
+                          dict(marker="o", ms=4, mfc="white", mec="tab:green", ls="none"),
+                          f"TRN fix accepted ({len(acc)})"))
+        if rej_all:
+            fixes.append(([f["fix_east_m"] / 1000 for f in rej],
+                          [f["fix_north_m"] / 1000 for f in rej],
+                          dict(marker="x", ms=6, color="tab:orange", ls="none"),
+                          f"TRN fix rejected ({len(rej_all)}; {len(rej)} with a position)"))
+
+    def draw(axis, legend: bool):
+        for x, y, color, label, lw in tracks:
+            axis.plot(x, y, "-", color=color, lw=lw, label=label if legend else None)
+        for x, y, style, label in fixes:
+            axis.plot(x, y, label=label if legend else None, **style)
+
+    draw(ax, True)
+    x, y = tracks[0][0], tracks[0][1]
+    ax.plot(x[0], y[0], "^", ms=10, color="white", mec="k", label="start", zorder=5)
+    ax.plot(x[-1], y[-1], "s", ms=9, color="white", mec="k", label="end (truth)", zorder=5)
+    for k in np.linspace(0, x.size - 2, 8, dtype=int)[1:-1]:  # direction of flight
+        ax.annotate("", xy=(x[k + 1], y[k + 1]), xytext=(x[k], y[k]),
+                    arrowprops=dict(arrowstyle="-|>", color="k", lw=1.2, mutation_scale=15))
     ax.set_xlabel("east (km)")
     ax.set_ylabel("north (km)")
     ax.set_title(f"GPS-denied flight over {dem.name}")
     ax.legend(loc="upper right", fontsize=8)
     ax.set_aspect("equal")
+    # zoomed inset around the end of the flight: every solution's final position in view
+    ends_x = [t[0][-1] for t in tracks]
+    ends_y = [t[1][-1] for t in tracks]
+    half = max(0.05, 1.3 * max(max(ends_x) - min(ends_x), max(ends_y) - min(ends_y)) / 2)
+    cx, cy = (max(ends_x) + min(ends_x)) / 2, (max(ends_y) + min(ends_y)) / 2
+    inset = ax.inset_axes([0.02, 0.02, 0.34, 0.34])
+    inset.imshow(shade, cmap="gray", extent=extent, origin="upper", alpha=0.35)
+    draw(inset, False)
+    for ex, ey, (_, _, color, _, _) in zip(ends_x, ends_y, tracks, strict=True):
+        inset.plot(ex, ey, "s", ms=6, color=color)
+    inset.set_xlim(cx - half, cx + half)
+    inset.set_ylim(cy - half, cy + half)
+    inset.set_aspect("equal")
+    inset.set_title(f"end of flight, {2000 * half:.0f} m wide", fontsize=7)
+    inset.tick_params(labelsize=6)
+    ax.indicate_inset_zoom(inset, edgecolor="0.3")
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
@@ -137,10 +178,11 @@ def plot_errors(result, path: Path) -> Path:
         ax.plot(run.t, err, color=color, lw=1.2, label=f"{label}: horizontal error")
         ax.plot(run.t, horizontal_sigma_bound(run), "k--", lw=1.0, label="filter 3-sigma")
         if name == "trn_aided":
-            for f in run.fixes:
-                if f["applied"]:
-                    ax.axvline(f["time_s"], color="tab:green", lw=0.4, alpha=0.5)
-        ax.set_ylabel("m")
+            applied = [f["time_s"] for f in run.fixes if f["applied"]]
+            for i, t_fix in enumerate(applied):
+                ax.axvline(t_fix, color="tab:green", lw=0.4, alpha=0.5,
+                           label=f"TRN fix applied ({len(applied)})" if i == 0 else None)
+        ax.set_ylabel("horizontal position error (m)")
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)
         ax.legend(loc="upper left", fontsize=8)

@@ -1,0 +1,106 @@
+"""Argument guards for navgate's public entry points (issue 17).
+
+Each guard raises ``ValueError`` whose message starts with the argument's name, so that a
+caller sees which argument is wrong (``q0: quaternion norm is 0, expected 1``) instead of a
+ZeroDivisionError or a NaN several steps later. They are called where a value enters a
+filter: constructors, ``run_*`` wrappers, measurement updates.
+
+Tolerances: a quaternion is "unit" when | |q| - 1 | <= 1e-6 (far above float64 rounding of a
+normalised quaternion, 4 ulp ~ 1e-15, and far below any real attitude error); a covariance
+is symmetric when |P - P^T| <= 1e-9 max|P| and positive semi-definite when its smallest
+eigenvalue is >= -1e-9 max|P| (rounding of a Joseph-form update stays far inside both).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+QUAT_NORM_TOL = 1e-6
+COV_REL_TOL = 1e-9
+
+
+def finite_array(name: str, value, shape: tuple | None = None) -> np.ndarray:
+    """A float64 array with no NaN/inf (and the given shape, -1 = any length)."""
+    a = np.asarray(value, dtype=np.float64)
+    if shape is not None and (a.ndim != len(shape) or any(
+            s != -1 and s != d for s, d in zip(shape, a.shape, strict=True))):
+        want = " x ".join("N" if s == -1 else str(s) for s in shape)
+        raise ValueError(f"{name}: expected a {want} array, got shape {a.shape}")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        idx = np.argwhere(bad)[0]
+        where = f" at index {tuple(int(i) for i in idx)}" if a.ndim else ""
+        raise ValueError(f"{name}: non-finite value{where} ({a[tuple(idx)]})")
+    return a
+
+
+def finite_scalar(name: str, value) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{name}: must be finite, got {v}")
+    return v
+
+
+def positive(name: str, value) -> float:
+    """A finite number > 0 (rates, periods)."""
+    v = finite_scalar(name, value)
+    if not v > 0:
+        raise ValueError(f"{name}: must be positive, got {v:g}")
+    return v
+
+
+def non_negative(name: str, value) -> float:
+    """A finite number >= 0 (sigmas, gains)."""
+    v = finite_scalar(name, value)
+    if v < 0:
+        raise ValueError(f"{name}: must be non-negative, got {v:g}")
+    return v
+
+
+def non_negative_array(name: str, value) -> np.ndarray:
+    a = finite_array(name, value)
+    if (a < 0).any():
+        raise ValueError(f"{name}: must be non-negative, got {a[a < 0].flat[0]:g}")
+    return a
+
+
+def unit_quaternion(name: str, value) -> np.ndarray:
+    """A finite 4-vector of norm 1 (to :data:`QUAT_NORM_TOL`)."""
+    q = finite_array(name, value, (4,))
+    n = float(np.sqrt(q @ q))
+    if abs(n - 1.0) > QUAT_NORM_TOL:
+        raise ValueError(f"{name}: quaternion norm is {n:.9g}, expected 1 (normalise it)")
+    return q
+
+
+def latitude_rad(name: str, value) -> np.ndarray | float:
+    """Latitude(s) in radians within [-pi/2, pi/2]."""
+    a = finite_array(name, value)
+    if (np.abs(a) > math.pi / 2).any():
+        worst = float(np.max(np.abs(a)))
+        raise ValueError(f"{name}: latitude {math.degrees(worst):.6g} deg is beyond 90 deg "
+                         "(radians expected)")
+    return a if a.ndim else float(a)
+
+
+def covariance(name: str, value, n: int | None = None) -> np.ndarray:
+    """A finite, symmetric, positive semi-definite n x n matrix."""
+    p = finite_array(name, value)
+    if p.ndim != 2 or p.shape[0] != p.shape[1] or (n is not None and p.shape[0] != n):
+        want = f"{n} x {n}" if n is not None else "square"
+        raise ValueError(f"{name}: expected a {want} covariance, got shape {p.shape}")
+    scale = float(np.max(np.abs(p))) if p.size else 0.0
+    tol = COV_REL_TOL * max(scale, np.finfo(float).tiny)
+    asym = float(np.max(np.abs(p - p.T))) if p.size else 0.0
+    if asym > tol:
+        raise ValueError(f"{name}: covariance is not symmetric (|P - P^T| = {asym:.3g})")
+    lam = float(np.linalg.eigvalsh(0.5 * (p + p.T))[0]) if p.size else 0.0
+    if lam < -tol:
+        raise ValueError(f"{name}: covariance is not positive semi-definite (smallest "
+                         f"eigenvalue {lam:.3g})")
+    return p
