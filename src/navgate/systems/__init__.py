@@ -20,4 +20,6 @@ is published to :mod:`navgate.hw.blocks` through the ``navgate.blocks`` entry po
 #: name -> ("module:attribute" of a zero-argument factory, one-line description)
 BLOCKS: dict[str, tuple[str, str]] = {
     "kf2x2": ("navgate.systems.kf2x2.top:Kf2x2", "seed 004 2x2 adaptive Kalman filter"),
+    "ins_trn_regs": ("navgate.systems.ins_trn.registers:register_bank",
+                     "seed 000 AXI4-Lite register bank from its SystemRDL map (+ C header, docs)"),
 }
