@@ -144,3 +144,19 @@ def test_plan_bursts():
     assert plan_bursts(0, 40) == [(0, 16), (64, 16), (128, 8)]
     with pytest.raises(AssertionError):
         assert plan_bursts(0, 1) == []
+
+
+def test_profile_dma_in_verilator_with_the_axi_ram_model(tmp_path):
+    import json
+
+    from navgate.gateware.verify import run_cocotb
+
+    job = {"seed": 3, "rounds": 25, "status": str(tmp_path / "status.json")}
+    (tmp_path / "job.json").write_text(json.dumps(job))
+    run_cocotb(AltitudeProfileManager(), "navgate.systems.ins_trn.profile_manager_cocotb",
+               top="altitude_profile_manager",
+               env={"NAVGATE_PROFILE_JOB": str(tmp_path / "job.json")}, work_dir=tmp_path / "sim")
+    status = json.loads((tmp_path / "status.json").read_text())
+    assert status["mismatches"] == [] and status["violations"] == []
+    assert status["rounds"] == 25 and status["entries_checked"] > 400
+    assert status["bursts"] > 100
