@@ -21,7 +21,8 @@ BOUNDARY = 4096  #: no burst may cross a 4 KB boundary
 def axi4_write_signature(addr_width: int = 32, data_width: int = 32) -> wiring.Signature:
     """AW, W and B of an AXI4 master (flip it for a slave), with a one-bit ID (always 0)."""
     return wiring.Signature({
-        "awid": Out(1), "awaddr": Out(addr_width), "awlen": Out(8), "awsize": Out(3), "awburst": Out(2),
+        "awid": Out(1), "awaddr": Out(addr_width), "awlen": Out(8), "awsize": Out(3),
+        "awburst": Out(2),
         "awcache": Out(4), "awprot": Out(3), "awvalid": Out(1), "awready": In(1),
         "wdata": Out(data_width), "wstrb": Out(data_width // 8), "wlast": Out(1),
         "wvalid": Out(1), "wready": In(1),
