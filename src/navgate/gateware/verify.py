@@ -62,6 +62,7 @@ __all__ = [
     "simulate",
     "simulate_amaranth",
     "simulate_verilator",
+    "run_cocotb",
     "verify",
     "emit_verilog",
     "lint_verilog",
@@ -502,6 +503,41 @@ def _build_model(verilog_text: str, top: str) -> Path:
         tmp.rename(build_dir)
         done.write_text(key + "\n")
     return build_dir
+
+
+def run_cocotb(component, test_module: str, *, top: str = "dut",
+               env: Mapping[str, str] | None = None,
+               work_dir: Path | str | None = None) -> Path:
+    """Run the cocotb test module ``test_module`` on the Verilated ``component``.
+
+    The model is compiled (or taken from the cache) as for :func:`simulate_verilator`; the
+    test runs in ``work_dir`` (default: a fresh temporary directory, returned so that the
+    caller can read what the test wrote there). A failing cocotb test raises
+    :class:`VerifyError` with the end of the simulation log.
+    """
+    import xml.etree.ElementTree as ET
+
+    from cocotb_tools.runner import get_runner
+
+    build_dir = _build_model(emit_verilog(component, top), top)
+    work = Path(work_dir) if work_dir is not None else Path(tempfile.mkdtemp(prefix="navgate-vl-"))
+    work.mkdir(parents=True, exist_ok=True)
+    log = work / "sim.log"
+    results = work / "results.xml"
+    with _verilator_path():
+        runner = get_runner("verilator")
+        try:
+            runner.test(test_module=test_module, hdl_toplevel=top, hdl_toplevel_lang="verilog",
+                        build_dir=build_dir, test_dir=work, extra_env=dict(env or {}),
+                        results_xml=str(results), log_file=log)
+        except (SystemExit, subprocess.CalledProcessError) as exc:
+            text = log.read_text()[-4000:] if log.exists() else ""
+            raise VerifyError(f"cocotb/Verilator run of {top} failed ({exc}):\n{text}") from None
+    failures = ET.parse(results).getroot().findall(".//failure") if results.exists() else [None]
+    if failures:
+        text = log.read_text()[-4000:] if log.exists() else ""
+        raise VerifyError(f"cocotb test {test_module} on {top} failed:\n{text}")
+    return work
 
 
 def simulate_verilator(component, packed: list[int], *, seed: int = 0,

@@ -5,7 +5,10 @@
 - ``BLOCK.v``: the Verilog, top module ``BLOCK`` (deterministic, see :mod:`navgate.hw.verilog`);
 - ``BLOCK.json``: ports, latency, throughput and parameters;
 - ``BLOCK.utilization.json``: the xc7 cell counts and, with ``timing=True``, the ECP5 proxy
-  Fmax (see :mod:`navgate.hw.synth`).
+  Fmax (see :mod:`navgate.hw.synth`);
+- whatever else the component delivers through its optional ``write_artifacts(out_dir, name)``
+  method (a register bank writes its C header and register documentation), listed under
+  ``artifacts`` in ``BLOCK.json``.
 
 Tool work files go to ``OUT/work/BLOCK/``. ``report_table`` formats the rows of every block as
 one markdown table.
@@ -47,6 +50,10 @@ def build_block(
     text = emit_verilog(component, name)
     (out_dir / f"{name}.v").write_text(text)
     description = describe_block(component, name, block.description, text)
+    # a component may carry more deliverables (a register bank: its C header and docs)
+    artifacts = getattr(component, "write_artifacts", None)
+    if artifacts is not None:
+        description["artifacts"] = sorted(p.name for p in artifacts(out_dir, name))
     _write_json(out_dir / f"{name}.json", description)
     work = out_dir / "work" / name
     say(f"{name}: synthesising for {target} (yosys synth_xilinx)")

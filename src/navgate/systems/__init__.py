@@ -20,4 +20,9 @@ is published to :mod:`navgate.hw.blocks` through the ``navgate.blocks`` entry po
 #: name -> ("module:attribute" of a zero-argument factory, one-line description)
 BLOCKS: dict[str, tuple[str, str]] = {
     "kf2x2": ("navgate.systems.kf2x2.top:Kf2x2", "seed 004 2x2 adaptive Kalman filter"),
+    "ins_trn_regs": ("navgate.systems.ins_trn.registers:register_bank",
+                     "seed 000 AXI4-Lite register bank from its SystemRDL map (+ C header, docs)"),
+    "altitude_profile_manager": (
+        "navgate.systems.ins_trn.profile_manager:AltitudeProfileManager",
+        "seed 000 altitude profile FIFO (64 x 128 bit) with AXI4 burst DMA to DDR"),
 }
