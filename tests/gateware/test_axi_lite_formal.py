@@ -116,8 +116,19 @@ def test_axi_lite_handshake_rules_hold_by_induction(tmp_path):
     assert "SUCCESS!" in log or "Induction step proven: SUCCESS" in log, log[-3000:]
 
 
+SMALL_MAP = """
+addrmap small {
+    default regwidth = 32;
+    reg { field { sw = rw; hw = r; } v[31:0] = 0; } A @ 0x0;
+    reg { field { sw = r; hw = w; } v[31:0]; } B @ 0x4;
+};
+"""
+
+
 @pytest.mark.parametrize("rule", ["b_drop", "r_drop"])
 def test_the_proof_fails_for_a_slave_that_drops_a_response(tmp_path, rule):
+    # the handshake logic does not depend on the map, so a two-register map keeps this quick
+    (tmp_path / "small.rdl").write_text(SMALL_MAP)
     with pytest.raises(SynthesisError):
-        prove(FormalBank(load_rdl(RDL), break_rule=rule), tmp_path)
+        prove(FormalBank(load_rdl(tmp_path / "small.rdl"), break_rule=rule), tmp_path)
     assert "FAIL" in (tmp_path / "sat.log").read_text()
