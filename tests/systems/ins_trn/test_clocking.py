@@ -67,4 +67,4 @@ def test_mmcm_settings_make_100_mhz_inside_the_vco_range():
 
 def test_bad_parameters():
     with pytest.raises(ValueError):
-        ClockResetGenerator(reset_cycles=0)  # noqa: the constructor raises before use
+        ClockResetGenerator(reset_cycles=0)
