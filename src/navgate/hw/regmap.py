@@ -43,7 +43,7 @@ class FieldSpec:
     lsb: int
     width: int
     sw: str  #: "r", "w" or "rw"
-    hw: str  #: "r", "w" or "na"
+    hw: str  #: "r", "w", "rw" or "na"
     reset: int | None
     read_clear: bool = False
     hw_set: bool = False
@@ -126,7 +126,7 @@ class RegisterSpec:
 
     @property
     def outputs_to_fabric(self) -> bool:
-        return any(f.hw == "r" and f.stored for f in self.fields)
+        return any("r" in f.hw and f.stored for f in self.fields)
 
 
 @dataclass(frozen=True)
