@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "build": "navgate.cli.build:build",
     "report": "navgate.cli.build:report",
     "kf2x2": "navgate.cli.kf2x2:kf2x2",
+    "tinykalman": "navgate.cli.tinykalman:tinykalman",
 }
 
 

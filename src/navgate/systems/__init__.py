@@ -2,7 +2,8 @@
 
 * :mod:`navgate.systems.ins_trn` - seed 000: the INS/TRN navigation of the Zynq-7020 design
   (navigation loop, the ``navgate fly`` run and its report);
-* :mod:`navgate.systems.tinykalman` - seed 001: TinyKalman, integer bit-true model;
+* :mod:`navgate.systems.tinykalman` - seed 001: TinyKalman, integer bit-true model, the chip's
+  gateware (TinyTapeout top) and its pin-level test benches;
 * :mod:`navgate.systems.gpsins` - seed 002: loosely coupled GPS/INS (RK4 INS, 9-state filter,
   optimal-filter bound, scenario);
 * :mod:`navgate.systems.attitude` - seed 003: the Mahony-type attitude-solving circuit's float64
@@ -20,4 +21,17 @@ is published to :mod:`navgate.hw.blocks` through the ``navgate.blocks`` entry po
 #: name -> ("module:attribute" of a zero-argument factory, one-line description)
 BLOCKS: dict[str, tuple[str, str]] = {
     "kf2x2": ("navgate.systems.kf2x2.top:Kf2x2", "seed 004 2x2 adaptive Kalman filter"),
+    "tinykalman_top": ("navgate.systems.tinykalman.top:TinyKalmanTop",
+                       "seed 001 TinyKalman chip, TinyTapeout user module (10 MHz, 100 Hz loop)"),
+    "mpu6500_spi": ("navgate.systems.tinykalman.spi:Mpu6500Spi",
+                    "seed 001 MPU-6500 SPI master: WHO_AM_I + 14-byte burst, mode 3, 1 MHz"),
+    "tinykalman_cordic": ("navgate.systems.tinykalman.datapath:TinyKalmanCordic",
+                          "seed 001 roll/pitch: one iterative 16x16 CORDIC (shared core) used "
+                          "twice"),
+    "kalman_steady": ("navgate.systems.tinykalman.datapath:KalmanSteady",
+                      "seed 001 steady-state Kalman filter, >>> 6 gains, two axes"),
+    "tinykalman_datapath": ("navgate.systems.tinykalman.datapath:TinyKalmanDatapath",
+                            "seed 001 tinykalman_cordic + kalman_steady as one stream block"),
+    "uart_tx": ("navgate.systems.tinykalman.uart:UartTx",
+                "seed 001 8N1 UART transmitter (9596.9 baud at 10 MHz)"),
 }

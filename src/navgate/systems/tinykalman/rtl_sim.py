@@ -215,7 +215,8 @@ def tb_wrapper_verilog(dut: str = TT_MODULE_NAME) -> str:
     cocotb (and ``cocotbext-uart``) can watch them one by one."""
     return f"""
 module {TB_TOP}(input clk, input rst_n, input miso, output mosi, output sclk, output cs_n,
-                output tx, output [7:0] uo_out, output [7:0] uio_out, output [7:0] uio_oe);
+                output tx, output [2:0] spi, output [7:0] uo_out, output [7:0] uio_out,
+                output [7:0] uio_oe);
   wire [7:0] ui_in = {{7'b0, miso}};
   {dut} dut(.ui_in(ui_in), .uo_out(uo_out), .uio_in(8'b0), .uio_out(uio_out),
             .uio_oe(uio_oe), .ena(1'b1), .clk(clk), .rst_n(rst_n));
@@ -223,6 +224,7 @@ module {TB_TOP}(input clk, input rst_n, input miso, output mosi, output sclk, ou
   assign sclk = uo_out[1];
   assign cs_n = uo_out[2];
   assign tx = uo_out[3];
+  assign spi = uo_out[2:0];  // cs_n, sclk, mosi: one net to watch
 endmodule
 """
 
