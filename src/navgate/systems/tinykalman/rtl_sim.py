@@ -157,6 +157,7 @@ def run_amaranth(samples, n_samples: int, config: SimConfig = FAST, *,
     period = config.period
     limit = max_cycles or (n_samples + 1) * period + 100
     cs_rises: list[int] = []
+    flags = [(-1, 0)]  # (cycle, uio_out) at every change
     state = {"cycles": 0}
 
     async def clock(ctx):
@@ -174,7 +175,9 @@ def run_amaranth(samples, n_samples: int, config: SimConfig = FAST, *,
         cycle = 0
         prev_cs = 1
         while len(rx.bytes) < PACKET_LEN * n_samples and cycle < limit:
-            _, uo = await ctx.posedge(top.clk).sample(top.uo_out)
+            _, uo, uio = await ctx.posedge(top.clk).sample(top.uo_out, top.uio_out)
+            if uio != flags[-1][1]:
+                flags.append((cycle, uio))
             mosi, sclk, cs_n, tx = uo & 1, (uo >> 1) & 1, (uo >> 2) & 1, (uo >> 3) & 1
             if prev_cs and not cs_n:
                 k, r = divmod(dev.stats.transactions, 2)
@@ -194,8 +197,11 @@ def run_amaranth(samples, n_samples: int, config: SimConfig = FAST, *,
     t0 = time.perf_counter()
     sim.run()
     seconds = time.perf_counter() - t0
+    starts = rx.starts[::PACKET_LEN]
+    at_start = [next(v for c, v in reversed(flags) if c < s) for s in starts]
     return RtlRun(bytes(rx.bytes), state["cycles"], seconds,
-                  _latencies(cs_rises, rx.starts), dev, rx.errors)
+                  _latencies(cs_rises, rx.starts), dev, rx.errors,
+                  {"uio_out_at_packet_start": at_start})
 
 
 def _latencies(cs_rises, starts) -> list[int]:

@@ -79,7 +79,7 @@ def synthetic_motion(n: int, seed: int = 0, rate_hz: float = 100.0) -> Words:
     Roll sweeps through +-180 deg (upside down, so the filter wraps), pitch through +-80 deg,
     with sinusoids of a few tenths of a Hz, gyro = Euler-angle rates (deg/s) plus white noise,
     specific force = gravity in body axes (+1 g on z when level) plus linear-acceleration
-    bursts that push |a| past 2 g (accelerometer saturation, mag_yz saturation), and 0.01 g
+    shocks of 2.2 g on y and z (accelerometer words and mag_yz saturate), and 0.01 g
     noise.
     """
     rng = np.random.default_rng(seed)
@@ -91,8 +91,12 @@ def synthetic_motion(n: int, seed: int = 0, rate_hz: float = 100.0) -> Words:
     # gravity in the part's axes for roll phi, pitch theta (z up when level)
     acc = np.stack([-np.sin(pitch), np.cos(pitch) * np.sin(roll), np.cos(pitch) * np.cos(roll)],
                    axis=1)
-    bursts = (np.sin(2 * math.pi * 0.013 * t) > 0.93)[:, None]
-    acc = acc * np.where(bursts, 2.3, 1.0) + rng.normal(0, 0.01, (n, 3))
+    # shocks: 1 s in every 7.7 s, 2.2 g on y and z (signs cycling), saturating the words
+    bursts = np.sin(2 * math.pi * 0.13 * t) > 0.9
+    k = np.floor(0.13 * t).astype(np.int64)
+    shock = np.stack([np.zeros(n), 2.2 * np.where(k % 2, -1.0, 1.0),
+                      2.2 * np.where((k // 2) % 2, -1.0, 1.0)], axis=1)
+    acc = acc + np.where(bursts[:, None], shock, 0.0) + rng.normal(0, 0.01, (n, 3))
     gyro = np.stack([d_roll, d_pitch, np.zeros(n)], axis=1) + rng.normal(0, np.radians(0.5),
                                                                           (n, 3))
     return words_from_imu(acc * G0, gyro)
