@@ -12,40 +12,18 @@ from navgate.gateware import verify as V
 from navgate.systems.tinykalman import model as tk
 from navgate.systems.tinykalman import rtl_sim as R
 from navgate.systems.tinykalman.datapath import KalmanSteady, TinyKalmanCordic, TinyKalmanDatapath
+from navgate.systems.tinykalman.rtl_sim import datapath_inputs, datapath_model, directed_angles
 from navgate.systems.tinykalman.run import model_stream, synthetic_motion, words_from_imu
 from navgate.systems.tinykalman.spi import Mpu6500Spi, spi_cycles
 from navgate.systems.tinykalman.top import TinyKalmanTop, min_sample_period, timing
 from navgate.systems.tinykalman.uart import UartTx
 
 LOG = Path("/work/shared/data/fusion_sensor_data.csv")
-E = (-32768, -32767, -16384, -1, 0, 1, 16384, 32766, 32767)
 
 
 def angles_model(s):
     roll, pitch, mag, sat = tk.accel_angles(s["ax"], s["ay"], s["az"])
     return {"roll": roll, "pitch": pitch, "mag": mag, "sat": sat.astype(np.int64)}
-
-
-def datapath_model(s):
-    roll, pitch, rm, pm = tk.run_sequence(s["ax"], s["ay"], s["az"], s["gx"], s["gy"],
-                                          valid=s["ok"])
-    _, _, _, sat = tk.accel_angles(s["ax"], s["ay"], s["az"])
-    return {"roll": roll, "pitch": pitch, "roll_m": rm, "pitch_m": pm,
-            "sat": (sat & s["ok"].astype(bool)).astype(np.int64), "ok": s["ok"]}
-
-
-def directed_angles():
-    """Every sign combination (all four quadrants of (az, ay) and both signs of ax) at the
-    16-bit extremes, the axes, the diagonal that saturates mag_yz, and (0, 0)."""
-    g = np.array(np.meshgrid(E, E, (-32768, -1, 0, 1, 32767))).reshape(3, -1)
-    return {"ay": g[0], "az": g[1], "ax": g[2]}
-
-
-def datapath_inputs(words, ok=None):
-    n = len(words)
-    d = {k: words.column(k) for k in ("ax", "ay", "az", "gx", "gy")}
-    d["ok"] = np.ones(n, np.int64) if ok is None else np.asarray(ok, np.int64)
-    return d
 
 
 def test_cordic_block_directed_quadrants_and_extremes():

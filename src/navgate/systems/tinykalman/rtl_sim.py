@@ -300,3 +300,38 @@ def run_verilator(samples, n_samples: int, config: SimConfig = FAST, *,
     finally:
         if cleanup:
             shutil.rmtree(work, ignore_errors=True)
+
+
+# ----------------------------------------------------------------------------- stream blocks
+
+
+def datapath_model(seen: dict) -> dict:
+    """Bit-true model of :class:`~navgate.systems.tinykalman.datapath.TinyKalmanDatapath` for
+    :func:`navgate.gateware.verify.verify` (walks the samples in order, as the stateful filter
+    does; ``ok = 0`` holds the state)."""
+    from navgate.systems.tinykalman.model import accel_angles, run_sequence
+
+    ok = np.asarray(seen["ok"], dtype=np.int64)
+    roll, pitch, rm, pm = run_sequence(seen["ax"], seen["ay"], seen["az"], seen["gx"],
+                                       seen["gy"], valid=ok)
+    _, _, _, sat = accel_angles(seen["ax"], seen["ay"], seen["az"])
+    return {"roll": roll, "pitch": pitch, "roll_m": rm, "pitch_m": pm,
+            "sat": (sat & ok.astype(bool)).astype(np.int64), "ok": ok}
+
+
+def datapath_inputs(words, ok=None) -> dict:
+    """Input arrays of the data path block from :class:`~.run.Words`."""
+    n = len(words)
+    d = {k: words.column(k) for k in ("ax", "ay", "az", "gx", "gy")}
+    d["ok"] = np.ones(n, np.int64) if ok is None else np.asarray(ok, np.int64)
+    return d
+
+
+def directed_angles() -> dict:
+    """Accelerometer words at every sign combination (the four quadrants of (az, ay), both signs
+    of ax) and the 16-bit extremes: -32768, -32767, -16384, -1, 0, 1, 16384, 32766, 32767 on ay
+    and az (the (32767, 32767) corner saturates mag_yz; (0, 0) is included), five values of ax."""
+    e = (-32768, -32767, -16384, -1, 0, 1, 16384, 32766, 32767)
+    g = np.array(np.meshgrid(e, e, (-32768, -1, 0, 1, 32767))).reshape(3, -1)
+    return {"ay": g[0].astype(np.int64), "az": g[1].astype(np.int64),
+            "ax": g[2].astype(np.int64)}
