@@ -1,0 +1,59 @@
+"""Seed 001 TinyKalman: size of the chip and its blocks (Yosys generic NAND/NOR gates and
+xc7z020 resources), the CORDIC at the upstream design's 8-bit/8-stage configuration for
+comparison, and the per-sample timing budget. Prints a table and writes
+``navgate-out/bench/tinykalman_resources.json``.
+
+Run: ``python benchmarks/tinykalman_resources.py`` (a few minutes: YoWASP Yosys).
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+import time
+from pathlib import Path
+
+from navgate.gateware.cordic import CordicAtan2Iterative
+from navgate.hw.synth import GENERIC_FLOW, generic_gates, synthesize
+from navgate.hw.verilog import emit_verilog
+from navgate.systems.tinykalman.datapath import KalmanSteady, TinyKalmanCordic
+from navgate.systems.tinykalman.spi import Mpu6500Spi
+from navgate.systems.tinykalman.top import TinyKalmanTop, timing
+from navgate.systems.tinykalman.uart import UartTx
+
+BLOCKS = {
+    "tinykalman_top": TinyKalmanTop,
+    "mpu6500_spi": Mpu6500Spi,
+    "tinykalman_cordic": TinyKalmanCordic,
+    "kalman_steady": KalmanSteady,
+    "uart_tx": UartTx,
+    "cordic_iter_16x16_g0": lambda: CordicAtan2Iterative(16, 16, 16, guard_bits=0),
+    "cordic_iter_8x8_upstream_cfg": lambda: CordicAtan2Iterative(8, 8, 16, guard_bits=0),
+}
+
+
+def main() -> None:
+    rows = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, factory in BLOCKS.items():
+            t0 = time.perf_counter()
+            text = emit_verilog(factory(), name)
+            gen = generic_gates(text, name, Path(tmp) / name / "generic")
+            xc7 = synthesize(text, name, "xc7z020", Path(tmp) / name / "xc7")
+            rows[name] = {"generic": {k: gen[k] for k in ("cells", "gates", "flops")},
+                          "generic_cell_types": gen["cell_types"],
+                          "xc7z020": {k: xc7[k] for k in ("lut", "ff", "dsp", "carry4",
+                                                          "bram36")},
+                          "seconds": round(time.perf_counter() - t0, 1)}
+            print(f"{name:30s} generic cells {gen['cells']:6d} (NAND/NOR/NOT {gen['gates']:6d}, "
+                  f"flops {gen['flops']:4d})  xc7z020 LUT {xc7['lut']:5d} FF {xc7['ff']:5d} "
+                  f"DSP {xc7['dsp']} CARRY4 {xc7['carry4']}", flush=True)
+    out = {"flow_generic": GENERIC_FLOW, "blocks": rows, "timing_default": timing()}
+    path = Path("navgate-out/bench/tinykalman_resources.json")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=2) + "\n")
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()
