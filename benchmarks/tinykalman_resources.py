@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from navgate.gateware.cordic import CordicAtan2Iterative
-from navgate.hw.synth import GENERIC_FLOW, generic_gates, synthesize
+from navgate.hw.synth import GENERIC_FLOW, SynthesisError, generic_gates, synthesize
 from navgate.hw.verilog import emit_verilog
 from navgate.systems.tinykalman.datapath import KalmanSteady, TinyKalmanCordic
 from navgate.systems.tinykalman.spi import Mpu6500Spi
@@ -32,14 +32,24 @@ BLOCKS = {
 }
 
 
+def _retry(fn, *args):
+    """YoWASP Yosys has been seen to trap (wasm ``unreachable``) on a heavily loaded machine
+    and pass on the next try: one retry."""
+    try:
+        return fn(*args)
+    except SynthesisError as error:
+        print(f"  retrying after: {str(error)[:80]}", flush=True)
+        return fn(*args)
+
+
 def main() -> None:
     rows = {}
     with tempfile.TemporaryDirectory() as tmp:
         for name, factory in BLOCKS.items():
             t0 = time.perf_counter()
             text = emit_verilog(factory(), name)
-            gen = generic_gates(text, name, Path(tmp) / name / "generic")
-            xc7 = synthesize(text, name, "xc7z020", Path(tmp) / name / "xc7")
+            gen = _retry(generic_gates, text, name, Path(tmp) / name / "generic")
+            xc7 = _retry(synthesize, text, name, "xc7z020", Path(tmp) / name / "xc7")
             rows[name] = {"generic": {k: gen[k] for k in ("cells", "gates", "flops")},
                           "generic_cell_types": gen["cell_types"],
                           "xc7z020": {k: xc7[k] for k in ("lut", "ff", "dsp", "carry4",
