@@ -49,14 +49,18 @@ def main() -> None:
             t0 = time.perf_counter()
             text = emit_verilog(factory(), name)
             gen = _retry(generic_gates, text, name, Path(tmp) / name / "generic")
-            xc7 = _retry(synthesize, text, name, "xc7z020", Path(tmp) / name / "xc7")
+            try:
+                xc7 = _retry(synthesize, text, name, "xc7z020", Path(tmp) / name / "xc7")
+            except SynthesisError as error:
+                xc7 = {k: None for k in ("lut", "ff", "dsp", "carry4", "bram36")}
+                xc7["error"] = str(error)[:200]
             rows[name] = {"generic": {k: gen[k] for k in ("cells", "gates", "flops")},
                           "generic_cell_types": gen["cell_types"],
-                          "xc7z020": {k: xc7[k] for k in ("lut", "ff", "dsp", "carry4",
-                                                          "bram36")},
+                          "xc7z020": xc7 if "error" in xc7 else {
+                              k: xc7[k] for k in ("lut", "ff", "dsp", "carry4", "bram36")},
                           "seconds": round(time.perf_counter() - t0, 1)}
             print(f"{name:30s} generic cells {gen['cells']:6d} (NAND/NOR/NOT {gen['gates']:6d}, "
-                  f"flops {gen['flops']:4d})  xc7z020 LUT {xc7['lut']:5d} FF {xc7['ff']:5d} "
+                  f"flops {gen['flops']:4d})  xc7z020 LUT {xc7['lut']} FF {xc7['ff']} "
                   f"DSP {xc7['dsp']} CARRY4 {xc7['carry4']}", flush=True)
     out = {"flow_generic": GENERIC_FLOW, "blocks": rows, "timing_default": timing()}
     path = Path("navgate-out/bench/tinykalman_resources.json")

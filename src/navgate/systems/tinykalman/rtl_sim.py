@@ -213,17 +213,24 @@ def _latencies(cs_rises, starts) -> list[int]:
 # ----------------------------------------------------------------------------- Verilator
 
 TB_TOP = "tb_tinykalman"
+#: the benches' 10 MHz clock, generated inside the wrapper (Verilator ``--timing``): a clock
+#: driven from cocotb costs two Python/VPI round trips per cycle and dominated the run time
+_CLOCK = f"""  reg clk = 1'b0;
+  always #{CLK_NS // 2} clk = ~clk;"""
+_VERILATOR_ARGS = ("--timing", "--timescale", "1ns/1ps", "-CFLAGS", "-std=gnu++20 -fcoroutines")
 
 
 def tb_wrapper_verilog(dut: str = TT_MODULE_NAME) -> str:
-    """A TinyTapeout-style ``tb`` wrapper: instantiates the user module and breaks the seed's
-    pins out as single-bit nets (``miso``, ``mosi``, ``sclk``, ``cs_n``, ``tx``) so that
-    cocotb (and ``cocotbext-uart``) can watch them one by one."""
+    """A TinyTapeout-style ``tb`` wrapper: instantiates the user module, generates its 10 MHz
+    clock, and breaks the seed's pins out as single-bit nets (``miso``, ``mosi``, ``sclk``,
+    ``cs_n``, ``tx``, and ``spi`` = the three SPI outputs) so that cocotb (and
+    ``cocotbext-uart``) can watch them."""
     return f"""
-module {TB_TOP}(input clk, input rst_n, input miso, output mosi, output sclk, output cs_n,
+module {TB_TOP}(input rst_n, input miso, output mosi, output sclk, output cs_n,
                 output tx, output [2:0] spi, output [7:0] uo_out, output [7:0] uio_out,
                 output [7:0] uio_oe);
   wire [7:0] ui_in = {{7'b0, miso}};
+{_CLOCK}
   {dut} dut(.ui_in(ui_in), .uo_out(uo_out), .uio_in(8'b0), .uio_out(uio_out),
             .uio_oe(uio_oe), .ena(1'b1), .clk(clk), .rst_n(rst_n));
   assign mosi = uo_out[0];
@@ -236,16 +243,17 @@ endmodule
 
 
 def build_verilator(config: SimConfig = FAST) -> Path:
-    """Compile (or reuse from the harness's cache) the Verilator model of ``config``'s chip."""
+    """Compile (or reuse from the harness's cache) the Verilator model of ``config``'s chip
+    inside the bench wrapper (:func:`tb_wrapper_verilog`)."""
     from navgate.gateware.verify import _build_model, emit_verilog
 
     text = emit_verilog(config.top(), TT_MODULE_NAME) + tb_wrapper_verilog()
-    return _build_model(text, TB_TOP)
+    return _build_model(text, TB_TOP, _VERILATOR_ARGS)
 
 
 def run_verilator(samples, n_samples: int, config: SimConfig = FAST, *,
                   timing: SpiTiming | None = None, faults: dict | None = None,
-                  work_dir: Path | str | None = None, timeout_s: float | None = None) -> RtlRun:
+                  work_dir: Path | str | None = None) -> RtlRun:
     """Run ``n_samples`` sample periods of the emitted Verilog in Verilator (cocotb test
     :mod:`navgate.systems.tinykalman.tb_cocotb`). ``samples`` is a sequence of seven-word
     bursts. Returns the UART bytes that ``cocotbext-uart`` received, latencies, and the
