@@ -97,9 +97,8 @@ async def tinykalman_stream(dut):
         error = f"{type(exc).__name__}: {exc}"
     wall = time.perf_counter() - wall
     cycles = int((get_sim_time("ns") - t_start) // clk_ns)
-    bursts = cs_rises[1::2]
-    firsts = starts[::1]
-    latencies = [int((s - c) // clk_ns) for c, s in zip(bursts, firsts, strict=False)]
+    bursts = cs_rises[1::2]  # CS_N rising at the end of each burst (WHO_AM_I ends are even)
+    latencies = [int((s - c) // clk_ns) for c, s in zip(bursts, starts, strict=False)]
     with open(job["uart"], "wb") as fh:
         fh.write(bytes(data))
     st = dev.stats
