@@ -27,9 +27,9 @@ def real_words(n=None):
 
 
 def test_chip_verilator_stream_with_faults():
-    """120 sample periods, four kinds of fault in between: the bytes cocotbext-uart decodes
+    """100 sample periods, four kinds of fault in between: the bytes cocotbext-uart decodes
     equal the model's encoder on what the chip read; fault samples repeat the held angles."""
-    n = 120
+    n = 100
     w = synthetic_motion(n, seed=7)
     faults = {30: "stuck0", 33: None, 60: "absent", 62: None, 90: "who_am_i", 91: "stuck1",
               92: None}
@@ -57,7 +57,7 @@ def test_datapath_verilator_directed_and_random():
 
 @pytest.mark.skipif(not LOG.exists(), reason="real log not present")
 def test_datapath_verilator_real_log_head():
-    w = real_words(500)
+    w = real_words(300)
     V.verify(TinyKalmanDatapath(), datapath_model, datapath_inputs(w),
              backend="verilator").assert_ok()
 
