@@ -24,7 +24,7 @@ from navgate.systems.tinykalman.uart import UartTx
 BLOCKS = {
     "tinykalman_top": TinyKalmanTop,
     "mpu6500_spi": Mpu6500Spi,
-    "tinykalman_cordic": TinyKalmanCordic,
+    "tinykalman_cordic": TinyKalmanCordic,  # not a registered block (synth_xilinx aborts)
     "kalman_steady": KalmanSteady,
     "uart_tx": UartTx,
     "cordic_iter_16x16_g0": lambda: CordicAtan2Iterative(16, 16, 16, guard_bits=0),

@@ -18,20 +18,19 @@ is published to :mod:`navgate.hw.blocks` through the ``navgate.blocks`` entry po
 (pyproject.toml). Factories are ``"module:attribute"`` strings, imported only when built.
 """
 
-#: name -> ("module:attribute" of a zero-argument factory, one-line description)
+#: name -> ("module:attribute" of a zero-argument factory, one-line description).
+#: Seed 001's angle block (``TinyKalmanCordic``) and data path (``TinyKalmanDatapath``) are not
+#: listed: YoWASP Yosys 0.70's ``synth_xilinx`` aborts on them alone (an ABC ``&verify``
+#: assertion), which would stop ``navgate report``; the chip that contains them synthesises,
+#: and their CORDIC is the shared ``cordic_atan2_iter`` core (docs/seed001-tinykalman.md).
 BLOCKS: dict[str, tuple[str, str]] = {
     "kf2x2": ("navgate.systems.kf2x2.top:Kf2x2", "seed 004 2x2 adaptive Kalman filter"),
     "tinykalman_top": ("navgate.systems.tinykalman.top:TinyKalmanTop",
                        "seed 001 TinyKalman chip, TinyTapeout user module (10 MHz, 100 Hz loop)"),
     "mpu6500_spi": ("navgate.systems.tinykalman.spi:Mpu6500Spi",
                     "seed 001 MPU-6500 SPI master: WHO_AM_I + 14-byte burst, mode 3, 1 MHz"),
-    "tinykalman_cordic": ("navgate.systems.tinykalman.datapath:TinyKalmanCordic",
-                          "seed 001 roll/pitch: one iterative 16x16 CORDIC (shared core) used "
-                          "twice"),
     "kalman_steady": ("navgate.systems.tinykalman.datapath:KalmanSteady",
                       "seed 001 steady-state Kalman filter, >>> 6 gains, two axes"),
-    "tinykalman_datapath": ("navgate.systems.tinykalman.datapath:TinyKalmanDatapath",
-                            "seed 001 tinykalman_cordic + kalman_steady as one stream block"),
     "uart_tx": ("navgate.systems.tinykalman.uart:UartTx",
                 "seed 001 8N1 UART transmitter (9596.9 baud at 10 MHz)"),
 }

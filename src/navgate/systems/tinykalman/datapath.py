@@ -1,12 +1,13 @@
-"""Seed 001 TinyKalman gateware: accelerometer angles (``tinykalman_cordic``) and the
-steady-state Kalman filter (``kalman_steady``), bit-exact to
+"""Seed 001 TinyKalman gateware: accelerometer angles (:class:`TinyKalmanCordic`) and the
+steady-state Kalman filter (block ``kalman_steady``), bit-exact to
 :mod:`navgate.systems.tinykalman.model`.
 
 Reference: seed 001 ("Angle Estimation (CORDIC)", "Sensor Fusion"); the model's docstring
 gives the arithmetic step for step.
 
-:class:`TinyKalmanCordic` (block ``tinykalman_cordic``; the shared ``cordic_atan2`` name
-belongs to the shared unrolled core). One shared iterative CORDIC
+:class:`TinyKalmanCordic` (not a registered block: YoWASP Yosys's ``synth_xilinx`` aborts on
+it alone, see ``navgate.systems.BLOCKS``; the shared ``cordic_atan2`` name belongs to the shared
+unrolled core). One shared iterative CORDIC
 (:class:`navgate.gateware.cordic.CordicAtan2Iterative`, 16-bit words, 16 iterations, 16-bit
 binary angles, no guard bits: exactly ``cordic_vectoring(..., 16, 16, angle_bits=16)`` of the
 model) is used twice per sample:
