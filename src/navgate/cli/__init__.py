@@ -29,6 +29,7 @@ COMMANDS: dict[str, str] = {
     "report": "navgate.cli.build:report",
     "kf2x2": "navgate.cli.kf2x2:kf2x2",
     "replay": "navgate.cli.replay:replay",
+    "tinykalman": "navgate.cli.tinykalman:tinykalman",
 }
 
 

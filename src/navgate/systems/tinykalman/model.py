@@ -37,135 +37,33 @@ Datapath (all integers; ``>>>`` is the arithmetic shift, floor):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from navgate.devices.mpu6500 import (
+    ACCEL_SENSITIVITY,
+    BURST_LEN,
+    GYRO_SENSITIVITY,
+    REG,
+    SPI_READ,
+    TEMP_OFFSET_C,
+    TEMP_SENSITIVITY,
+    WHO_AM_I_VALUE,
+    Mpu6500,
+    decode_burst,
+)
 from navgate.numerics.cordic import cordic_vectoring
 
-# ------------------------------------------------------------------------------- MPU-6500
-
-#: register addresses (RM-MPU-6500A-00)
-REG = {
-    "SMPLRT_DIV": 0x19,
-    "CONFIG": 0x1A,
-    "GYRO_CONFIG": 0x1B,
-    "ACCEL_CONFIG": 0x1C,
-    "ACCEL_CONFIG2": 0x1D,
-    "ACCEL_XOUT_H": 0x3B,
-    "ACCEL_XOUT_L": 0x3C,
-    "ACCEL_YOUT_H": 0x3D,
-    "ACCEL_YOUT_L": 0x3E,
-    "ACCEL_ZOUT_H": 0x3F,
-    "ACCEL_ZOUT_L": 0x40,
-    "TEMP_OUT_H": 0x41,
-    "TEMP_OUT_L": 0x42,
-    "GYRO_XOUT_H": 0x43,
-    "GYRO_XOUT_L": 0x44,
-    "GYRO_YOUT_H": 0x45,
-    "GYRO_YOUT_L": 0x46,
-    "GYRO_ZOUT_H": 0x47,
-    "GYRO_ZOUT_L": 0x48,
-    "USER_CTRL": 0x6A,
-    "PWR_MGMT_1": 0x6B,
-    "PWR_MGMT_2": 0x6C,
-    "WHO_AM_I": 0x75,
-}
-WHO_AM_I_VALUE = 0x70  #: MPU-6500's WHO_AM_I reset value
-SPI_READ = 0x80  #: bit 7 of the address byte: 1 = read
-BURST_LEN = 14  #: ACCEL_XOUT_H .. GYRO_ZOUT_L
-
-#: LSB per (deg/s) for GYRO_CONFIG.GYRO_FS_SEL = 0..3 (+-250, 500, 1000, 2000 deg/s)
-GYRO_SENSITIVITY = (131.0, 65.5, 32.8, 16.4)
-#: LSB per g for ACCEL_CONFIG.ACCEL_FS_SEL = 0..3 (+-2, 4, 8, 16 g)
-ACCEL_SENSITIVITY = (16384.0, 8192.0, 4096.0, 2048.0)
-TEMP_SENSITIVITY = 333.87  #: LSB per degC
-TEMP_OFFSET_C = 21.0  #: degC at TEMP_OUT = 0 (room-temperature offset 0)
-
-
-def _to_word(value: float) -> tuple[int, bool]:
-    """Round to the nearest int16, saturating; returns (word, saturated)."""
-    if not math.isfinite(value):
-        raise ValueError("sensor value must be finite")
-    w = int(round(value))
-    sat = w > 32767 or w < -32768
-    return max(-32768, min(32767, w)), sat
-
-
-class Mpu6500:
-    """Register-level MPU-6500 model on SPI: writes configure, reads return sensor words.
-
-    ``set_sample`` loads physical values (g, deg/s, degC) into the data registers with the
-    configured full scale, rounding to the nearest LSB and saturating (counted in
-    ``saturated``). ``transfer`` is one SPI transaction (CS low .. high): the first MOSI
-    byte is the address (bit 7 = read), then the device auto-increments.
-    """
-
-    def __init__(self):
-        self.regs = bytearray(128)
-        self.regs[REG["WHO_AM_I"]] = WHO_AM_I_VALUE
-        self.regs[REG["PWR_MGMT_1"]] = 0x01  # reset value: auto clock select
-        self.saturated = 0
-
-    @property
-    def gyro_fs(self) -> int:
-        return (self.regs[REG["GYRO_CONFIG"]] >> 3) & 0x3
-
-    @property
-    def accel_fs(self) -> int:
-        return (self.regs[REG["ACCEL_CONFIG"]] >> 3) & 0x3
-
-    def _put(self, addr: int, word: int) -> None:
-        u = word & 0xFFFF
-        self.regs[addr] = u >> 8
-        self.regs[addr + 1] = u & 0xFF
-
-    def set_sample(self, accel_g, gyro_dps, temp_c: float = 25.0) -> None:
-        sa = ACCEL_SENSITIVITY[self.accel_fs]
-        sg = GYRO_SENSITIVITY[self.gyro_fs]
-        for i, v in enumerate(accel_g):
-            w, s = _to_word(float(v) * sa)
-            self.saturated += s
-            self._put(REG["ACCEL_XOUT_H"] + 2 * i, w)
-        for i, v in enumerate(gyro_dps):
-            w, s = _to_word(float(v) * sg)
-            self.saturated += s
-            self._put(REG["GYRO_XOUT_H"] + 2 * i, w)
-        w, s = _to_word((temp_c - TEMP_OFFSET_C) * TEMP_SENSITIVITY)
-        self.saturated += s
-        self._put(REG["TEMP_OUT_H"], w)
-
-    def transfer(self, mosi: bytes) -> bytes:
-        """One SPI transaction; returns the MISO bytes (first byte is don't-care 0)."""
-        if not mosi:
-            raise ValueError("an SPI transaction needs at least the address byte")
-        addr = mosi[0] & 0x7F
-        read = bool(mosi[0] & SPI_READ)
-        out = bytearray([0])
-        for k, byte in enumerate(mosi[1:]):
-            a = (addr + k) & 0x7F
-            if read:
-                out.append(self.regs[a])
-            elif a != REG["WHO_AM_I"]:  # read-only
-                self.regs[a] = byte & 0xFF
-                out.append(0)
-            else:
-                out.append(0)
-        return bytes(out)
-
-    def read_burst(self) -> bytes:
-        """The driver's 14-byte burst from ACCEL_XOUT_H."""
-        return self.transfer(bytes([SPI_READ | REG["ACCEL_XOUT_H"]]) + bytes(BURST_LEN))[1:]
-
-
-def decode_burst(burst: bytes) -> dict[str, int]:
-    """14 burst bytes -> signed words ax, ay, az, temp, gx, gy, gz (big-endian int16)."""
-    if len(burst) != BURST_LEN:
-        raise ValueError(f"an MPU-6500 burst is {BURST_LEN} bytes, got {len(burst)}")
-    words = [int.from_bytes(burst[i:i + 2], "big", signed=True) for i in range(0, 14, 2)]
-    return dict(zip(("ax", "ay", "az", "temp", "gx", "gy", "gz"), words, strict=True))
-
+# The MPU-6500's facts and register model live in navgate.devices.mpu6500 (one place); they are
+# re-exported here for the model's users.
+__all__ = [
+    "ACCEL_SENSITIVITY", "BURST_LEN", "GYRO_SENSITIVITY", "REG", "SPI_READ", "TEMP_OFFSET_C",
+    "TEMP_SENSITIVITY", "WHO_AM_I_VALUE", "Mpu6500", "decode_burst", "WIDTH", "ITERATIONS",
+    "ANGLE_BITS", "BAM_PER_DEG", "accel_angles", "kalman_step", "HEADER", "PACKET_LEN", "BAUD",
+    "encode_packet", "DecodeStats", "PacketDecoder", "decode_stream", "uart_frame_bits",
+    "uart_decode_bits", "bam_to_deg", "TinyKalmanState", "TinyKalman", "run_sequence",
+]
 
 # ------------------------------------------------------------------------------- angles
 
@@ -313,27 +211,40 @@ class TinyKalmanState:
     roll: int = 0
     pitch: int = 0
     mag_saturations: int = 0
+    sensor_faults: int = 0  #: samples whose WHO_AM_I check failed (filter held)
 
 
 class TinyKalman:
-    """The whole device: one :meth:`step` per MPU sample (100 Hz) -> UART packet bytes."""
+    """The whole device: one :meth:`step` per MPU sample (100 Hz) -> UART packet bytes.
+
+    Sensor check (the gateware's, docs/seed001-tinykalman.md "Faults"): every sample period
+    the chip reads WHO_AM_I before the burst. When it is not 0x70 (wrong part, device absent,
+    MISO stuck) the sample is not used: the filter state is held, the packet repeats the held
+    angles, and the chip raises its fault pin (``uio_out[0]``). ``step`` takes the WHO_AM_I
+    byte the chip read (default: a good part).
+    """
 
     def __init__(self):
         self.state = TinyKalmanState()
 
-    def step(self, burst: bytes) -> bytes:
+    def step(self, burst: bytes, who_am_i: int = WHO_AM_I_VALUE) -> bytes:
+        s = self.state
+        if who_am_i != WHO_AM_I_VALUE:
+            s.sensor_faults += 1
+            return encode_packet(s.roll, s.pitch)
         w = decode_burst(burst)
         roll_m, pitch_m, _, sat = accel_angles(w["ax"], w["ay"], w["az"])
-        s = self.state
         s.mag_saturations += int(sat)
         s.roll = int(kalman_step(s.roll, w["gx"], int(roll_m)))
         s.pitch = int(kalman_step(s.pitch, w["gy"], int(pitch_m)))
         return encode_packet(s.roll, s.pitch)
 
 
-def run_sequence(ax, ay, az, gx, gy):
+def run_sequence(ax, ay, az, gx, gy, valid=None):
     """Vectorised over time: filter word sequences (int arrays of equal length) and return
-    (roll_est, pitch_est, roll_m, pitch_m) arrays. Same arithmetic as :class:`TinyKalman`."""
+    (roll_est, pitch_est, roll_m, pitch_m) arrays. Same arithmetic as :class:`TinyKalman`;
+    ``valid`` (bool array, default all true) marks the samples whose WHO_AM_I check passed,
+    the others hold the state."""
     roll_m, pitch_m, _, _ = accel_angles(ax, ay, az)
     n = len(roll_m)
     roll = np.empty(n, dtype=np.int64)
@@ -341,7 +252,12 @@ def run_sequence(ax, ay, az, gx, gy):
     r = p = 0
     gx = np.asarray(gx, dtype=np.int64)
     gy = np.asarray(gy, dtype=np.int64)
+    ok = np.ones(n, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
     for k in range(n):
+        if not ok[k]:
+            roll[k] = r
+            pitch[k] = p
+            continue
         pr = ((r + (int(gx[k]) >> 6) + 32768) & 0xFFFF) - 32768
         r = ((pr + ((((int(roll_m[k]) - pr + 32768) & 0xFFFF) - 32768) >> 6) + 32768)
              & 0xFFFF) - 32768

@@ -1,0 +1,239 @@
+"""``navgate tinykalman``: seed 001's TinyKalman chip on an IMU log, and its UART decoder.
+
+``navgate tinykalman LOG.csv --engine model|rtl --out DIR`` (the ``run`` sub-command is implied)
+turns the log (the ``navgate ahrs`` CSV formats, :mod:`navgate.sim.imu_log`) into the words an
+MPU-6500 would give (:mod:`navgate.systems.tinykalman.run`), runs them through the integer model
+or through the chip's gateware at pin level (``rtl``: Verilator by default, ``--sim amaranth``
+for short logs) and writes ``mpu6500_words.csv``, ``uart.bin`` (the byte stream on TX),
+``roll_pitch.csv`` (the stream decoded) and ``summary.json``. With ``rtl`` the stream is also
+compared byte for byte with the model's.
+
+``navgate tinykalman decode FILE`` or ``... decode --serial PORT`` decodes a captured stream or a
+live board (pyserial, imported only then) with the model's resynchronising decoder and reports
+its counters.
+"""
+
+from __future__ import annotations
+
+import csv
+import time
+from pathlib import Path
+
+import click
+import numpy as np
+
+from navgate.cli.common import CliError, prepare_out_dir, write_summary
+
+
+class _ImpliedRunGroup(click.Group):
+    """A group whose first argument, when it is not a sub-command, goes to ``run``."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0] not in self.commands and args[0] not in ("-h", "--help"):
+            args = ["run", *args]
+        return super().parse_args(ctx, args)
+
+
+@click.group(cls=_ImpliedRunGroup)
+def tinykalman() -> None:
+    """Seed 001 TinyKalman: run an IMU log through the chip (LOG.csv, i.e. ``run``), or
+    ``decode`` its UART stream."""
+
+
+def _write_roll_pitch(path: Path, angles, t=None) -> None:
+    from navgate.systems.tinykalman.model import bam_to_deg
+
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["packet", "t", "roll_word", "pitch_word", "roll_deg", "pitch_deg"])
+        for k, (r, p) in enumerate(angles):
+            tk = "" if t is None or k >= len(t) else f"{t[k]:.6f}"
+            w.writerow([k, tk, r, p, f"{float(bam_to_deg(r)):.5f}", f"{float(bam_to_deg(p)):.5f}"])
+
+
+@tinykalman.command("run")
+@click.argument("log_csv", type=click.Path(dir_okay=False))
+@click.option("--engine", type=click.Choice(["model", "rtl"]), default="model", show_default=True,
+              help="model: the integer bit-true model; rtl: the chip's gateware at pin level "
+                   "(SPI device model, UART receiver), compared byte for byte with the model.")
+@click.option("--sim", type=click.Choice(["verilator", "amaranth"]), default="verilator",
+              show_default=True, help="Simulator for --engine rtl.")
+@click.option("--axes", type=click.Choice(["auto", "flu", "frd"]), default="auto",
+              show_default=True,
+              help="Log axes: flu = the part's own (+1 g on z when level, x-io logs), frd (-1 g "
+                   "on z); auto = flu for x-io headers, frd for plain ones.")
+@click.option("--limit", type=int, default=None, help="Use only the first N samples.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False),
+              default="navgate-out/tinykalman", show_default=True, help="Output directory.")
+@click.option("--quiet", is_flag=True, help="No table.")
+def run(log_csv, engine, sim, axes, limit, out_dir, quiet):
+    """Run an IMU log (CSV) through TinyKalman; write words, uart.bin, roll/pitch, summary."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from navgate.sim.imu_log import LogError, read_imu_csv
+    from navgate.systems.tinykalman.model import decode_stream
+    from navgate.systems.tinykalman.run import model_stream, words_from_imu
+    from navgate.systems.tinykalman.top import timing
+
+    console = Console(stderr=True, quiet=quiet)
+    if limit is not None and limit < 1:
+        raise CliError(f"--limit must be positive, got {limit}")
+    t_start = time.perf_counter()
+    try:
+        log = read_imu_csv(log_csv)
+    except LogError as error:
+        raise CliError(str(error)) from None
+    frd = axes == "frd" or (axes == "auto" and log.style != "x-io")
+    n = len(log) if limit is None else min(limit, len(log))
+    try:
+        words = words_from_imu(log.acc[:n], log.gyro[:n], frd=frd)
+    except ValueError as error:
+        raise CliError(str(error)) from None
+    out = prepare_out_dir(out_dir)
+    with open(out / "mpu6500_words.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["sample", "t", "ax", "ay", "az", "temp", "gx", "gy", "gz"])
+        for k in range(n):
+            w.writerow([k, f"{log.t[k]:.6f}", *(int(v) for v in words.words[k])])
+
+    t0 = time.perf_counter()
+    model_bytes = model_stream(words)
+    model_seconds = time.perf_counter() - t0
+    rtl_info = {}
+    stream = model_bytes
+    if engine == "rtl":
+        from navgate.gateware.verify import VerifyError
+        from navgate.systems.tinykalman.rtl_sim import (
+            FAST,
+            expected_stream,
+            run_amaranth,
+            run_verilator,
+        )
+
+        console.print(f"running {n} samples through the chip ({sim}) ...")
+        runner = run_verilator if sim == "verilator" else run_amaranth
+        try:
+            res = runner(words.bursts(), n, FAST)
+        except VerifyError as error:
+            raise CliError(str(error).splitlines()[0]) from None
+        stream = res.uart
+        dev_log = res.extra["log"] if sim == "verilator" else res.device.log
+        from_log, whos = expected_stream(dev_log, n)
+        first_bad = next((i for i, (a, b) in enumerate(zip(stream, model_bytes, strict=False))
+                          if a != b), None)
+        if first_bad is None and len(stream) != len(model_bytes):
+            first_bad = min(len(stream), len(model_bytes))
+        rtl_info = {
+            "simulator": sim, "config": FAST.params(), "timing": timing(**FAST.params()),
+            "rtl_seconds": round(res.seconds, 3), "clock_cycles": res.cycles,
+            "equal_to_model": stream == model_bytes, "first_differing_byte": first_bad,
+            "equal_to_model_on_words_read": stream == from_log,
+            "who_am_i_failures": int(sum(1 for v in whos if v != 0x70)),
+            "latency_cycles": sorted(set(res.latencies)),
+            "uart_receiver": "cocotbext-uart UartSink" if sim == "verilator"
+            else "cycle-sampled 8N1 receiver",
+        }
+    (out / "uart.bin").write_bytes(stream)
+    angles, stats = decode_stream(stream)
+    _write_roll_pitch(out / "roll_pitch.csv", angles, log.t[:n])
+    wall = time.perf_counter() - t_start
+    rate = (n - 1) / (log.t[n - 1] - log.t[0]) if n > 1 else None
+    deg = [(r * 180 / 32768, p * 180 / 32768) for r, p in angles]
+    summary = {
+        "log": str(log_csv), "samples": n, "log_rate_hz": rate, "axes": "frd" if frd else "flu",
+        "skipped_rows": log.skipped_rows, "saturated_words": words.saturated,
+        "engine": engine, "uart_bytes": len(stream), "packets": stats.packets,
+        "skipped_bytes": stats.skipped_bytes, "trailing_bytes": stats.trailing_bytes,
+        "final_roll_deg": deg[-1][0] if deg else None,
+        "final_pitch_deg": deg[-1][1] if deg else None,
+        "model_seconds": round(model_seconds, 3), "wall_seconds": round(wall, 3),
+        "chip_timing_default": timing(), **({"rtl": rtl_info} if rtl_info else {}),
+    }
+    write_summary(out, summary)
+    table = Table(title=f"tinykalman {engine}: {log_csv}")
+    table.add_column("item")
+    table.add_column("value")
+    table.add_row("samples", str(n))
+    table.add_row("packets", str(stats.packets))
+    table.add_row("saturated words", str(words.saturated))
+    if deg:
+        table.add_row("final roll / pitch (deg)", f"{deg[-1][0]:.2f} / {deg[-1][1]:.2f}")
+    if rtl_info:
+        table.add_row("rtl equal to model", str(rtl_info["equal_to_model"]))
+        table.add_row("rtl wall time (s)", f"{rtl_info['rtl_seconds']:.1f}")
+    table.add_row("wall time (s)", f"{wall:.2f}")
+    console.print(table)
+    console.print(f"wrote {out}/mpu6500_words.csv, uart.bin, roll_pitch.csv, summary.json")
+    if rtl_info and not rtl_info["equal_to_model"]:
+        raise CliError(f"the chip's stream differs from the model's at byte {first_bad}")
+
+
+def _read_serial(port: str, baud: int, seconds: float) -> bytes:
+    try:
+        import serial  # pyserial
+    except ImportError:
+        raise CliError("--serial needs pyserial (pip install pyserial)") from None
+    try:
+        dev = serial.serial_for_url(port, baudrate=baud, timeout=0.1)
+    except (serial.SerialException, ValueError, OSError) as error:
+        raise CliError(f"cannot open {port}: {error}") from None
+    data = bytearray()
+    end = time.monotonic() + seconds
+    try:
+        while time.monotonic() < end:
+            data += dev.read(256)
+    finally:
+        dev.close()
+    return bytes(data)
+
+
+@tinykalman.command("decode")
+@click.argument("file", required=False, type=click.Path(dir_okay=False))
+@click.option("--serial", "port", default=None, help="Read a live board on this serial port "
+              "(pyserial URL or device, e.g. /dev/ttyUSB0).")
+@click.option("--baud", type=int, default=9600, show_default=True)
+@click.option("--seconds", type=float, default=10.0, show_default=True,
+              help="Capture time with --serial.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False),
+              default="navgate-out/tinykalman-decode", show_default=True)
+@click.option("--quiet", is_flag=True)
+def decode(file, port, baud, seconds, out_dir, quiet):
+    """Decode a TinyKalman UART stream (FILE) or a live board (--serial PORT)."""
+    from rich.console import Console
+
+    from navgate.systems.tinykalman.model import PacketDecoder
+
+    console = Console(stderr=True, quiet=quiet)
+    if (file is None) == (port is None):
+        raise CliError("give exactly one of FILE or --serial PORT")
+    if baud <= 0 or not seconds > 0:
+        raise CliError("--baud and --seconds must be positive")
+    if file is not None:
+        try:
+            data = Path(file).read_bytes()
+        except OSError as error:
+            raise CliError(f"cannot read {file}: {error.strerror}") from None
+        source = str(file)
+    else:
+        data = _read_serial(port, baud, seconds)
+        source = f"serial:{port}"
+    out = prepare_out_dir(out_dir)
+    if port is not None:
+        (out / "capture.bin").write_bytes(data)
+    dec = PacketDecoder()
+    angles = []
+    for k in range(0, len(data), 4096):  # a live stream arrives in chunks
+        angles += dec.feed(data[k:k + 4096])
+    dec.close()
+    _write_roll_pitch(out / "roll_pitch.csv", angles)
+    st = dec.stats
+    summary = {"source": source, "bytes": len(data), "packets": st.packets,
+               "skipped_bytes": st.skipped_bytes, "trailing_bytes": st.trailing_bytes}
+    write_summary(out, summary)
+    console.print(f"{source}: {len(data)} bytes, {st.packets} packets, {st.skipped_bytes} "
+                  f"skipped, {st.trailing_bytes} trailing; wrote {out}/roll_pitch.csv")
+    if angles:
+        r, p = angles[-1]
+        console.print(f"last roll {r * 180 / 32768:.2f} deg, pitch {p * 180 / 32768:.2f} deg")
+    return np.asarray(angles)

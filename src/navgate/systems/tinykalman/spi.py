@@ -1,0 +1,161 @@
+"""Seed 001 TinyKalman gateware: the MPU-6500 SPI master (``mpu6500_spi`` block).
+
+Reference: seed 001 ("Sensor Interface: SPI Master for MPU-6500", pinout); the part's SPI
+facts and limits from :mod:`navgate.devices.mpu6500` (PS-MPU-6500A-01 sections 3.5, 6.1).
+
+One ``start`` pulse runs two transactions, then offers one result on the stream ``o``:
+
+1. WHO_AM_I: CS_N low, MOSI ``0xF5`` (read 0x75) and one dummy byte: 16 SCLK cycles;
+2. burst: CS_N low, MOSI ``0xBB`` (read 0x3B = ACCEL_XOUT_H) and 14 dummy bytes: 120 cycles.
+
+``o.payload``: ``who_am_i`` (the byte read) and the words ``ax, ay, az, gx, gy`` (big-endian
+int16 of the burst; temperature and gz are clocked in and dropped: the chip does not use them).
+
+SPI mode 3 (SCLK idles high): the master drives MOSI at SCLK falling edges and the part
+changes MISO at falling edges; MISO goes through a two-flip-flop synchroniser (it is an
+asynchronous chip input) and is sampled at the end of each SCLK-high half period, i.e. two
+system clocks before the next falling edge. That is inside the window in which the part holds
+the bit (from t_VD.SDO <= 100 ns after one falling edge to t_HD.SDO after the next) when
+``spi_div >= 2``. Every phase lasts ``spi_div`` system clocks (an SCLK half period):
+CS_N setup (CS_N fall to the first SCLK fall), each SCLK low and high half, CS_N hold (last
+SCLK rise to CS_N rise: high half + hold = 2 ``spi_div``), and the CS_N-high gap. With the
+default ``spi_div = 5`` at 10 MHz: SCLK = 1 MHz (the part's limit for all registers), 500 ns
+halves (>= 400 ns), setup 500 ns (>= 8 ns), hold 1000 ns (>= 500 ns).
+
+Cycles from ``start`` to ``o.valid``: ``LATENCY = 1 + (3 + 2*16) * spi_div + (3 + 2*120) *
+spi_div`` = 1 + 278 ``spi_div`` (1391 at the default: 139.1 us). ``THROUGHPUT`` = 1/LATENCY.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+from amaranth import Cat, Const, Module, Mux, Signal, signed, unsigned
+from amaranth.lib import data, enum, stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from navgate.devices.mpu6500 import BURST_LEN, REG, SPI_READ
+
+__all__ = ["Mpu6500Spi", "SPI_WORDS", "spi_cycles"]
+
+#: (word, index of the burst bit that completes it) for the words the chip keeps; bit 0 is the
+#: first bit of the address byte
+SPI_WORDS = (("ax", 23), ("ay", 39), ("az", 55), ("gx", 87), ("gy", 103))
+WHO_BITS = 16
+BURST_BITS = 8 * (1 + BURST_LEN)  # 120
+
+
+def spi_cycles(spi_div: int) -> int:
+    """System clocks from ``start`` to the result (see the module docstring)."""
+    return 1 + ((3 + 2 * WHO_BITS) + (3 + 2 * BURST_BITS)) * spi_div
+
+
+class _State(enum.Enum, shape=3):
+    IDLE = 0
+    SETUP = 1
+    LOW = 2
+    HIGH = 3
+    HOLD = 4
+    GAP = 5
+
+
+PAYLOAD = data.StructLayout({
+    "who_am_i": unsigned(8),
+    "ax": signed(16), "ay": signed(16), "az": signed(16), "gx": signed(16), "gy": signed(16),
+})
+
+
+class Mpu6500Spi(wiring.Component):
+    """MPU-6500 SPI master: WHO_AM_I read and 14-byte burst per ``start``."""
+
+    def __init__(self, spi_div: int = 5):
+        if not isinstance(spi_div, int) or not 2 <= spi_div <= 1 << 16:
+            raise ValueError(f"Mpu6500Spi: spi_div must be an integer >= 2 (clocks per SCLK half "
+                             f"period), got {spi_div!r}")
+        self.spi_div = spi_div
+        self.LATENCY = spi_cycles(spi_div)
+        self.THROUGHPUT = Fraction(1, self.LATENCY)
+        super().__init__({
+            "start": In(1),
+            "busy": Out(1),
+            "miso": In(1),
+            "mosi": Out(1),
+            "sclk": Out(1, init=1),
+            "cs_n": Out(1, init=1),
+            "o": Out(stream.Signature(PAYLOAD)),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        div = self.spi_div
+        state = Signal(_State)
+        cnt = Signal(range(div))
+        nbit = Signal(range(BURST_BITS))
+        burst = Signal()  # 0: WHO_AM_I transaction, 1: burst
+        shift = Signal(16)
+        sync1 = Signal()
+        sync2 = Signal()
+        out = Signal(PAYLOAD)
+        out_valid = Signal()
+
+        m.d.sync += [sync1.eq(self.miso), sync2.eq(sync1)]
+        m.d.comb += [
+            self.busy.eq((state != _State.IDLE) | out_valid),
+            self.o.valid.eq(out_valid),
+            self.o.payload.eq(out),
+        ]
+        with m.If(self.o.ready):
+            m.d.sync += out_valid.eq(0)
+
+        who_addr = Const(SPI_READ | REG["WHO_AM_I"], 8)
+        burst_addr = Const(SPI_READ | REG["ACCEL_XOUT_H"], 8)
+        addr = Mux(burst, burst_addr, who_addr)
+        # MOSI for bit ``nbit``: the address byte MSB first, then zeros
+        addr_bits = Cat(*(addr[7 - k] for k in range(8)))
+        mosi_next = Signal()
+        m.d.comb += mosi_next.eq(Mux(nbit < 8, addr_bits.bit_select(nbit[:3], 1), 0))
+
+        phase_end = cnt == div - 1
+        with m.If(state != _State.IDLE):
+            m.d.sync += cnt.eq(Mux(phase_end, 0, cnt + 1))
+        last_bit = Mux(burst, nbit == BURST_BITS - 1, nbit == WHO_BITS - 1)
+        shifted = Cat(sync2, shift[:15])
+
+        with m.Switch(state):
+            with m.Case(_State.IDLE):
+                with m.If(self.start & ~out_valid):
+                    m.d.sync += [state.eq(_State.SETUP), self.cs_n.eq(0), burst.eq(0),
+                                 nbit.eq(0), cnt.eq(0)]
+            with m.Case(_State.SETUP):
+                with m.If(phase_end):
+                    m.d.sync += [state.eq(_State.LOW), self.sclk.eq(0), self.mosi.eq(mosi_next)]
+            with m.Case(_State.LOW):
+                with m.If(phase_end):
+                    m.d.sync += [state.eq(_State.HIGH), self.sclk.eq(1)]
+            with m.Case(_State.HIGH):
+                with m.If(phase_end):
+                    m.d.sync += shift.eq(shifted)
+                    with m.If(burst):
+                        for name, bit in SPI_WORDS:
+                            with m.If(nbit == bit):
+                                m.d.sync += getattr(out, name).eq(shifted)
+                    with m.Elif(nbit == WHO_BITS - 1):
+                        m.d.sync += out.who_am_i.eq(shifted[:8])
+                    with m.If(last_bit):
+                        m.d.sync += [state.eq(_State.HOLD), self.mosi.eq(0)]
+                    with m.Else():
+                        # next bit: the MOSI mux reads nbit + 1
+                        m.d.sync += [state.eq(_State.LOW), self.sclk.eq(0), nbit.eq(nbit + 1)]
+                        m.d.sync += self.mosi.eq(Mux(nbit + 1 < 8,
+                                                     addr_bits.bit_select((nbit + 1)[:3], 1), 0))
+            with m.Case(_State.HOLD):
+                with m.If(phase_end):
+                    m.d.sync += [state.eq(_State.GAP), self.cs_n.eq(1)]
+            with m.Case(_State.GAP):
+                with m.If(phase_end):
+                    with m.If(burst):
+                        m.d.sync += [state.eq(_State.IDLE), out_valid.eq(1)]
+                    with m.Else():
+                        m.d.sync += [state.eq(_State.SETUP), self.cs_n.eq(0), burst.eq(1),
+                                     nbit.eq(0)]
+        return m

@@ -1,0 +1,190 @@
+"""Seed 001 TinyKalman gateware: the chip (``tinykalman_top``), a TinyTapeout user module.
+
+Reference: seed 001 (features, pinout, data format); the blocks it connects:
+:class:`~navgate.systems.tinykalman.spi.Mpu6500Spi` -> :class:`~.datapath.TinyKalmanCordic`
+-> :class:`~.datapath.KalmanSteady` (the two together: :class:`~.datapath.TinyKalmanDatapath`)
+-> packet sequencer -> :class:`~.uart.UartTx`.
+
+Ports (TinyTapeout convention): ``ui_in[7:0]``, ``uo_out[7:0]``, ``uio_in[7:0]``,
+``uio_out[7:0]``, ``uio_oe[7:0]``, ``ena``, ``clk``, ``rst_n`` (active low, synchronous).
+Seed pinout: MISO = ``ui_in[0]``; MOSI, SCLK, CS_N, TX = ``uo_out[0..3]``. navgate additions
+(the seed leaves them free): ``uio_out[0]`` = sensor fault (the last sample's WHO_AM_I was not
+0x70: device absent, MISO stuck, wrong part), ``uio_out[1]`` = mag_yz saturated in the last
+used sample, ``uio_oe = 0x03``; ``uo_out[7:4] = 0``; ``ena`` is ignored (the tile is clocked
+only while selected).
+
+Schedule: a timer of ``sample_period`` clocks (default 100,000 = 10 ms at 10 MHz, the 100 Hz
+loop) starts the SPI master right after reset and then every period. WHO_AM_I and burst read
+(``spi_cycles(spi_div)``), the two CORDIC passes, the filter update, then the 6-byte packet
+``DE AD roll pitch`` (model :func:`~navgate.systems.tinykalman.model.encode_packet`). A sample
+that fails the WHO_AM_I check leaves the filter state unchanged and the packet repeats it
+(the model's :class:`~navgate.systems.tinykalman.model.TinyKalman` does the same). The chip
+keeps streaming whatever the sensor does.
+
+Elaboration parameters: ``spi_div`` (clocks per SCLK half period, default 5: 1 MHz),
+``baud_div`` (clocks per UART bit, default 1042: 9596.9 baud), ``sample_period`` (clocks);
+``sample_period >= min_sample_period(spi_div, baud_div)`` so that each sample's packet is out
+before the next sample starts (checked). Timing figures: :func:`timing`.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+from amaranth import Array, Cat, ClockDomain, ClockSignal, Const, Module, Mux, ResetInserter, Signal
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from navgate.systems.tinykalman.datapath import CORDIC_LATENCY, TinyKalmanDatapath
+from navgate.systems.tinykalman.model import HEADER, PACKET_LEN, WHO_AM_I_VALUE
+from navgate.systems.tinykalman.spi import Mpu6500Spi, spi_cycles
+from navgate.systems.tinykalman.uart import BAUD_DIV_9600_AT_10MHZ, UartTx
+
+__all__ = ["TinyKalmanCore", "TinyKalmanTop", "min_sample_period", "timing", "CLK_HZ",
+           "TT_MODULE_NAME"]
+
+CLK_HZ = 10_000_000
+TT_MODULE_NAME = "tt_um_navgate_tinykalman"
+DEFAULT_SPI_DIV = 5
+DEFAULT_SAMPLE_PERIOD = CLK_HZ // 100
+#: clocks from CS_N rising (end of the burst) to the first start bit: the CS_N-high gap
+#: (spi_div), the SPI result register (1), CORDIC (37), filter (1), packet register and UART
+#: start bit (1); measured in the tests
+_LATENCY_FIXED = 1 + CORDIC_LATENCY + 1 + 1
+
+
+def min_sample_period(spi_div: int, baud_div: int) -> int:
+    """Shortest sample period for which a sample's packet is sent before the next starts."""
+    return spi_cycles(spi_div) + CORDIC_LATENCY + 8 + 10 * PACKET_LEN * baud_div
+
+
+def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
+           sample_period: int = DEFAULT_SAMPLE_PERIOD, clk_hz: int = CLK_HZ) -> dict:
+    """Per-sample schedule in clocks (and seconds): SPI, latency from CS_N rising to the first
+    start bit, packet time, busy time and the slack inside the sample period."""
+    spi = spi_cycles(spi_div)
+    latency = spi_div + _LATENCY_FIXED
+    packet = 10 * PACKET_LEN * baud_div
+    # start pulse is the cycle the timer is 0; CS_N falls 1 clock later; CS_N rises at
+    # spi - spi_div (the end of the burst's hold phase, before the gap)
+    cs_rise = spi - spi_div
+    first_start = cs_rise + latency
+    busy = first_start + packet
+    return {
+        "clk_hz": clk_hz, "spi_div": spi_div, "baud_div": baud_div,
+        "sample_period": sample_period, "spi_cycles": spi, "cs_rise_cycle": cs_rise,
+        "latency_cs_rise_to_start_bit": latency, "packet_cycles": packet,
+        "busy_cycles": busy, "slack_cycles": sample_period - busy,
+        "slack_s": (sample_period - busy) / clk_hz, "baud": clk_hz / baud_div,
+        "sclk_hz": clk_hz / (2 * spi_div),
+    }
+
+
+class TinyKalmanCore(wiring.Component):
+    """The chip's logic on plain pins, in the ``sync`` domain (reset active high)."""
+
+    def __init__(self, spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
+                 sample_period: int = DEFAULT_SAMPLE_PERIOD):
+        need = min_sample_period(spi_div, baud_div)
+        if not isinstance(sample_period, int) or sample_period < need:
+            raise ValueError(f"TinyKalman: sample_period must be an integer >= {need} clocks "
+                             f"for spi_div={spi_div}, baud_div={baud_div}; got {sample_period!r}")
+        self.spi = Mpu6500Spi(spi_div)
+        self.uart = UartTx(baud_div)
+        self.spi_div, self.baud_div, self.sample_period = spi_div, baud_div, sample_period
+        self.LATENCY = timing(spi_div, baud_div, sample_period)["latency_cs_rise_to_start_bit"]
+        self.THROUGHPUT = Fraction(1, sample_period)
+        super().__init__({
+            "miso": In(1),
+            "mosi": Out(1),
+            "sclk": Out(1, init=1),
+            "cs_n": Out(1, init=1),
+            "tx": Out(1, init=1),
+            "fault": Out(1),
+            "sat": Out(1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.spi = spi = self.spi
+        m.submodules.datapath = datapath = TinyKalmanDatapath()
+        m.submodules.uart = uart = self.uart
+
+        sending = Signal()
+        timer = Signal(range(self.sample_period))
+        m.d.sync += timer.eq(Mux(timer == self.sample_period - 1, 0, timer + 1))
+        m.d.comb += [
+            spi.start.eq(timer == 0),
+            spi.miso.eq(self.miso),
+            self.mosi.eq(spi.mosi),
+            self.sclk.eq(spi.sclk),
+            self.cs_n.eq(spi.cs_n),
+            self.tx.eq(uart.tx),
+        ]
+        # SPI -> datapath (CORDIC angles, filter); the WHO_AM_I check travels beside the words
+        sp = spi.o.payload
+        dp = datapath.i.payload
+        m.d.comb += [
+            dp.ax.eq(sp.ax), dp.ay.eq(sp.ay), dp.az.eq(sp.az), dp.gx.eq(sp.gx), dp.gy.eq(sp.gy),
+            dp.ok.eq(sp.who_am_i == WHO_AM_I_VALUE),
+            datapath.i.valid.eq(spi.o.valid),
+            spi.o.ready.eq(datapath.i.ready),
+        ]
+        with m.If(datapath.o.valid & ~sending):
+            m.d.sync += [self.fault.eq(~datapath.o.payload.ok),
+                         self.sat.eq(datapath.o.payload.sat)]
+        # filter -> packet -> UART
+        index = Signal(range(PACKET_LEN))
+        roll, pitch = Signal(16), Signal(16)
+        packet = Array([Const(HEADER[0], 8), Const(HEADER[1], 8), roll[8:], roll[:8],
+                        pitch[8:], pitch[:8]])
+        m.d.comb += [
+            datapath.o.ready.eq(~sending),
+            uart.i.valid.eq(sending),
+            uart.i.payload.eq(packet[index]),
+        ]
+        with m.If(datapath.o.valid & ~sending):
+            m.d.sync += [roll.eq(datapath.o.payload.roll), pitch.eq(datapath.o.payload.pitch),
+                         sending.eq(1), index.eq(0)]
+        with m.If(sending & uart.i.ready):
+            m.d.sync += index.eq(index + 1)
+            with m.If(index == PACKET_LEN - 1):
+                m.d.sync += sending.eq(0)
+        return m
+
+
+class TinyKalmanTop(wiring.Component):
+    """TinyKalman as a TinyTapeout user module (seed 001 pinout), 10 MHz."""
+
+    def __init__(self, spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
+                 sample_period: int = DEFAULT_SAMPLE_PERIOD):
+        self.core = TinyKalmanCore(spi_div, baud_div, sample_period)
+        self.params = {"spi_div": spi_div, "baud_div": baud_div, "sample_period": sample_period}
+        self.LATENCY = self.core.LATENCY
+        self.THROUGHPUT = self.core.THROUGHPUT
+        super().__init__({
+            "ui_in": In(8),
+            "uo_out": Out(8),
+            "uio_in": In(8),
+            "uio_out": Out(8),
+            "uio_oe": Out(8),
+            "ena": In(1),
+            "clk": In(1),
+            "rst_n": In(1),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        # the clock comes in as ``clk``; the reset is the active-low ``rst_n`` port
+        m.domains.sync = ClockDomain("sync", reset_less=True)
+        rst = Signal()
+        m.d.comb += [ClockSignal("sync").eq(self.clk), rst.eq(~self.rst_n)]
+        core = self.core
+        m.submodules.core = ResetInserter(rst)(core)
+        m.d.comb += [
+            core.miso.eq(self.ui_in[0]),
+            self.uo_out.eq(Cat(core.mosi, core.sclk, core.cs_n, core.tx, Const(0, 4))),
+            self.uio_out.eq(Cat(core.fault, core.sat, Const(0, 6))),
+            self.uio_oe.eq(0b0000_0011),
+        ]
+        return m
