@@ -259,12 +259,13 @@ class BaroStream:
 class Bmp390Model(SpiSlave):
     """BMP390 SPI slave (mode 3, 8-bit) serving :class:`BaroStream` samples.
 
-    A read transfer that covers all six data registers (0x04..0x09) delivers the current sample
-    and advances the stream when CS_N rises; STATUS reports drdy for both sensors while the part
-    is in normal mode with both enabled (PWR_CTRL = 0x33), the data registers read the reset
+    A read transfer that covers all six data registers (0x04..0x09), and does not reach into the
+    NVM (a start-up read), delivers the current sample and advances the stream when CS_N rises;
+    STATUS reports drdy for both sensors while the part is in normal mode with both enabled
+    (PWR_CTRL = 0x33), the data registers read the reset
     value 0x800000 otherwise. Faults per sample (applied to the transfer that reads it):
     ``stuck_low``/``stuck_high``/``missing`` (MISO held for the whole transfer). A fault at
-    index -1 applies to every transfer before the first data read (the NVM read at start-up).
+    index -1 applies to the first start-up read (one reaching the NVM at 0x31..0x45).
     """
 
     WORD_BITS = 8
@@ -280,6 +281,7 @@ class Bmp390Model(SpiSlave):
         self.regs[REG["REV_ID"]] = 0x01
         self.regs[NVM_ADDR:NVM_ADDR + NVM_LEN] = nvm_bytes(stream.par)
         self.nvm_reads = 0
+        self.nvm_attempts = 0
         self.writes: list[tuple[int, int]] = []
         self._load_sample()
 
@@ -315,10 +317,12 @@ class Bmp390Model(SpiSlave):
             if value & 0x80:
                 self._read = True
                 self._addr = value & 0x7F
-                if self._covers_data(128):
+                if self.nvm_reads == 0:
+                    # a start-up read (no NVM read completed yet): fault -1 hits the first one
+                    fault = self.stream.faults.get(-1) if self.nvm_attempts == 0 else None
+                    self.nvm_attempts += 1
+                else:
                     fault = self.stream.faults.get(self.sample)
-                else:  # start-up transfers (chip id, NVM) before the first sample
-                    fault = None if self.served else self.stream.faults.get(-1)
                 self._stuck = {"stuck_low": 0, "stuck_high": 1, "missing": 1}.get(fault)
             else:
                 self._waddr = value & 0x7F
@@ -348,7 +352,8 @@ class Bmp390Model(SpiSlave):
             nbytes = bits // 8 - 2
             if self._addr <= NVM_ADDR and self._addr + nbytes >= NVM_ADDR + NVM_LEN:
                 self.nvm_reads += 1
-            if self._covers_data(nbytes) and self._normal():
+            reaches_nvm = self._addr + nbytes - 1 >= NVM_ADDR
+            if self._covers_data(nbytes) and self._normal() and not reaches_nvm:
                 self.served.append(self.sample)
                 self.sample += 1
                 self._load_sample()

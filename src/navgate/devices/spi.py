@@ -212,3 +212,47 @@ class SpiSlave:
 
 def _ns(seconds: float) -> str:
     return f"{seconds * 1e9:.1f} ns"
+
+
+def drive_transfer(slave: SpiSlave, words, word_bits: int, *, t0: float, half: float,
+                   cs_setup: float, cs_hold: float, mosi_lead: float | None = None,
+                   cpol: int = 1, bits: int | None = None, low: float | None = None):
+    """A software SPI master (mode 3 unless ``cpol=0``) for testing device models: one transfer
+    of ``words`` with the given times (seconds). ``mosi_lead`` is how long before the rising
+    edge MOSI changes (default: at the falling edge, ``half`` before), ``low`` overrides the
+    SCLK low time, ``bits`` truncates the transfer. Returns (received words, end time)."""
+    low = half if low is None else low
+    lead = low if mosi_lead is None else mosi_lead
+    t = t0
+    mosi = 0
+    idle = cpol
+    slave.pins(t, 1, idle, mosi)
+    t += 1e-9
+    slave.pins(t, 0, idle, mosi)
+    t += cs_setup
+    total = len(words) * word_bits if bits is None else bits
+    rx = []
+    cur = 0
+    sclk = idle
+    for i in range(total):
+        w = int(words[i // word_bits])
+        b = (w >> (word_bits - 1 - i % word_bits)) & 1
+        # falling edge, MOSI change ``lead`` before the rising edge
+        sclk = 0
+        if lead >= low:
+            slave.pins(t, 0, sclk, b)
+            miso = slave.pins(t + low, 0, 1, b)
+        else:
+            slave.pins(t, 0, sclk, mosi)
+            slave.pins(t + low - lead, 0, sclk, b)
+            miso = slave.pins(t + low, 0, 1, b)
+        mosi = b
+        sclk = 1
+        t += low
+        cur = (cur << 1) | miso
+        if i % word_bits == word_bits - 1:
+            rx.append(cur)
+            cur = 0
+        t += half
+    slave.pins(t - half + cs_hold, 1, sclk, mosi)
+    return rx, t - half + cs_hold
