@@ -19,6 +19,8 @@ register map, BARO_RATE). MISO passes a two-flip-flop synchroniser in the PHY pa
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 from amaranth.hdl import Cat, Module, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
@@ -27,7 +29,7 @@ from amaranth.lib.wiring import In, Out
 from navgate.devices import bmp390
 
 from .baro_compensation import IN_LAYOUT
-from .spi_phy import SpiPhy
+from .spi_phy import MIN_HALF, SpiPhy
 
 DEFAULT_DIV = 5
 DEFAULT_RATE = 40000
@@ -35,13 +37,20 @@ INIT_LAST_ADDR = bmp390.NVM_ADDR + bmp390.NVM_LEN - 1  # 0x45
 SAMPLE_LAST_ADDR = 0x09
 
 
+def read_cycles(div: int, nbytes: int) -> int:
+    """Cycles from CS_N falling to CS_N rising for an ``nbytes``-byte transfer."""
+    half = max(div + 1, MIN_HALF)
+    return half * (1 + nbytes * 17)
+
+
 class SpiMasterBaro(wiring.Component):
     """BMP390 reader: power-up write, NVM read once, periodic data reads (seed 000)."""
 
     def __init__(self, tick_cycles: int = 100, counter_bits: int = 32):
         self.tick_cycles = tick_cycles
-        self.LATENCY = "one 12-byte read per sample"
-        self.THROUGHPUT = "one sample per cfg_rate ticks"
+        #: cycles from CS_N falling (sample read) to ``o.valid``, default configuration
+        self.LATENCY = read_cycles(DEFAULT_DIV, SAMPLE_LAST_ADDR + 3) + 1
+        self.THROUGHPUT = Fraction(1, DEFAULT_RATE * tick_cycles)
         super().__init__({
             "sclk": Out(1, init=1), "mosi": Out(1), "miso": In(1, init=1),
             "cs_n": Out(1, init=1),

@@ -24,6 +24,8 @@ asynchronous input and passes the PHY's two-flip-flop synchroniser.
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 from amaranth.hdl import Cat, Module, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
@@ -32,7 +34,7 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.devices import adis16500
 
-from .spi_phy import SpiPhy
+from .spi_phy import MIN_HALF, SpiPhy
 
 SAMPLE_LAYOUT = data.StructLayout({
     "diag": unsigned(16), "gx": signed(16), "gy": signed(16), "gz": signed(16),
@@ -43,14 +45,24 @@ DEFAULT_DIV = 49  # 1 MHz SCLK at 100 MHz
 DEFAULT_RATE = 2500  # ticks of 1 us: 400 Hz
 
 
+def burst_cycles(div: int) -> int:
+    """Cycles from CS_N falling to CS_N rising for SCLK half period ``div + 1`` cycles."""
+    half = max(div + 1, MIN_HALF)
+    return half * (1 + (adis16500.BURST_WORDS + 1) * 33)
+
+
 class SpiMasterImu(wiring.Component):
     """ADIS16500 burst reader: SPI mode 3, checksum, 16-deep FIFO, counters (seed 000)."""
 
     def __init__(self, tick_cycles: int = 100, fifo_depth: int = 16, counter_bits: int = 32):
         self.tick_cycles = tick_cycles
         self.fifo_depth = fifo_depth
-        self.LATENCY = "one burst: (cs setup + 176 SCLK cycles + tail) per sample"
-        self.THROUGHPUT = "one sample per UPDATE_RATE ticks"
+        #: cycles from CS_N falling to the sample in the FIFO's output, default configuration:
+        #: CS setup (one half period), 11 words of 33 half periods (16 SCLK cycles + tail),
+        #: the check cycle and the FIFO's two
+        self.LATENCY = burst_cycles(DEFAULT_DIV) + 3
+        #: one sample per UPDATE_RATE ticks
+        self.THROUGHPUT = Fraction(1, DEFAULT_RATE * tick_cycles)
         super().__init__({
             "sclk": Out(1, init=1), "mosi": Out(1), "miso": In(1, init=1),
             "cs_n": Out(1, init=1),

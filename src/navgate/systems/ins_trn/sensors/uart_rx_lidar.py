@@ -21,6 +21,8 @@
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 from amaranth.hdl import Cat, Module, Signal, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.cdc import FFSynchronizer
@@ -36,8 +38,9 @@ DEFAULT_DIV = 53  # 100 MHz clock
 class UartRxLidar(wiring.Component):
     """TF-Luna 115200 8N1 receiver and 9-byte frame parser (seed 000 uart_rx_lidar)."""
 
-    LATENCY = 2  #: cycles from the stop bit's sample to ``o.valid``
-    THROUGHPUT = "one frame per 9 characters"
+    LATENCY = 3  #: cycles from the last stop bit's sample to ``o.valid``
+    #: at most one frame per 9 characters of 10 bits of 16 ticks of (DEFAULT_DIV + 1) cycles
+    THROUGHPUT = Fraction(1, 9 * 10 * 16 * (DEFAULT_DIV + 1))
 
     def __init__(self, timeout_bits: int = 2304, counter_bits: int = 16):
         self.timeout_bits = timeout_bits
