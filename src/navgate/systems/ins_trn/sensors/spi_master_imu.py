@@ -59,8 +59,8 @@ class SpiMasterImu(wiring.Component):
         self.fifo_depth = fifo_depth
         #: cycles from CS_N falling to the sample in the FIFO's output, default configuration:
         #: CS setup (one half period), 11 words of 33 half periods (16 SCLK cycles + tail),
-        #: the check cycle and the FIFO's two
-        self.LATENCY = burst_cycles(DEFAULT_DIV) + 3
+        #: then the check cycle and the FIFO write (measured in the tests)
+        self.LATENCY = burst_cycles(DEFAULT_DIV) + 2
         #: one sample per UPDATE_RATE ticks
         self.THROUGHPUT = Fraction(1, DEFAULT_RATE * tick_cycles)
         super().__init__({
