@@ -9,7 +9,7 @@ from navgate.devices import adis16500 as A
 from navgate.devices import bmp390 as B
 from navgate.devices import tfluna as L
 from navgate.systems.ins_trn.sensors.sim_bench import run_baro, run_imu, run_lidar
-from navgate.systems.ins_trn.sensors.spi_master_imu import SpiMasterImu
+from navgate.systems.ins_trn.sensors.spi_master_imu import BURST_LATENCY
 
 IMU_FAULTS = {3: "bad_checksum", 7: "stuck_low", 11: "stuck_high", 15: "missing"}
 
@@ -48,7 +48,7 @@ def test_imu_default_configuration_at_100_mhz_meets_the_data_sheet():
     run = run_imu(st, 3, clk_hz=100e6, div=49, rate=200, tick_cycles=100)
     assert run.got == _imu_expected(st, [0, 1])
     assert run.model.violations == []
-    assert run.first_valid_cycle - run.first_cs_cycle == SpiMasterImu().LATENCY
+    assert run.first_valid_cycle - run.first_cs_cycle == BURST_LATENCY
 
 
 def test_imu_wrong_master_configuration_is_reported_by_the_model():

@@ -40,6 +40,8 @@ def _program():
 
 PROGRAM = _program()
 OUT_FIELDS = tuple(f"o_{f}" for f in IN_FIELDS)
+#: cycles per calibrated sample (load 6, 48 operations, unload 6)
+CYCLES = Program(PROGRAM, IN_FIELDS, OUT_FIELDS, PARAMS).cycles
 
 
 def param_words(cal=None) -> dict[str, int]:

@@ -20,15 +20,18 @@ could serve both; kept separate here so that each block is verified on its own.
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 from amaranth.hdl import Cat, Module, Signal, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from .baro_compensation import OUT_LAYOUT as BARO_LAYOUT
 from .baro_compensation import BaroCompensation
+from .imu_calibration import CYCLES as CAL_CYCLES
 from .imu_calibration import IN_FIELDS, ImuCalibrationBlock
 from .spi_master_baro import SpiMasterBaro
-from .spi_master_imu import SpiMasterImu
+from .spi_master_imu import BURST_LATENCY, DEFAULT_RATE, SpiMasterImu
 from .uart_rx_lidar import FRAME_LAYOUT, UartRxLidar
 
 IMU_LAYOUT = data.StructLayout({**{f: unsigned(32) for f in IN_FIELDS},
@@ -43,9 +46,9 @@ class SensorSubsystem(wiring.Component):
         self.tick_cycles = tick_cycles
         self.cal = cal
         #: IMU path: CS_N falling to the calibrated sample (burst + FIFO + calibration program)
-        self.LATENCY = SpiMasterImu(tick_cycles).LATENCY + ImuCalibrationBlock().LATENCY
+        self.LATENCY = BURST_LATENCY + CAL_CYCLES
         #: IMU samples per cycle (the fastest stream; baro 25 Hz, lidar 100 Hz)
-        self.THROUGHPUT = SpiMasterImu(tick_cycles).THROUGHPUT
+        self.THROUGHPUT = Fraction(1, DEFAULT_RATE * tick_cycles)
         super().__init__({
             "imu_sclk": Out(1, init=1), "imu_mosi": Out(1), "imu_miso": In(1, init=1),
             "imu_cs_n": Out(1, init=1),

@@ -51,6 +51,10 @@ def burst_cycles(div: int) -> int:
     return half * (1 + (adis16500.BURST_WORDS + 1) * 33)
 
 
+#: LATENCY of the default configuration (see SpiMasterImu)
+BURST_LATENCY = burst_cycles(DEFAULT_DIV) + 2
+
+
 class SpiMasterImu(wiring.Component):
     """ADIS16500 burst reader: SPI mode 3, checksum, 16-deep FIFO, counters (seed 000)."""
 
@@ -60,7 +64,7 @@ class SpiMasterImu(wiring.Component):
         #: cycles from CS_N falling to the sample in the FIFO's output, default configuration:
         #: CS setup (one half period), 11 words of 33 half periods (16 SCLK cycles + tail),
         #: then the check cycle and the FIFO write (measured in the tests)
-        self.LATENCY = burst_cycles(DEFAULT_DIV) + 2
+        self.LATENCY = BURST_LATENCY
         #: one sample per UPDATE_RATE ticks
         self.THROUGHPUT = Fraction(1, DEFAULT_RATE * tick_cycles)
         super().__init__({
