@@ -12,6 +12,8 @@ rigorously per sample by :func:`navgate.devices.bmp390.compensate_fp32_bound` (a
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 from amaranth.hdl import Module, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
@@ -31,8 +33,8 @@ class BaroCompensation(wiring.Component):
     def __init__(self):
         self.program = Program(bmp390.FP32_PROGRAM, bmp390.FP32_INPUTS, bmp390.FP32_OUTPUTS,
                                consts=bmp390.FP32_CONSTANTS)
-        self.LATENCY = self.program.cycles
-        self.THROUGHPUT = 1.0 / self.program.cycles
+        self.LATENCY = self.program.latency
+        self.THROUGHPUT = Fraction(1, self.program.cycles)
         super().__init__({"i": In(stream.Signature(IN_LAYOUT)),
                           "o": Out(stream.Signature(OUT_LAYOUT))})
 

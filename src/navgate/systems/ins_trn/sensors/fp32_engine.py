@@ -14,10 +14,13 @@ construction of the order of operations (and the tests check it).
 Register file: one LUT RAM of 32-bit words, with the inputs first, then the parameters
 (writable through ``par_*`` while the engine is idle), then constants (initial values) and
 temporaries. Per sample: load the inputs (one per cycle), run, unload the outputs (one per
-cycle). An operation takes 1 issue cycle + the unit's latency + 1 write-back cycle.
+cycle). An operation takes one issue cycle plus the unit's latency (the result is written back
+in the cycle it appears).
 """
 
 from __future__ import annotations
+
+from fractions import Fraction
 
 from amaranth.hdl import Const, Module, Signal, unsigned
 from amaranth.lib import data, stream, wiring
@@ -60,13 +63,20 @@ class Program:
         self.init = init
         self.addr_bits = max(1, (self.depth - 1).bit_length())
 
-    @property
-    def cycles(self) -> int:
-        """Cycles per run with no stalls: load + ops + unload + handshakes."""
+    def _op_cycles(self) -> int:
         lat = {"i2f": Fp32FromInt.LATENCY, "add": Fp32Add.LATENCY, "sub": Fp32Add.LATENCY,
                "mul": Fp32Mul.LATENCY}
-        return (len(self.inputs) + sum(lat[op] + 2 for op, *_ in self.program)
-                + len(self.outputs) + 2)
+        return sum(lat[op] + 1 for op, *_ in self.program)  # issue, then write-back at valid
+
+    @property
+    def latency(self) -> int:
+        """Cycles from the input accepted (end of the load) to ``o.valid``."""
+        return self._op_cycles() + len(self.outputs) + 1
+
+    @property
+    def cycles(self) -> int:
+        """Cycles per run, back to back: load + operations + unload + handshakes."""
+        return len(self.inputs) + self._op_cycles() + len(self.outputs) + 2
 
 
 class Fp32Engine(wiring.Component):
@@ -77,12 +87,10 @@ class Fp32Engine(wiring.Component):
     patterns, or two's complement integers for ``i2f`` sources).
     """
 
-    THROUGHPUT_NOTE = "one result per Program.cycles"
-
     def __init__(self, program: Program):
         self.prog = program
-        self.LATENCY = program.cycles
-        self.THROUGHPUT = 1.0 / program.cycles
+        self.LATENCY = program.latency
+        self.THROUGHPUT = Fraction(1, program.cycles)
         pbits = max(1, (max(1, len(program.params)) - 1).bit_length())
         super().__init__({
             "i": In(stream.Signature(data.StructLayout(

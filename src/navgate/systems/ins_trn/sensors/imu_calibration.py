@@ -11,6 +11,8 @@ initial values are the seed-000 LSBs with zero bias and identity matrices.
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 from amaranth.hdl import Module, signed, unsigned
 from amaranth.lib import data, stream, wiring
@@ -40,8 +42,10 @@ def _program():
 
 PROGRAM = _program()
 OUT_FIELDS = tuple(f"o_{f}" for f in IN_FIELDS)
-#: cycles per calibrated sample (load 6, 48 operations, unload 6)
+#: cycles per calibrated sample, back to back (load 6, 48 operations, unload 6)
 CYCLES = Program(PROGRAM, IN_FIELDS, OUT_FIELDS, PARAMS).cycles
+#: cycles from the raw sample accepted to the calibrated sample valid
+LATENCY = Program(PROGRAM, IN_FIELDS, OUT_FIELDS, PARAMS).latency
 
 
 def param_words(cal=None) -> dict[str, int]:
@@ -67,8 +71,8 @@ class ImuCalibrationBlock(wiring.Component):
     def __init__(self, cal=None):
         self.program = Program(PROGRAM, IN_FIELDS, OUT_FIELDS, PARAMS,
                                param_init=param_words(cal))
-        self.LATENCY = self.program.cycles
-        self.THROUGHPUT = 1.0 / self.program.cycles
+        self.LATENCY = self.program.latency
+        self.THROUGHPUT = Fraction(1, self.program.cycles)
         super().__init__({
             "i": In(stream.Signature(data.StructLayout({f: signed(16) for f in IN_FIELDS}))),
             "o": Out(stream.Signature(data.StructLayout({f: unsigned(32) for f in IN_FIELDS}))),

@@ -28,8 +28,8 @@ from amaranth.lib.wiring import In, Out
 
 from .baro_compensation import OUT_LAYOUT as BARO_LAYOUT
 from .baro_compensation import BaroCompensation
-from .imu_calibration import CYCLES as CAL_CYCLES
 from .imu_calibration import IN_FIELDS, ImuCalibrationBlock
+from .imu_calibration import LATENCY as CAL_LATENCY
 from .spi_master_baro import SpiMasterBaro
 from .spi_master_imu import BURST_LATENCY, DEFAULT_RATE, SpiMasterImu
 from .uart_rx_lidar import FRAME_LAYOUT, UartRxLidar
@@ -46,7 +46,7 @@ class SensorSubsystem(wiring.Component):
         self.tick_cycles = tick_cycles
         self.cal = cal
         #: IMU path: CS_N falling to the calibrated sample (burst + FIFO + calibration program)
-        self.LATENCY = BURST_LATENCY + CAL_CYCLES
+        self.LATENCY = BURST_LATENCY + 1 + len(IN_FIELDS) + CAL_LATENCY
         #: IMU samples per cycle (the fastest stream; baro 25 Hz, lidar 100 Hz)
         self.THROUGHPUT = Fraction(1, DEFAULT_RATE * tick_cycles)
         super().__init__({
