@@ -6,7 +6,7 @@ Float32, on the shared float32 cores, running :data:`navgate.devices.bmp390.FP32
 sheet's 64-bit integer form: the navigation side consumes float32 anyway, the float32 units
 already exist in the design (no 64-bit multiplier), and the float32 error is bounded
 rigorously per sample by :func:`navgate.devices.bmp390.compensate_fp32_bound` (at most about
-0.1 Pa, 1 cm of altitude, over 300-1250 hPa and -40..85 degC; the part's own RMS noise is
+0.12 Pa, 1 cm of altitude, over 300-1250 hPa and -40..85 degC; the part's own RMS noise is
 0.9 Pa). Bit-true model: :func:`navgate.devices.bmp390.compensate_fp32`.
 """
 
