@@ -94,6 +94,7 @@ def test_faults(fault, check):
     ("t_cs_setup", dict(cs_setup=150e-9)),
     ("t_mosi_setup", dict(mosi_lead=20e-9)),
     ("t_low", dict(low=0.3e-6, half=0.9e-6)),  # duty cycle: 300 ns low
+    ("t_high", dict(low=0.9e-6, half=0.3e-6)),  # duty cycle: 300 ns high
     ("partial_word", dict(bits=16 * 5 + 3)),
 ])
 def test_model_rejects_timing_violations(code, kw):

@@ -75,6 +75,8 @@ def test_model_registers_nvm_and_sample_stream():
     ("t_cs_hold", dict(cs_hold=30e-9)),
     ("t_mosi_setup", dict(mosi_lead=10e-9)),
     ("t_low", dict(low=15e-9, half=100e-9)),
+    ("t_high", dict(low=100e-9, half=15e-9)),
+    ("cpol", dict(cpol=0)),
 ])
 def test_model_rejects_timing_violations(code, kw):
     m = B.Bmp390Model(B.BaroStream.from_physical([90000.0], [20.0]))
@@ -82,6 +84,15 @@ def test_model_rejects_timing_violations(code, kw):
     args.update(kw)
     drive_transfer(m, [0x80, 0, 0], 8, **args)
     assert code in {v.code for v in m.violations}, m.violations
+
+
+def test_model_rejects_mosi_hold_violation():
+    m = B.Bmp390Model(B.BaroStream.from_physical([90000.0], [20.0]))
+    m.pins(0.0, 0, 1, 0)
+    m.pins(100e-9, 0, 0, 1)
+    m.pins(200e-9, 0, 1, 1)
+    m.pins(210e-9, 0, 1, 0)  # 10 ns after the rising edge (min 20 ns)
+    assert [v.code for v in m.violations] == ["t_mosi_hold"]
 
 
 def test_stuck_miso_faults():
