@@ -35,7 +35,7 @@ def test_baro_verilator_with_faults(tmp_path):
     faults = {-1: "stuck_low", 2: "stuck_high", 4: "missing", 5: "stuck_low"}
     st = B.BaroStream.from_physical(rng.uniform(*B.PRESSURE_RANGE_PA, 30),
                                     rng.uniform(*B.TEMPERATURE_RANGE_C, 30), faults=faults)
-    s = score_baro(st, verilator_baro(st, 12, work_dir=tmp_path))
+    s = score_baro(st, verilator_baro(st, 15, work_dir=tmp_path))
     assert s["served"] >= 8 and s["faults_served"] == 3 and s["errors_counted"] == 4
     assert (s["lost"], s["duplicated_or_altered"], s["violations"]) == (0, 0, 0)
 
