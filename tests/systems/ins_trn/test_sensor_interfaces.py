@@ -37,7 +37,8 @@ def test_imu_stream_with_every_fault_class():
     assert run.got == _imu_expected(st, good)  # nothing lost, duplicated, altered or faulty
     assert run.counters["error_count"] == len([k for k in served if k in IMU_FAULTS]) == 4
     assert run.counters["sample_count"] == len(good)
-    assert run.counters["sensor_error"] == 0  # recovered: the last burst was good
+    assert run.flag_rises == 4  # flagged once per (isolated) fault ...
+    assert run.counters["sensor_error"] == 0  # ... and cleared by the next good burst
     assert run.model.violations == []
 
 
@@ -83,6 +84,7 @@ def test_baro_nvm_and_stream_with_faults():
                         "nvm": nvm} for k in good]
     assert run.counters["error_count"] == 1 + len([k for k in served if k in BARO_FAULTS])
     assert run.model.nvm_reads == 2  # the failed start-up read was retried once
+    assert run.flag_rises == 4 and run.counters["sensor_error"] == 0
     assert [w for w in run.model.writes] == [(B.REG["PWR_CTRL"], B.PWR_CTRL_NORMAL)] * 2
     assert run.model.violations == []
 
@@ -119,6 +121,7 @@ def test_lidar_frames_with_every_fault_class():
     assert c["unreliable_count"] == 2
     assert c["timeout_count"] == lost  # one frame period without a frame = one timeout
     assert c["timed_out"] == 0 and c["overrun_count"] == 0
+    assert run.flag_rises >= lost  # sensor_error pulses and timeouts flag every lost frame
 
 
 @pytest.mark.parametrize("baud_error", [-L.BAUD_TOLERANCE, L.BAUD_TOLERANCE])

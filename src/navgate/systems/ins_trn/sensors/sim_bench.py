@@ -29,6 +29,7 @@ class BenchRun:
     model: object = None
     first_valid_cycle: int | None = None
     first_cs_cycle: int | None = None
+    flag_rises: int = 0  #: rising edges of ``sensor_error`` (lidar: its pulses + timed_out)
 
 
 def _payload(ctx, port, names):
@@ -85,6 +86,11 @@ def _run_spi(dut, model, cycles, clk_hz, div, rate, names, ready):
         run.counters = {n: ctx.get(getattr(dut, n)) for n in
                         ("sample_count", "error_count", "sensor_error")}
 
+    async def flag(ctx):
+        async for (_flag,) in ctx.posedge(dut.sensor_error):
+            run.flag_rises += 1
+
+    sim.add_testbench(flag, background=True)
     if ready:
         sim.add_testbench(collect, background=True)
     sim.add_testbench(first_cs, background=True)
@@ -113,6 +119,15 @@ def run_lidar(stream: tfluna.LidarStream, *, div: int = 0, baud_error: float = 0
             run.got.append(_payload(ctx, dut.o, names))
 
     sim.add_testbench(collect, background=True)
+
+    def flag(signal):
+        async def count(ctx):
+            async for (_v,) in ctx.posedge(signal):
+                run.flag_rises += 1
+        return count
+
+    sim.add_testbench(flag(dut.sensor_error), background=True)
+    sim.add_testbench(flag(dut.timed_out), background=True)
 
     async def tail(ctx):
         await ctx.delay(end + tail_s)
