@@ -112,3 +112,20 @@ def test_ranger_range_limits_dropouts_and_tilt():
     assert np.allclose(ideal.slant_range, 300.0 / math.cos(0.3))
     void = s.Ranger(s.LONG_RANGE, ideal=True).measure(t[:1], np.array([np.nan]), [0.0], [0.0])
     assert void.status[0] == s.RANGE_OUT_OF_RANGE
+
+
+def test_sensor_records_through_the_device_encoders():
+    """Baro raw words and ranger frames come from navgate.devices and decode back."""
+    from navgate.devices import bmp390, tfluna
+    from navgate.sim.sensors import LONG_RANGE, Barometer, Ranger
+
+    t = np.arange(50) / 25.0
+    rec = Barometer(seed=1).measure(t, np.full(50, 500.0))
+    up, ut = Barometer.raw_words(rec)
+    p, _ = bmp390.compensate(up, ut)
+    assert np.max(np.abs(p - rec.pressure)) < 0.02  # one ADC count ~ 0.015 Pa
+    r = Ranger(LONG_RANGE, seed=2).measure(t, np.full(50, 700.0), 0.0, 0.0)
+    d = tfluna.decode_frames(r.frames(tfluna.LONG_RANGE_UNIT_M), tfluna.LONG_RANGE_UNIT_M)
+    ok = r.valid
+    assert np.all(np.abs(d["distance_m"][ok] - r.slant_range[ok]) <= 0.05 + 1e-9)
+    assert np.all(d["reliable"] == ok) and np.all(d["checksum_ok"])

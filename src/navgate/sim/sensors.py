@@ -45,11 +45,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from navgate.devices import bmp390, tfluna
 from navgate.devices.adis16500 import (
     ACCEL_LSB_M_S2,
     GYRO_LSB_RAD_S,
-    INT16_MAX,
-    INT16_MIN,
+    encode_accel,
+    encode_gyro,
+    quantize_words,  # noqa: F401  (re-exported: callers used sim.sensors.quantize_words)
 )
 from navgate.devices.adis16500 import STANDARD_GRAVITY as G0
 
@@ -160,26 +162,20 @@ class ImuModel:
         noise_a = rng.standard_normal((n, 3)) * (spec.accel_vrw / math.sqrt(dt))
         raw_g = (gyro + bias_g + noise_g) @ m_gyro.T + fb_gyro
         raw_a = (accel + bias_a + noise_a) @ m_accel.T + fb_accel
-        words_g = raw_g / spec.gyro_lsb
-        words_a = raw_a / spec.accel_lsb
         saturated = 0
-        if spec.quantize:
-            words_g, sat_g = quantize_words(words_g)
-            words_a, sat_a = quantize_words(words_a)
+        if spec.quantize:  # the part's output words (devices.adis16500 encoders)
+            words_g, sat_g = encode_gyro(raw_g, spec.gyro_lsb)
+            words_a, sat_a = encode_accel(raw_a, spec.accel_lsb)
             saturated = sat_g + sat_a
+        else:
+            words_g = raw_g / spec.gyro_lsb
+            words_a = raw_a / spec.accel_lsb
         cal = ImuCalibration(
             gyro_bias=fb_gyro, gyro_matrix=np.linalg.inv(m_gyro),
             accel_bias=fb_accel, accel_matrix=np.linalg.inv(m_accel),
             gyro_lsb=spec.gyro_lsb, accel_lsb=spec.accel_lsb,
         )
         return ImuRecord(words_g, words_a, turn_on_g, turn_on_a, bias_g, bias_a, saturated, cal)
-
-
-def quantize_words(words):
-    """Round to the nearest integer word and saturate to int16; returns (int16 array, count)."""
-    rounded = np.rint(words)
-    saturated = int(np.count_nonzero((rounded < INT16_MIN) | (rounded > INT16_MAX)))
-    return np.clip(rounded, INT16_MIN, INT16_MAX).astype(np.int16), saturated
 
 
 # ---------------------------------------------------------------------------------------------
@@ -240,6 +236,15 @@ class Barometer:
         alt = np.where(valid, isa_altitude(np.where(valid, p_meas, P0_PA)), np.nan)
         return BaroRecord(t, alt, p_meas, valid)
 
+    @staticmethod
+    def raw_words(record: BaroRecord, temp_c=25.0, par=None):
+        """The BMP390's 24-bit ADC values (uncomp_press, uncomp_temp) for the record's pressures
+        (devices.bmp390 encoder; invalid samples encode 101325 Pa). The flight's figures use
+        the pressures themselves: the encoder's rounding is below 0.02 Pa (2 mm)."""
+        p = np.where(record.valid, record.pressure, P0_PA)
+        return bmp390.encode(p, np.broadcast_to(temp_c, p.shape),
+                             bmp390.DEFAULT_NVM if par is None else par)
+
     @property
     def altitude_noise_m(self) -> float:
         """Altitude noise (m, 1 sigma) equivalent to the pressure noise near sea level."""
@@ -277,6 +282,13 @@ class RangerRecord:
     @property
     def valid(self):
         return self.status == RANGE_OK
+
+    def frames(self, unit_m: float = tfluna.UNIT_M, temp_c: float = 25.0) -> np.ndarray:
+        """The Benewake 9-byte UART frames (devices.tfluna) of the record: no return or out of
+        range sends distance 0 with strength 0 (unreliable), a return strength 1000."""
+        strength = np.where(self.valid, 1000, 0)
+        return tfluna.encode_frames(np.where(self.valid, self.slant_range, np.nan), strength,
+                                    temp_c, unit_m)
 
 
 class Ranger:
