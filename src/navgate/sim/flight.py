@@ -28,6 +28,7 @@ from navgate.nav import eskf
 from navgate.nav.earth import LocalTangent, radii
 from navgate.sim import sensors, trajectory
 from navgate.trn.dem import Dem
+from navgate.trn.pmf import PmfConfig
 from navgate.trn.tercom import TercomConfig
 
 DEG = math.pi / 180.0
@@ -67,6 +68,7 @@ class FlightConfig:
     init_accel_bias_sigma: float = 1e-3 * sensors.G0
     init_gyro_bias_sigma: float = 10.0 * DEG / 3600.0
     tercom: TercomConfig = field(default_factory=TercomConfig)
+    pmf: PmfConfig = field(default_factory=PmfConfig)
 
     def __post_init__(self):
         checks = {

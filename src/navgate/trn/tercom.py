@@ -161,7 +161,9 @@ class TercomCorrelator:
         lat, lon = self.tangent.to_geodetic(n, e)
         return self.dem.height(lat, lon)
 
-    def correlate(self, profile: ProfileSnapshot, sigma_max_m: float) -> TercomResult:
+    def correlate(self, profile: ProfileSnapshot, sigma_max_m: float,
+                  prior_cov=None) -> TercomResult:
+        """Match ``profile``; the window follows ``sigma_max_m`` (``prior_cov`` is unused)."""
         cfg = self.config
         now = float(profile.time[-1]) if len(profile) else math.nan
         if len(profile) < cfg.min_samples:

@@ -22,7 +22,7 @@ from navgate.nav.earth import LocalTangent
 from navgate.nav.rotations import quat_to_dcm_array
 from navgate.sim import sensors
 from navgate.sim.flight import FlightConfig, InitialEstimate, SensorData
-from navgate.trn.correlators import make_correlator
+from navgate.trn.correlators import make_correlator, make_monitor
 from navgate.trn.dem import Dem
 from navgate.trn.profile import ACCEPTED, ProfileBuffer
 
@@ -71,7 +71,8 @@ def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialE
     events += [(k, 2, 0) for k in range(log_every, n_readings + 1, log_every)]
     events.sort()
     tangent = LocalTangent(*dem.center, 0.0)
-    correlator = make_correlator(cfg.trn_method, dem, tangent, cfg.tercom)
+    correlator = make_correlator(cfg.trn_method, dem, tangent, cfg.tercom, pmf=cfg.pmf)
+    monitor = make_monitor(correlator)
     buffer = ProfileBuffer(min_spacing_m=cfg.profile_spacing_m)
     fixes = []
     last_fix_t = -math.inf
@@ -115,10 +116,12 @@ def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialE
             if status == ACCEPTED and t_now - last_fix_t >= cfg.fix_interval_s:
                 last_fix_t = t_now
                 sigma_max = math.sqrt(max(np.linalg.eigvalsh(filt.p[:2, :2]).max(), 0.0))
-                result = correlator.correlate(buffer.snapshot(), sigma_max)
+                result = correlator.correlate(buffer.snapshot(), sigma_max,
+                                              prior_cov=filt.p[:2, :2])
                 row = result.as_row()
                 row["applied"] = False
                 row["nis"] = math.nan
+                upd = y = None
                 if result.accepted:
                     # y = p_ins - p_fix = -shift, measured lag_s ago
                     y = np.array([result.ins_n - result.fix_n, result.ins_e - result.fix_e])
@@ -131,6 +134,10 @@ def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialE
                         buffer.shift(-c[0], -c[1], -c[3], -c[4], now=t_now)
                     else:
                         row["reason"] = "rejected by chi-square gate"
+                review = monitor.review(result, upd, y, sigma_max)
+                row["integrity"] = review.event
+                if review.inflate is not None:  # divergence: reopen the filter's position
+                    filt.p[:2, :2] += review.inflate
                 fixes.append(row)
     if k_done < n_readings:
         filt.propagate(data.gyro, data.accel, k_done, n_readings, out_nav=nav_buf,
