@@ -105,7 +105,7 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out_dir, 
     summary = result.summary()
     files = camp.write_report(result, out)
     path = write_summary(out, summary)
-    _print_table(Console(quiet=False) if quiet else console, summary)
+    _print_table(Console(width=max(console.width, 200)), summary)
     click.echo(f"wrote {path} and {', '.join(p.name for p in files.values())} in {out}")
 
 

@@ -40,8 +40,12 @@ def _positive_float(ctx, param, value):
               show_default=True, help="AGL ranger preset.")
 @click.option("--speed", type=float, default=60.0, show_default=True, callback=_positive_float,
               help="Cruise speed (m/s).")
+@click.option("--trn", "trn_method", type=click.Choice(["pmf", "tercom"]), default="pmf",
+              show_default=True,
+              help="TRN method: point-mass filter or batch TERCOM (docs/trn.md compares them).")
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, ranger, speed, quiet):
+def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, ranger, speed,
+        trn_method, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -64,7 +68,7 @@ def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, rang
         raise CliError(str(error)) from None
     cfg = flight.FlightConfig(duration_s=duration, imu_rate_hz=imu_rate, seed=seed,
                               ideal_sensors=ideal_sensors, trn=not no_trn, ranger=ranger,
-                              speed_mps=speed)
+                              speed_mps=speed, trn_method=trn_method)
     try:
         route = flight.plan_route(dem, cfg)
     except flight.RouteError as error:
@@ -72,7 +76,8 @@ def fly(dem_path, duration, seed, out_dir, ideal_sensors, no_trn, imu_rate, rang
     out = prepare_out_dir(out_dir)
     console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
                   f"({dem.shape[0]} x {dem.shape[1]} posts), seed {seed}"
-                  + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors"))
+                  + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors")
+                  + ("" if no_trn else f", TRN {trn_method}"))
     console.print("first run compiles the Numba kernels (cached afterwards)", style="dim")
     runs = 1 if no_trn else 2
     total = runs * int(round(duration * imu_rate))

@@ -253,23 +253,14 @@ class PointMassCorrelator:
             result.reason = "off map / DEM void"
             return result
         dof = max(n - 3, 1)
-        chi2_min = float(np.nanmin(c2))
-        result.chi2_per_dof = chi2_min / dof
-        from scipy.stats import chi2 as chi2_dist
 
-        if chi2_min > chi2_dist.ppf(cfg.consistency_probability, dof):
-            result.reason = "profile inconsistent with DEM"
-            return result
-        temper = max(1.0, chi2_min / dof)
-
-        def posterior(gn, ge, ll):
+        def posterior(gn, ge, ll, temper=1.0):
             sn, se = np.meshgrid(gn, ge, indexing="ij")
             lp = -0.5 * (info_prior[0, 0] * sn * sn + 2 * info_prior[0, 1] * sn * se
                          + info_prior[1, 1] * se * se)
             return ll / temper + lp
 
-        lpost = posterior(gn, ge, ll)
-        w, mean, cov = self._moments(gn, ge, lpost)
+        w, mean, cov = self._moments(gn, ge, posterior(gn, ge, ll))
         # refine around the posterior when it is narrower than the grid resolves
         for _ in range(2):
             sd_min = math.sqrt(max(np.linalg.eigvalsh(cov).min(), 0.0))
@@ -280,12 +271,23 @@ class PointMassCorrelator:
             new_step = max(fine_half / ((cfg.refine_cells - 1) / 2), 0.05)
             if new_step >= step:
                 break
-            fgn, fge, fll, _ = self._grid(profile, var_base, rel_var, mean, fine_half, new_step)
+            fgn, fge, fll, fc2 = self._grid(profile, var_base, rel_var, mean, fine_half,
+                                            new_step)
             if not np.all(np.isfinite(fll)):
                 break
-            gn, ge, ll, step = fgn, fge, fll, new_step
-            lpost = posterior(gn, ge, ll)
-            w, mean, cov = self._moments(gn, ge, lpost)
+            gn, ge, ll, c2, step = fgn, fge, fll, fc2, new_step
+            w, mean, cov = self._moments(gn, ge, posterior(gn, ge, ll))
+        # consistency of the best shift (on the finest grid evaluated)
+        chi2_min = float(np.nanmin(c2))
+        result.chi2_per_dof = chi2_min / dof
+        from scipy.stats import chi2 as chi2_dist
+
+        if chi2_min > chi2_dist.ppf(cfg.consistency_probability, dof):
+            result.reason = "profile inconsistent with DEM"
+            return result
+        temper = max(1.0, chi2_min / dof)
+        if temper > 1.0:
+            w, mean, cov = self._moments(gn, ge, posterior(gn, ge, ll, temper))
         cov = cov + np.eye(2) * step**2 / 12.0
         # tail mass beyond the 3-sigma ellipse of the moments: separated modes
         ci = np.linalg.inv(cov)

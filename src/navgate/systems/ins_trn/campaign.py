@@ -117,6 +117,27 @@ def _load_dem(spec: str):
     return _DEM_CACHE[spec]
 
 
+def warm_worker() -> float:
+    """Import navgate and compile (or load from the cache) the Numba kernels of a run in this
+    process, so that the runs' wall times are the runs' own; returns the seconds it took."""
+    start = _time.perf_counter()
+    from navgate.systems.ins_trn.flight import FlightConfig, fly
+    from navgate.trn.pmf import PmfConfig, PointMassCorrelator
+    from navgate.trn.profile import ProfileSnapshot
+    from navgate.trn.tercom import TercomCorrelator
+
+    dem = _load_dem("default")
+    fly(dem, FlightConfig(duration_s=2.0))
+    from navgate.nav.earth import LocalTangent
+
+    tan = LocalTangent(*dem.center, 0.0)
+    k = np.arange(40.0)
+    snap = ProfileSnapshot(np.full(40, 500.0), 30.0 * k, np.zeros(40), 0.5 * k)
+    PointMassCorrelator(dem, tan, PmfConfig()).correlate(snap, 10.0)
+    TercomCorrelator(dem, tan).correlate(snap, 10.0)
+    return _time.perf_counter() - start
+
+
 def _sigma_bound(run, k=3.0):
     a = run.sigma[:, 0] ** 2
     c = run.sigma[:, 1] ** 2
@@ -290,6 +311,7 @@ def run_campaign(campaign: Campaign, *, workers: int = 2, scheduler: str | None 
         n_workers = workers
     rows = []
     try:
+        client.run(warm_worker)
         tasks = campaign.tasks()
         futures = {}
         for conf, seed in tasks:
