@@ -127,7 +127,7 @@ def test_profile_that_the_dem_cannot_explain_is_flagged(dem, tangent):
     res = PointMassCorrelator(dem, tangent, EXACT).correlate(wrong, 20.0)
     assert not res.accepted
     assert res.reason == "profile inconsistent with DEM"
-    assert res.chi2_per_dof > chi2.ppf(0.999, 37) / 37
+    assert res.chi2_per_dof > 4.0 * chi2.ppf(0.999, 37) / 37
 
 
 def test_off_map_and_short_profiles(dem, tangent):

@@ -41,8 +41,12 @@ Integrity checks, each rejection with its reason:
 - "too few samples" / "track too short": the fresh segment is not long enough yet;
 - "off map / DEM void": fewer than ``min_valid_fraction`` of the grid has terrain;
 - "profile inconsistent with DEM": even the best shift leaves a normalised residual
-  ``chi2_min`` above the chi-square(n - 3) ``consistency_probability`` quantile: the true
-  position is outside the window (divergence) or the DEM does not describe the terrain;
+  ``chi2_min`` above ``max_noise_scale^2`` times the chi-square(n - 3)
+  ``consistency_probability`` quantile: the true position is outside the window
+  (divergence) or the DEM does not describe the terrain. (Residuals up to
+  ``max_noise_scale`` times the modelled noise are a noise-model mismatch, handled by the
+  tempering below, not a divergence: a terrain mismatch leaves residuals of the terrain's
+  own relief, far larger);
 - "multimodal": the posterior has more than ``max_tail_mass`` of its mass beyond the
   3-sigma ellipse of its own moments, i.e. separated modes a Gaussian fix cannot carry;
 - "flat terrain": the terrain added too little information: the fix's best standard
@@ -143,6 +147,7 @@ class PmfConfig:
     dem_sigma_m: float = 1.0  #: DEM height error (raise for real DEMs: SRTM ~5-10 m)
     velocity_sigma_mps: float = 0.3  #: INS velocity error over a segment (motion noise)
     consistency_probability: float = 0.999
+    max_noise_scale: float = 2.0  #: residuals up to this x the model noise: tempered
     max_tail_mass: float = 0.05
     max_info_ratio: float = 0.7  #: fix sigma must be below this times the prior sigma
     min_roughness_m: float = 3.0
@@ -282,7 +287,7 @@ class PointMassCorrelator:
         result.chi2_per_dof = chi2_min / dof
         from scipy.stats import chi2 as chi2_dist
 
-        if chi2_min > chi2_dist.ppf(cfg.consistency_probability, dof):
+        if chi2_min > cfg.max_noise_scale**2 * chi2_dist.ppf(cfg.consistency_probability, dof):
             result.reason = "profile inconsistent with DEM"
             return result
         temper = max(1.0, chi2_min / dof)
