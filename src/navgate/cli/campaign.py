@@ -90,8 +90,15 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out_dir, 
     with Progress(*columns, console=console, disable=quiet) as bar:
         task = bar.add_task("running", total=n_runs)
 
+        done = [0]
+
         def progress(row):
             bar.advance(task)
+            done[0] += 1
+            if not console.is_terminal and row["status"] == "ok":  # a log: one line per run
+                console.print(f"[{done[0]}/{n_runs}] {row['dem']} / {row['trn']} seed "
+                              f"{row['seed']}: RMS 2nd half {row['rms_second_half_m']:.1f} m, "
+                              f"final {row['final_error_m']:.1f} m, {row['wall_s']:.0f} s")
             if row["status"] != "ok":
                 failures.append(row)
                 bar.console.print(f"run failed: {row['dem']} / {row['trn']} seed {row['seed']}: "

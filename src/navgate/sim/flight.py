@@ -52,7 +52,7 @@ class FlightConfig:
     margin_m: float = 2000.0
     max_leg_m: float = 9000.0
     ranger: str = "long-range"
-    trn_method: str = "tercom"  #: a name of navgate.trn.correlators.METHODS
+    trn_method: str = "pmf"  #: a name of navgate.trn.correlators.METHODS (docs/trn.md)
     baro_rate_hz: float = 25.0
     ranger_rate_hz: float = 10.0
     fix_interval_s: float = 10.0

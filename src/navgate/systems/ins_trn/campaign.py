@@ -306,7 +306,7 @@ def run_campaign(campaign: Campaign, *, workers: int = 2, scheduler: str | None 
         n_workers = len(client.scheduler_info().get("workers", {})) or workers
     else:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=50)
+                               dashboard_address=":0", silence_logs=50)
         client = Client(cluster)
         n_workers = workers
     rows = []
