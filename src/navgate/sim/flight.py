@@ -55,7 +55,9 @@ class FlightConfig:
     trn_method: str = "pmf"  #: a name of navgate.trn.correlators.METHODS (docs/trn.md)
     baro_rate_hz: float = 25.0
     ranger_rate_hz: float = 10.0
-    fix_interval_s: float = 10.0
+    #: seconds between TRN attempts; None: the method's own (correlators.FIX_INTERVAL_S),
+    #: resolved at construction (dataclasses.replace keeps the resolved value)
+    fix_interval_s: float | None = None
     log_rate_hz: float = 10.0
     profile_spacing_m: float = 30.0
     lag_compensation: bool = True
@@ -79,11 +81,15 @@ class FlightConfig:
         for name, ok in checks.items():
             if not ok:
                 raise ValueError(f"invalid {name}: {getattr(self, name)}")
-        from navgate.trn.correlators import METHODS
+        from navgate.trn.correlators import FIX_INTERVAL_S, METHODS
 
         if self.trn_method not in METHODS:
             raise ValueError(f"unknown TRN method {self.trn_method!r}; choose from "
                              f"{', '.join(METHODS)}")
+        if self.fix_interval_s is None:
+            object.__setattr__(self, "fix_interval_s", FIX_INTERVAL_S[self.trn_method])
+        if not (math.isfinite(self.fix_interval_s) and self.fix_interval_s > 0):
+            raise ValueError(f"invalid fix_interval_s: {self.fix_interval_s}")
         if self.ranger not in sensors.RANGER_PRESETS:
             raise ValueError(f"unknown ranger {self.ranger!r}; choose from "
                              f"{', '.join(sensors.RANGER_PRESETS)}")

@@ -27,6 +27,12 @@ METHODS: dict[str, str] = {
     "pmf": "point-mass filter: grid posterior over the position error, honest covariance",
 }
 
+#: method name -> seconds between the loop's attempts (FlightConfig.fix_interval_s default):
+#: TERCOM matches overlapping 64-sample profiles every 10 s (docs/trn.md); the point-mass
+#: filter uses each sample once, so it is asked every 5 s and fixes as soon as 15 fresh
+#: samples (7.5 s at 60 m/s) are informative (measured: docs/trn.md)
+FIX_INTERVAL_S: dict[str, float] = {"tercom": 10.0, "pmf": 5.0}
+
 
 def make_correlator(method: str, dem: Dem, tangent: LocalTangent,
                     tercom: TercomConfig | None = None, pmf: PmfConfig | None = None):
