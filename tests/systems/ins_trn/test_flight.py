@@ -134,3 +134,16 @@ def test_flat_real_terrain_pmf_never_worse_than_ins_only(shared_data):
     assert (s["trn_aided"]["final_horizontal_error_m"]
             <= s["ins_only"]["final_horizontal_error_m"])
     assert s["trn_aided"]["nees_position_mean"] < chi2.ppf(0.999, 2)
+
+
+def test_fix_interval_follows_the_method_unless_given():
+    from navgate.trn.correlators import FIX_INTERVAL_S
+
+    assert flight.FlightConfig().trn_method == "pmf"
+    assert flight.FlightConfig().fix_interval_s == FIX_INTERVAL_S["pmf"] == 5.0
+    assert flight.FlightConfig(trn_method="tercom").fix_interval_s == 10.0
+    assert flight.FlightConfig(trn_method="tercom", fix_interval_s=3.0).fix_interval_s == 3.0
+    with pytest.raises(ValueError):
+        flight.FlightConfig(fix_interval_s=0.0)
+    with pytest.raises(ValueError):
+        flight.FlightConfig(trn_method="magic")
