@@ -59,6 +59,7 @@ def test_no_trn_and_ideal_sensors(tmp_path):
     (["--imu-rate", "10"], "--imu-rate"),
     (["--seed", "-1"], "--seed"),
     (["--ranger", "sonar"], "--ranger"),
+    (["--trn", "magic"], "--trn"),
     (["--bogus"], "--bogus"),
 ])
 def test_bad_option_values(tmp_path, args, needle):

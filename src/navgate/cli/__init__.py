@@ -23,6 +23,7 @@ from navgate.cli.common import CliError, os_error_message, warning_handler
 #: command name -> "module:attribute" of a click command
 COMMANDS: dict[str, str] = {
     "fly": "navgate.cli.fly:fly",
+    "campaign": "navgate.cli.campaign:campaign",
     "ahrs": "navgate.cli.ahrs:ahrs",
     "gpsins": "navgate.cli.gpsins:gpsins",
     "build": "navgate.cli.build:build",

@@ -50,6 +50,9 @@ def _positive_float(ctx, param, value):
               show_default=True, help="AGL ranger preset.")
 @click.option("--speed", type=float, default=60.0, show_default=True, callback=_positive_float,
               help="Cruise speed (m/s).")
+@click.option("--trn", "trn_method", type=click.Choice(["pmf", "tercom"]), default="pmf",
+              show_default=True,
+              help="TRN method: point-mass filter or batch TERCOM (docs/trn.md compares them).")
 @click.option("--engine", type=click.Choice(["reference", "fp32"]), default="reference",
               show_default=True,
               help="PL engine: float64 reference, or the float32 bit-true model (then the "
@@ -58,7 +61,7 @@ def _positive_float(ctx, param, value):
               help="Also write the sensor record stream to this log file (navgate replay).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")
 def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, speed,
-        engine, record_path, quiet):
+        trn_method, engine, record_path, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -81,7 +84,7 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
     try:
         cfg = flight.FlightConfig(duration_s=duration, imu_rate_hz=imu_rate, seed=seed,
                                   ideal_sensors=ideal_sensors, trn=not no_trn, ranger=ranger,
-                                  speed_mps=speed)
+                                  speed_mps=speed, trn_method=trn_method)
     except ValueError as error:
         raise CliError(str(error).replace("duration_s", "--duration")) from None
     try:
@@ -91,7 +94,8 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
     check_out_dir(out)
     console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
                   f"({dem.shape[0]} x {dem.shape[1]} posts), seed {seed}"
-                  + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors"))
+                  + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors")
+                  + ("" if no_trn else f", TRN {trn_method}"))
     runs = 1 if no_trn else 2
     total = runs * int(round(duration * imu_rate))
     start = time.perf_counter()

@@ -28,6 +28,7 @@ from navgate.nav import eskf
 from navgate.nav.earth import LocalTangent, radii
 from navgate.sim import sensors, trajectory
 from navgate.trn.dem import Dem
+from navgate.trn.pmf import PmfConfig
 from navgate.trn.tercom import TercomConfig
 
 DEG = math.pi / 180.0
@@ -51,10 +52,12 @@ class FlightConfig:
     margin_m: float = 2000.0
     max_leg_m: float = 9000.0
     ranger: str = "long-range"
-    trn_method: str = "tercom"  #: a name of navgate.trn.correlators.METHODS
+    trn_method: str = "pmf"  #: a name of navgate.trn.correlators.METHODS (docs/trn.md)
     baro_rate_hz: float = 25.0
     ranger_rate_hz: float = 10.0
-    fix_interval_s: float = 10.0
+    #: seconds between TRN attempts; None: the method's own (correlators.FIX_INTERVAL_S),
+    #: resolved at construction (dataclasses.replace keeps the resolved value)
+    fix_interval_s: float | None = None
     log_rate_hz: float = 10.0
     profile_spacing_m: float = 30.0
     lag_compensation: bool = True
@@ -67,6 +70,7 @@ class FlightConfig:
     init_accel_bias_sigma: float = 1e-3 * sensors.G0
     init_gyro_bias_sigma: float = 10.0 * DEG / 3600.0
     tercom: TercomConfig = field(default_factory=TercomConfig)
+    pmf: PmfConfig = field(default_factory=PmfConfig)
 
     def __post_init__(self):
         checks = {
@@ -81,11 +85,15 @@ class FlightConfig:
             raise ValueError(f"duration_s {self.duration_s:g} s is too short for the scenario: "
                              f"at least {self.min_duration_s:g} s (two periods of the slowest "
                              "sensor or log)")
-        from navgate.trn.correlators import METHODS
+        from navgate.trn.correlators import FIX_INTERVAL_S, METHODS
 
         if self.trn_method not in METHODS:
             raise ValueError(f"unknown TRN method {self.trn_method!r}; choose from "
                              f"{', '.join(METHODS)}")
+        if self.fix_interval_s is None:
+            object.__setattr__(self, "fix_interval_s", FIX_INTERVAL_S[self.trn_method])
+        if not (math.isfinite(self.fix_interval_s) and self.fix_interval_s > 0):
+            raise ValueError(f"invalid fix_interval_s: {self.fix_interval_s}")
         if self.ranger not in sensors.RANGER_PRESETS:
             raise ValueError(f"unknown ranger {self.ranger!r}; choose from "
                              f"{', '.join(sensors.RANGER_PRESETS)}")

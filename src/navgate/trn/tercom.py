@@ -178,7 +178,9 @@ class TercomCorrelator:
         lat, lon = self.tangent.to_geodetic(n, e)
         return self.dem.height(lat, lon)
 
-    def correlate(self, profile: ProfileSnapshot, sigma_max_m: float) -> TercomResult:
+    def correlate(self, profile: ProfileSnapshot, sigma_max_m: float,
+                  prior_cov=None) -> TercomResult:
+        """Match ``profile``; the window follows ``sigma_max_m`` (``prior_cov`` is unused)."""
         for name in ("time", "pos_n", "pos_e"):
             if not np.all(np.isfinite(getattr(profile, name))):
                 raise ValueError(f"profile.{name}: non-finite values in the terrain profile")

@@ -119,14 +119,42 @@ def test_bad_configuration_rejected():
     assert math.isclose(flight.FlightConfig().speed_mps, 60.0)
 
 
-def test_flat_real_terrain_mostly_pauses_trn(shared_data):
-    """The shared Texas GeoTIFF is flat under the route: TRN must mostly decline to fix."""
+def test_flat_real_terrain_mostly_pauses_tercom(shared_data):
+    """The shared Texas GeoTIFF is flat under the route: TERCOM must mostly decline to fix."""
     path = shared_data / "pysheds_dem.tif"
     if not path.exists():
         pytest.skip("pysheds_dem.tif not present")
-    res = flight.fly(Dem.from_file(path), flight.FlightConfig(duration_s=300.0))
+    res = flight.fly(Dem.from_file(path), flight.FlightConfig(duration_s=300.0,
+                                                              trn_method="tercom"))
     s = res.summary()["trn_aided"]
     reasons = s["fix_rejection_reasons"]
     correlated = s["fixes_attempted"] - reasons.get("too few samples", 0)
     assert reasons.get("flat terrain", 0) >= 0.75 * correlated
     assert s["fixes_accepted"] <= 3
+
+
+def test_flat_real_terrain_pmf_never_worse_than_ins_only(shared_data):
+    """Over the flat Texas GeoTIFF the point-mass filter takes only what the terrain gives:
+    INS+TRN ends no worse than INS alone, with a covariance that covers the error."""
+    path = shared_data / "pysheds_dem.tif"
+    if not path.exists():
+        pytest.skip("pysheds_dem.tif not present")
+    res = flight.fly(Dem.from_file(path), flight.FlightConfig(duration_s=300.0, seed=1))
+    s = res.summary()
+    assert s["trn_aided"]["trn_method"] == "pmf"
+    assert (s["trn_aided"]["final_horizontal_error_m"]
+            <= s["ins_only"]["final_horizontal_error_m"])
+    assert s["trn_aided"]["nees_position_mean"] < chi2.ppf(0.999, 2)
+
+
+def test_fix_interval_follows_the_method_unless_given():
+    from navgate.trn.correlators import FIX_INTERVAL_S
+
+    assert flight.FlightConfig().trn_method == "pmf"
+    assert flight.FlightConfig().fix_interval_s == FIX_INTERVAL_S["pmf"] == 5.0
+    assert flight.FlightConfig(trn_method="tercom").fix_interval_s == 10.0
+    assert flight.FlightConfig(trn_method="tercom", fix_interval_s=3.0).fix_interval_s == 3.0
+    with pytest.raises(ValueError):
+        flight.FlightConfig(fix_interval_s=0.0)
+    with pytest.raises(ValueError):
+        flight.FlightConfig(trn_method="magic")

@@ -95,6 +95,11 @@ class PlEngine(ABC):
         """2-D TRN update with y = p_ins - p_fix (north, east, m), its 2x2 covariance and
         the fix's lag (the fix measured the error ``lag_s`` ago)."""
 
+    @abstractmethod
+    def inflate_p_horizontal(self, d_p) -> None:
+        """Add the symmetric 2x2 ``d_p`` (m^2) to P's horizontal position block: the PS's
+        answer to a TRN divergence (navgate.trn.integrity), written through registers."""
+
     # -- register reads ------------------------------------------------------------------------
     @abstractmethod
     def read_nav(self) -> np.ndarray:
@@ -180,6 +185,10 @@ class ReferenceEngine(PlEngine):
         out = self._outcome(self.filter.update_position_offset(y_ne, cov, lag_s))
         self.accepted, self.rejected = self.filter.accepted, self.filter.rejected
         return out
+
+    def inflate_p_horizontal(self, d_p) -> None:
+        d = 0.5 * (np.asarray(d_p, float) + np.asarray(d_p, float).T)
+        self.filter.p[:2, :2] += d
 
     def read_nav(self):
         return self.filter.nav.copy()

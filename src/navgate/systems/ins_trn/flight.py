@@ -80,6 +80,12 @@ class FlightResult:
                 for f in run.fixes:
                     if not f["applied"]:
                         reasons[f["reason"]] = reasons.get(f["reason"], 0) + 1
+                events = {}
+                for f in run.fixes:
+                    if f.get("integrity"):
+                        events[f["integrity"]] = events.get(f["integrity"], 0) + 1
+                s["trn_method"] = cfg.trn_method
+                s["integrity_events"] = events
                 s["fixes_attempted"] = len(run.fixes)
                 s["fixes_accepted"] = len(applied)
                 s["fixes_rejected"] = len(run.fixes) - len(applied)

@@ -159,6 +159,14 @@ class Fp32Engine(PlEngine):
                             lag=lag_s)
 
     # -- register reads ---------------------------------------------------------------------------
+    def inflate_p_horizontal(self, d_p) -> None:
+        """P00, P01, P11 += d (float32 adds, as the PS's register writes would be summed in
+        the PL); the compensation words are left as they are."""
+        d = 0.5 * (np.asarray(d_p, float) + np.asarray(d_p, float).T)
+        for i, j in ((0, 0), (0, 1), (1, 1)):
+            name = fp.p_reg(i, j)
+            self.m.set(name, self.m.get(name) + float(np.float32(d[i, j])))
+
     def read_position_ned(self):
         g = self.m.get
         return g("pN") - g("cN"), g("pE") - g("cE")

@@ -60,7 +60,7 @@ def make_correlator(cfg, dem, tangent):
     """The PS-side TRN correlator (the single call site of navgate.trn.correlators)."""
     from navgate.trn.correlators import make_correlator as _make
 
-    return _make(cfg.trn_method, dem, tangent, cfg.tercom)
+    return _make(cfg.trn_method, dem, tangent, cfg.tercom, pmf=cfg.pmf)
 
 
 def engine_setup(header: dict, cfg) -> EngineSetup:
@@ -99,6 +99,12 @@ class Navigator:
         self.baro_sigma = max(sensors.Barometer(sensors.BMP390).altitude_noise_m, 0.05)
         self.tangent = engine.setup.reference
         self.correlator = make_correlator(cfg, dem, self.tangent) if self.use_trn else None
+        if self.use_trn:
+            from navgate.trn.correlators import make_monitor
+
+            self.monitor = make_monitor(self.correlator)
+        else:
+            self.monitor = None
         self.fixes: list = []
         self.last_fix_t = -math.inf
         self.h_baro = math.nan
@@ -160,10 +166,11 @@ class Navigator:
         e = self.engine
         p2 = e.read_p_horizontal()
         sigma_max = math.sqrt(max(np.linalg.eigvalsh(p2).max(), 0.0))
-        result = self.correlator.correlate(e.profile_read(), sigma_max)
+        result = self.correlator.correlate(e.profile_read(), sigma_max, prior_cov=p2)
         row = result.as_row()
         row["applied"] = False
         row["nis"] = math.nan
+        upd = y = None
         if result.accepted:
             # y = p_ins - p_fix = -shift, measured lag_s ago
             y = np.array([result.ins_n - result.fix_n, result.ins_e - result.fix_e])
@@ -176,6 +183,10 @@ class Navigator:
                 e.profile_shift(-c[0], -c[1], -c[3], -c[4], now=t)
             else:
                 row["reason"] = upd.reason or "rejected by chi-square gate"
+        review = self.monitor.review(result, upd, y, sigma_max)
+        row["integrity"] = review.event
+        if review.inflate is not None:  # divergence: reopen the filter's position
+            e.inflate_p_horizontal(review.inflate)
         self.fixes.append(row)
 
     def feed(self, kind, t, payload):

@@ -1,0 +1,54 @@
+"""`navgate campaign` as a user runs it: one-line errors for bad input (no cluster started),
+and (slow) a short campaign writing every output with the summary keys the issue names."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+
+def navgate(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "navgate.cli", *args], capture_output=True,
+                          text=True, cwd=cwd, timeout=900)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--seeds", "5-2"], "--seeds"),
+    (["--seeds", "a"], "--seeds"),
+    (["--trn", "magic"], "--trn"),
+    (["--ranger", "sonar"], "--ranger"),
+    (["--workers", "0"], "--workers"),
+    (["--duration", "-1"], "--duration"),
+    (["--dem", "/nonexistent/dem.tif"], "not found"),
+])
+def test_bad_options_one_line_error(tmp_path, capsys, args, needle):
+    from navgate.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["campaign", *args, "--out", str(tmp_path)])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("navgate campaign: error:"), err
+    assert needle in lines[0] and "Traceback" not in err
+
+
+@pytest.mark.slow
+def test_short_campaign_writes_every_output(tmp_path):
+    proc = navgate("campaign", "--seeds", "0-1", "--duration", "40", "--workers", "2",
+                   "--trn", "pmf", "--trn", "tercom", "--out", str(tmp_path), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    for name in ("summary.json", "results.csv", "error_cdf.png", "nees_hist.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    s = json.loads((tmp_path / "summary.json").read_text())
+    assert s["runs"] == 4 and s["failed"] == 0 and s["workers"] == 2
+    assert [c["trn"] for c in s["configurations"]] == ["pmf", "tercom"]
+    for c in s["configurations"]:
+        assert c["dem"] == "default" and c["runs"] == 2
+        for key in ("rms_second_half_m_mean", "rms_second_half_m_max", "final_error_m_mean",
+                    "ins_only_final_error_m_mean", "runs_trn_worse_than_ins_only",
+                    "time_to_first_fix_s_mean", "nees_mean", "outside_3sigma_fraction",
+                    "cep50_m", "cep95_m"):
+            assert c[key] is not None, key
+    assert "Monte Carlo" in proc.stdout and "pmf" in proc.stdout
