@@ -33,6 +33,7 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
     from navgate.systems.ins_trn.flight import fly_stream
     from navgate.systems.ins_trn.records import LogError, read_log
     from navgate.trn.dem import Dem, DemError
+    from navgate.trn.pmf import PmfConfig
     from navgate.trn.tercom import TercomConfig
 
     try:
@@ -43,6 +44,7 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
     try:
         conf = dict(header["config"])
         conf["tercom"] = TercomConfig(**conf.get("tercom", {}))
+        conf["pmf"] = PmfConfig(**conf.get("pmf", {}))
         known = {f.name for f in fields(FlightConfig)}
         cfg = FlightConfig(**{k: v for k, v in conf.items() if k in known})
         for key in ("ideal", "t0", "calibration", "initial", "reference"):

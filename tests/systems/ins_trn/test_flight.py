@@ -32,15 +32,26 @@ def test_default_flight_meets_the_trn_targets(default_flight):
     assert trn["fixes_accepted"] + trn["fixes_rejected"] == trn["fixes_attempted"]
 
 
-def test_default_flight_figures_are_those_of_the_float64_loop(default_flight):
+def test_default_flight_figures_are_those_of_the_float64_loop(dem):
     """The streaming navigator with the reference engine reproduces the batch loop's
-    figures (seed 0): INS-only final 406.8 m, TRN 2nd-half RMS 23.7 m, NEES 1.26, 47/8."""
-    s = default_flight.summary()
-    assert s["engine"] == "reference"
+    figures (seed 0, TERCOM): INS-only final 406.8 m, TRN 2nd-half RMS 23.7 m, NEES 1.26,
+    47/8 fixes."""
+    s = flight.fly(dem, flight.FlightConfig(trn_method="tercom")).summary()
+    assert s["engine"] == "reference" and s["trn_aided"]["trn_method"] == "tercom"
     assert round(s["ins_only"]["final_horizontal_error_m"], 1) == 406.8
     assert round(s["trn_aided"]["rms_horizontal_error_second_half_m"], 1) == 23.7
     assert round(s["trn_aided"]["nees_position_mean"], 2) == 1.26
     assert (s["trn_aided"]["fixes_accepted"], s["trn_aided"]["fixes_rejected"]) == (47, 8)
+
+
+def test_default_flight_with_the_point_mass_filter(default_flight):
+    """The default TRN (point-mass filter) on the default flight, seed 0: final 5.8 m,
+    second-half RMS 12.5 m against TERCOM's 23.7 m, and never worse than INS alone."""
+    s = default_flight.summary()
+    assert s["trn_aided"]["trn_method"] == "pmf"
+    assert round(s["trn_aided"]["rms_horizontal_error_second_half_m"], 1) == 12.5
+    assert round(s["trn_aided"]["final_horizontal_error_m"], 1) == 5.8
+    assert s["trn_aided"]["final_horizontal_error_m"] < s["ins_only"]["final_horizontal_error_m"]
 
 
 def test_default_flight_position_nees_is_consistent_with_two_dof_chi_square(default_flight):
