@@ -16,6 +16,26 @@ import numpy as np
 from navgate.cli.common import CliError
 
 
+def _run_circuit(log, engine, method, axes, kp, ki, no_mag, console):
+    """``--engine fp32|rtl``: seed 003's circuit (bit-true model or gateware)."""
+    from navgate.systems.attitude.circuit_engine import run_circuit
+
+    if method != "mahony":
+        raise CliError(f"--engine {engine} runs seed 003's Mahony circuit; use --filter mahony")
+    if no_mag:
+        raise CliError(f"--engine {engine}: the circuit always uses the magnetometer "
+                       f"(drop --no-mag)")
+    if engine == "fp32":
+        console.print(f"running the float32 model over {len(log)} samples "
+                      f"(about 50 ms a sample)")
+    try:
+        return run_circuit(log, engine, axes=axes, kp=kp, ki=ki)
+    except ValueError as error:
+        raise CliError(str(error)) from None
+    except RuntimeError as error:  # a Verilator build or run failure
+        raise CliError(f"--engine rtl: {str(error).splitlines()[0]}") from None
+
+
 def _nonneg(ctx, param, value):
     if value is None:
         return value
@@ -43,8 +63,13 @@ def _nonneg(ctx, param, value):
 @click.option("--no-mag", is_flag=True, help="Ignore magnetometer columns.")
 @click.option("--init", type=click.Choice(["accel", "identity"]), default="accel",
               show_default=True, help="Initial attitude.")
+@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl"]), default="reference",
+              show_default=True,
+              help="mahony only: reference = float64 filter; fp32 = seed 003's float32 "
+                   "bit-true circuit model; rtl = the circuit's gateware in Verilator "
+                   "(fp32 and rtl give identical CSVs; docs/seed003-attitude-circuit.md).")
 @click.option("--quiet", is_flag=True, help="No summary table.")
-def ahrs(input_csv, method, out_csv, kp, ki, gain, axes, no_mag, init, quiet):
+def ahrs(input_csv, method, out_csv, kp, ki, gain, axes, no_mag, init, engine, quiet):
     """Estimate attitude from an IMU log (CSV)."""
     from rich.console import Console
     from rich.table import Table
@@ -62,11 +87,16 @@ def ahrs(input_csv, method, out_csv, kp, ki, gain, axes, no_mag, init, quiet):
         raise CliError(str(error)) from None
     if len(log) < 2:
         raise CliError(f"{input_csv}: need at least two samples")
-    try:
-        res = estimate_attitude(log, method, axes=axes, kp=kp, ki=ki, gain=gain,
-                                use_mag=not no_mag, init=init)
-    except ValueError as error:
-        raise CliError(str(error)) from None
+    circuit = None
+    if engine != "reference":
+        circuit = _run_circuit(log, engine, method, axes, kp, ki, no_mag, console)
+        res = circuit.result
+    else:
+        try:
+            res = estimate_attitude(log, method, axes=axes, kp=kp, ki=ki, gain=gain,
+                                    use_mag=not no_mag, init=init)
+        except ValueError as error:
+            raise CliError(str(error)) from None
     if not np.isfinite(res.q).all():
         raise CliError("the filter diverged (non-finite attitude); check units and --kp/--ki")
     elapsed = time.perf_counter() - start
@@ -87,6 +117,16 @@ def ahrs(input_csv, method, out_csv, kp, ki, gain, axes, no_mag, init, quiet):
     table.add_row("magnetometer", "used" if res.used_mag else "not used")
     table.add_row("final roll / pitch / yaw",
                   f"{res.roll_deg[-1]:.2f} / {res.pitch_deg[-1]:.2f} / {res.yaw_deg[-1]:.2f} deg")
+    if circuit is not None:
+        table.add_row("engine", f"{engine} (seed 003 circuit, T = {circuit.params.dt:.6g} s, "
+                                f"starts from reset)")
+        table.add_row("flagged samples (invalid / atan saturated)",
+                      f"{circuit.invalid} / {circuit.saturated}")
+        if engine == "rtl":
+            table.add_row("simulated cycles", f"{circuit.cycles}")
+            table.add_row("Verilator build", f"{circuit.build_seconds:.1f} s")
+        table.add_row("engine time / samples per s",
+                      f"{circuit.seconds:.2f} s / {len(res.t) / max(circuit.seconds, 1e-9):.0f}")
     table.add_row("wall time", f"{elapsed:.2f} s")
     console.print(table)
     if out_csv is not None:

@@ -20,4 +20,20 @@ is published to :mod:`navgate.hw.blocks` through the ``navgate.blocks`` entry po
 #: name -> ("module:attribute" of a zero-argument factory, one-line description)
 BLOCKS: dict[str, tuple[str, str]] = {
     "kf2x2": ("navgate.systems.kf2x2.top:Kf2x2", "seed 004 2x2 adaptive Kalman filter"),
+    "attitude_top": ("navgate.systems.attitude.top:AttitudeTop",
+                     "seed 003 attitude-solving circuit (INS_top, shared float32 units)"),
+    "attitude_acc": ("navgate.systems.attitude.top:attitude_acc",
+                     "seed 003 INS_acc: accelerometer error (3.1.2), own units"),
+    "attitude_mag": ("navgate.systems.attitude.top:attitude_mag",
+                     "seed 003 INS_mag: magnetometer error (3.1.3), own units"),
+    "attitude_gyro": ("navgate.systems.attitude.top:attitude_gyro",
+                      "seed 003 INS_gyro: gyro PI correction (3.1.4), own units"),
+    "attitude_quat": ("navgate.systems.attitude.top:attitude_quat",
+                      "seed 003 INS_quat: quaternion update (3.1.5), own units"),
+    "attitude_matx": ("navgate.systems.attitude.top:attitude_matx",
+                      "seed 003 INS_matx: DCM update (3.1.6), own units"),
+    "attitude_euler": ("navgate.systems.attitude.top:attitude_euler",
+                       "seed 003 INS_euler: Euler angles (3.1.7), own units"),
+    "attitude_atan": ("navgate.systems.attitude.units:AtanCircuit",
+                      "seed 003 fix16 arctangent (3.1.8): float32->Q2.13->CORDIC->float32"),
 }

@@ -53,7 +53,7 @@ from navgate.systems.attitude.program import (
 )
 
 __all__ = ["AttitudeTop", "AttitudeStream", "ModuleCircuit", "STATES", "PORT_NAME",
-           "top_schedule", "module_factory"]
+           "top_schedule", "solve_cycles"]
 
 STATES = ("IDLE", "ACC_MAG", "GYRO", "QUAT", "MATX", "EULER", "END")
 #: program value -> seed port name (without in_/out_)
@@ -74,6 +74,11 @@ def top_schedule():
         sinks.update({k: k for k in OUTPUTS})
         _SCHEDULES["top"] = make_schedule(solve_program(), SENSORS + STATE + PARAMS, sinks)
     return _SCHEDULES["top"]
+
+
+def solve_cycles() -> int:
+    """Cycles from ``in_data_en`` to ``out_INS_finish`` of :class:`AttitudeTop`."""
+    return top_schedule().length + 1
 
 
 def _nan(x):
@@ -292,13 +297,6 @@ class ModuleCircuit(wiring.Component):
         return m
 
 
-def module_factory(module: str):
-    def make():
-        return ModuleCircuit(module)
-    make.__name__ = f"attitude_{module}"
-    return make
-
-
 def attitude_acc():
     return ModuleCircuit("acc")
 
@@ -321,3 +319,56 @@ def attitude_matx():
 
 def attitude_euler():
     return ModuleCircuit("euler")
+
+
+class ModuleStream(wiring.Component):
+    """:class:`ModuleCircuit` behind one input and one output stream (for the verification
+    harness): input payload = the module's ``in_*`` words, output payload = its ``out_*``
+    words and ``cycles`` (``in_<module>_en`` to ``out_<module>_finish``)."""
+
+    def __init__(self, module: str):
+        self.core = ModuleCircuit(module)
+        self.module = module
+        self.LATENCY = self.core.LATENCY + 3
+        self.THROUGHPUT = 1 / (self.core.LATENCY + 3)
+        li = data.StructLayout({f"in_{_port(v)}": 32 for v in self.core.ins})
+        lo = {f"out_{_port(v)}": 32 for v in self.core.outs}
+        lo["cycles"] = 10
+        super().__init__({"i": In(stream.Signature(li)),
+                          "o": Out(stream.Signature(data.StructLayout(lo)))})
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.core = core = self.core
+        held = Signal(self.i.payload.shape())
+        count = Signal(10)
+        cycles = Signal(10)
+        en = getattr(core, f"in_{self.module}_en")
+        fin = getattr(core, f"out_{self.module}_finish")
+        with m.FSM():
+            with m.State("IDLE"):
+                m.d.comb += self.i.ready.eq(1)
+                with m.If(self.i.valid):
+                    m.d.sync += held.eq(self.i.payload)
+                    m.next = "START"
+            with m.State("START"):
+                m.d.comb += en.eq(1)
+                m.d.sync += count.eq(1)
+                m.next = "RUN"
+            with m.State("RUN"):
+                m.d.sync += count.eq(count + 1)
+                with m.If(fin):
+                    m.d.sync += cycles.eq(count)
+                    m.next = "OUT"
+            with m.State("OUT"):
+                m.d.comb += self.o.valid.eq(1)
+                with m.If(self.o.ready):
+                    m.next = "IDLE"
+        for v in core.ins:
+            n = f"in_{_port(v)}"
+            m.d.comb += getattr(core, n).eq(getattr(held, n))
+        for v in core.outs:
+            n = f"out_{_port(v)}"
+            m.d.comb += getattr(self.o.payload, n).eq(getattr(core, n))
+        m.d.comb += self.o.payload.cycles.eq(cycles)
+        return m
