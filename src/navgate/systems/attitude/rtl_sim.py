@@ -20,7 +20,8 @@ from navgate.systems.attitude.mahony import SEED003, MahonyParams
 from navgate.systems.attitude.program import OUTPUTS, STATE
 from navgate.systems.attitude.top import PORT_NAME, AttitudeStream
 
-__all__ = ["sample_vectors", "stream_model", "verify_samples", "run_rtl", "param_bits"]
+__all__ = ["sample_vectors", "stream_model", "verify_samples", "run_rtl", "param_bits",
+           "lane_vectors", "lane_model"]
 
 SENSOR_PORTS = [f"in_{PORT_NAME[v]}" for v in ("ax", "ay", "az", "mx", "my", "mz",
                                                 "gx", "gy", "gz")]
@@ -53,6 +54,7 @@ def sample_vectors(acc, mag, gyro, params: MahonyParams | None = None,
         if load_every:
             load[::load_every] = 1
     inputs["load"] = load
+    inputs["reset"] = np.zeros(n, dtype=np.int64)
     for k, v in pb.items():
         inputs[k] = np.full(n, v, dtype=np.int64)
     return inputs
@@ -76,6 +78,14 @@ def stream_model(solve_cycles: int):
         rows = {k: np.zeros(n, dtype=np.int64) for k in OUT_FIELDS + ["invalid", "saturated",
                                                                       "cycles"]}
         for j in range(n):
+            if seen["reset"][j]:
+                q = (one, z, z, z)
+                c = tuple(one if i in (0, 4, 8) else z for i in range(9))
+                integ = (z, z, z)
+                kp, ki, dt = (np.uint32(int(v)) for v in (bt.f32_to_bits(SEED003.kp),
+                                                          bt.f32_to_bits(SEED003.ki),
+                                                          bt.f32_to_bits(SEED003.dt)))
+                acc_neg, mag_neg = SEED003.accel_sign < 0, 0b010
             if seen["load"][j]:
                 kp, ki, dt = (np.uint32(int(seen[k][j])) for k in ("kp", "ki", "t"))
                 acc_neg, mag_neg = bool(seen["acc_neg"][j]), int(seen["mag_neg"][j])
@@ -114,3 +124,40 @@ def run_rtl(acc, mag, gyro, params: MahonyParams, backend: str = "verilator", **
     dut = AttitudeStream()
     inputs = sample_vectors(acc, mag, gyro, params)
     return _verify.simulate(dut, inputs, backend=backend, **kwargs)
+
+
+def lane_vectors(acc, mag, gyro, params: MahonyParams) -> dict:
+    """``L`` independent runs ("lanes") of ``T`` samples in one vector file: ``acc``,
+    ``mag``, ``gyro`` are (L, T, 3) bit patterns; each lane starts with ``reset`` and a
+    parameter load. Lane-major order."""
+    acc, mag, gyro = (np.asarray(x, dtype=np.uint32) for x in (acc, mag, gyro))
+    n_lanes, t = acc.shape[:2]
+    inputs = sample_vectors(acc.reshape(-1, 3), mag.reshape(-1, 3), gyro.reshape(-1, 3),
+                            params)
+    start = np.zeros(n_lanes * t, dtype=np.int64)
+    start[::t] = 1
+    inputs["reset"] = start
+    inputs["load"] = start.copy()
+    return inputs
+
+
+def lane_model(acc, mag, gyro, params: MahonyParams, solve_cycles: int) -> dict:
+    """The model of :func:`lane_vectors`' runs: all lanes in lock-step through one batched
+    :class:`~navgate.systems.attitude.mahony_fp32.MahonyCircuitFP32` (same per-module
+    functions, vectorised over lanes). Returns the stream's output fields, lane-major."""
+    acc, mag, gyro = (np.asarray(x, dtype=np.uint32) for x in (acc, mag, gyro))
+    n_lanes, t = acc.shape[:2]
+    circ = bt.MahonyCircuitFP32(params, batch=n_lanes)
+    out = {k: np.zeros((n_lanes, t), dtype=np.int64) for k in OUT_FIELDS + ["invalid",
+                                                                           "saturated"]}
+    for j in range(t):
+        r = circ.solve([acc[:, j, i] for i in range(3)], [mag[:, j, i] for i in range(3)],
+                       [gyro[:, j, i] for i in range(3)])
+        vals = list(r.q) + list(r.c) + [r.euler.pitch, r.euler.roll, r.euler.yaw]
+        for k, v in zip(OUT_FIELDS, vals, strict=True):
+            out[k][:, j] = v
+        out["invalid"][:, j] = r.invalid
+        out["saturated"][:, j] = r.euler.saturated
+    res = {k: v.reshape(-1) for k, v in out.items()}
+    res["cycles"] = np.full(n_lanes * t, solve_cycles, dtype=np.int64)
+    return res

@@ -35,7 +35,7 @@ port lists, tables 3-1 to 3-7); bit-true model :mod:`navgate.systems.attitude.ma
 
 from __future__ import annotations
 
-from amaranth.hdl import Cat, Module, Signal
+from amaranth.hdl import Cat, Module, ResetInserter, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -169,7 +169,7 @@ class AttitudeTop(wiring.Component):
 
 def stream_layouts():
     li = {f"in_{PORT_NAME[v]}": 32 for v in SENSORS}
-    li.update({"load": 1, "kp": 32, "ki": 32, "t": 32, "acc_neg": 1, "mag_neg": 3})
+    li.update({"reset": 1, "load": 1, "kp": 32, "ki": 32, "t": 32, "acc_neg": 1, "mag_neg": 3})
     lo = {f"out_{v}": 32 for v in list(STATE[:13]) + list(OUTPUTS)}
     lo.update({"invalid": 1, "saturated": 1, "cycles": 10})
     return data.StructLayout(li), data.StructLayout(lo)
@@ -180,7 +180,9 @@ class AttitudeStream(wiring.Component):
     harness and ``navgate ahrs --engine rtl``): an input payload is one sample (with
     ``load`` set, the parameters are loaded first); the output payload is the state after
     the solve, the flags and ``cycles``, counted from ``in_data_en`` to ``out_INS_finish``
-    (the wrapper measures it; it is ``SOLVE_CYCLES``)."""
+    (the wrapper measures it; it is ``SOLVE_CYCLES``). ``reset`` set: the core is reset
+    (one cycle of its domain reset, as ``rst_n``) before the sample, so that one vector file
+    can hold many independent runs ("lanes")."""
 
     def __init__(self):
         self.core = AttitudeTop()
@@ -191,7 +193,9 @@ class AttitudeStream(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.core = core = self.core
+        core = self.core
+        core_rst = Signal()
+        m.submodules.core = ResetInserter(core_rst)(core)
         held = Signal(self.i.payload.shape())
         count = Signal(10)
         cycles = Signal(10)
@@ -200,10 +204,18 @@ class AttitudeStream(wiring.Component):
                 m.d.comb += self.i.ready.eq(1)
                 with m.If(self.i.valid):
                     m.d.sync += held.eq(self.i.payload)
-                    with m.If(self.i.payload.load):
+                    with m.If(self.i.payload.reset):
+                        m.next = "RESET"
+                    with m.Elif(self.i.payload.load):
                         m.next = "LOAD"
                     with m.Else():
                         m.next = "START"
+            with m.State("RESET"):
+                m.d.comb += core_rst.eq(1)
+                with m.If(held.load):
+                    m.next = "LOAD"
+                with m.Else():
+                    m.next = "START"
             with m.State("LOAD"):
                 m.d.comb += core.in_param_en.eq(1)
                 m.next = "START"
