@@ -16,8 +16,8 @@ from amaranth.hdl import C, Cat, Module, Mux, Signal, Value
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-__all__ = ["QNAN", "Pipe", "_wire", "StreamOp", "unpack", "leading_zeros", "round_pack", "round_split",
-           "select_special", "finish_recurrence"]
+__all__ = ["QNAN", "Pipe", "StreamOp", "unpack", "leading_zeros", "round_pack",
+           "round_split", "select_special", "finish_recurrence"]
 
 QNAN = 0x7FC00000
 

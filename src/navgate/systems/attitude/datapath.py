@@ -211,7 +211,10 @@ class ScheduledDatapath(wiring.Component):
         # register banks
         banks = []
         for k, depth in enumerate(s.bank_depth):
-            mem = Memory(shape=unsigned(32), depth=max(depth, 2), init=[])
+            # distributed RAM (Yosys maps a small many-port memory to flip-flops and
+            # multiplexers otherwise, which costs about three times the LUTs)
+            mem = Memory(shape=unsigned(32), depth=max(depth, 2), init=[],
+                         attrs={"ram_style": "distributed"})
             m.submodules[f"bank{k}"] = mem
             wp = mem.write_port()
             users = self.bank_users[k]

@@ -231,14 +231,32 @@ def _build(program, sources, sinks, phases, banks, bank_depth, max_cycles, bypas
         loc[p.op.name] = p.dest
     sched._loc = loc
     sched._done = {p.op.name: (p.done, p.op.unit) for p in ops}
-    # operand sources per port: banks first, then the rest in first-use order
+    # operand sources per port, in first-use order. Multiplications and additions are
+    # commutative bit for bit (IEEE results, canonical NaN), so each one takes the operand
+    # order that adds the fewest new sources to the two port multiplexers (greedy).
     ps: dict[tuple[str, str], list] = {}
+
+    def key(a, cycle):
+        src = sched.read_source(a, cycle)
+        return src[:2] if src[0] == "bank" else src
+
+    final = []
     for p in ops:
-        for port, a in zip(PORTS[p.op.unit], p.op.args, strict=False):
-            lst = ps.setdefault((p.op.unit, port), [("bank", k) for k in range(banks)])
-            src = sched.read_source(a, p.cycle)
-            src = src[:2] if src[0] == "bank" else src
-            if src not in lst:
-                lst.append(src)
+        u = p.op.unit
+        args = p.op.args
+        if p.op.kind in ("mul", "add") and args[0] != args[1]:
+            la, lb = ps.get((u, "a"), []), ps.get((u, "b"), [])
+            k0, k1 = key(args[0], p.cycle), key(args[1], p.cycle)
+            keep = (k0 not in la) + (k1 not in lb)
+            swap = (k1 not in la) + (k0 not in lb)
+            if swap < keep:
+                p = Placed(Op(p.op.name, p.op.kind, (args[1], args[0]), p.op.module),
+                           p.cycle, p.done, p.dest)
+        for port, a in zip(PORTS[u], p.op.args, strict=False):
+            lst = ps.setdefault((u, port), [])
+            if key(a, p.cycle) not in lst:
+                lst.append(key(a, p.cycle))
+        final.append(p)
+    sched.ops = final
     sched.port_sources = ps
     return sched

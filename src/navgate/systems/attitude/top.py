@@ -286,7 +286,7 @@ class ModuleCircuit(wiring.Component):
         m = Module()
         m.submodules.dp = dp = ScheduledDatapath(self.schedule)
         regs = {v: Signal(32, name=f"r_{v}") for v in self.ins}
-        for v, r in self.sinks.items():
+        for r in self.sinks.values():
             regs.setdefault(r, Signal(32, name=f"r_{r}"))
         end = Signal()
         go = ~dp.busy & ~end & getattr(self, f"in_{self.module}_en")
