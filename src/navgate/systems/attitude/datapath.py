@@ -107,6 +107,8 @@ class ScheduledDatapath(wiring.Component):
             sig[f"we_{r}"] = Out(1)
             sig[f"wd_{r}"] = Out(32)
         super().__init__(sig)
+        self.LATENCY = s.length  #: program cycles from the cycle after ``start``
+        self.THROUGHPUT = 1 / (s.length + 1)
         self._build_words()
 
     # ------------------------------------------------------------------ microcode
