@@ -19,7 +19,7 @@ schedule). One :class:`ScheduledDatapath` runs one program (the whole solve for
   handed to the parent (``we_<reg>`` / ``wd_<reg>``) to be stored in its flip-flops;
 * control: a ROM of one word per program cycle (issue bits, add/sub, misc opcode, operand
   selects and bank addresses, bank write enables/addresses/sources, sink write enables),
-  read synchronously one cycle ahead. ``start`` (one cycle) begins program cycle 0 in the
+  read two cycles ahead into a register. ``start`` (one cycle) begins program cycle 0 in the
   next cycle; ``last`` is high in the final program cycle, at whose end the last results
   are written.
 """
@@ -183,18 +183,27 @@ class ScheduledDatapath(wiring.Component):
         n = s.length
         rom = Memory(shape=unsigned(self.word_bits), depth=n, init=self.words)
         m.submodules.rom = rom
-        rd = rom.read_port()  # synchronous: the word of the next cycle
-        cyc = Signal(range(n + 1))
-        with m.If(self.start & ~self.busy):
+        # synchronous read plus an output register: the word of cycle k is addressed in
+        # cycle k - 2 (the register keeps the block RAM's slow clock-to-output off the
+        # operand paths). Idle (and the last two program cycles) address word 0, so that
+        # word 0 is in the register when the program starts.
+        rd = rom.read_port()
+        word = Signal(self.word_bits)
+        m.d.sync += word.eq(rd.data)
+        cyc = Signal(range(n + 2))
+        go = self.start & ~self.busy
+        with m.If(go):
             m.d.sync += [self.busy.eq(1), cyc.eq(0)]
         with m.Elif(self.busy):
             m.d.sync += cyc.eq(cyc + 1)
             with m.If(cyc == n - 1):
                 m.d.sync += self.busy.eq(0)
         m.d.comb += [rd.en.eq(1), self.last.eq(self.busy & (cyc == n - 1))]
-        with m.If(self.busy & (cyc != n - 1)):
-            m.d.comb += rd.addr.eq(cyc + 1)
-        w = data.View(self.layout, rd.data)
+        with m.If(go & (n > 1)):
+            m.d.comb += rd.addr.eq(1)
+        with m.Elif(self.busy & (cyc + 2 < n)):
+            m.d.comb += rd.addr.eq(cyc + 2)
+        w = data.View(self.layout, word)
         act = self.busy
 
         # FSM state (phase) from the cycle counter
