@@ -54,8 +54,13 @@ def _nonneg(ctx, param, value):
 @click.option("--no-mag", is_flag=True, help="Ignore magnetometer columns (rows kept).")
 @click.option("--init", type=click.Choice(["accel", "identity"]), default="accel",
               show_default=True, help="Initial attitude (also after a time gap).")
+@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl"]), default="reference",
+              show_default=True,
+              help="mahony only: reference = float64 filter (streamed); fp32 = seed 003's "
+                   "float32 bit-true circuit model; rtl = the circuit's gateware in Verilator "
+                   "(fp32 and rtl give identical CSVs; docs/seed003-attitude-circuit.md).")
 @click.option("--quiet", is_flag=True, help="No summary table and no progress.")
-def ahrs(input_csv, method, out, kp, ki, gain, axes, gyro_unit, no_mag, init, quiet):
+def ahrs(input_csv, method, out, kp, ki, gain, axes, gyro_unit, no_mag, init, engine, quiet):
     """Estimate attitude from an IMU log (CSV), streamed in blocks (bounded memory)."""
     from rich.progress import BarColumn, DownloadColumn, Progress, TextColumn
 
@@ -70,6 +75,10 @@ def ahrs(input_csv, method, out, kp, ki, gain, axes, gyro_unit, no_mag, init, qu
     if method == "complementary" and gain > 1:
         raise CliError(f"--gain must be between 0 and 1, got {gain:g}")
     table_console, console = consoles(quiet)
+    if engine != "reference":
+        _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no_mag,
+                         table_console, console)
+        return
     start = time.perf_counter()
     try:
         reader = ImuLogReader(input_csv, use_mag=not no_mag, gyro_unit=gyro_unit)
@@ -144,6 +153,66 @@ def ahrs(input_csv, method, out, kp, ki, gain, axes, gyro_unit, no_mag, init, qu
     table_console.print(table)
     if out is not None:
         console.print(f"wrote {n} rows to {out}", highlight=False)
+
+
+def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no_mag,
+                     table_console, console):
+    """``--engine fp32|rtl``: seed 003's circuit (bit-true model or gateware) over the whole
+    log (read at once: the circuit engines run the log as one batch)."""
+    from navgate.sim.imu_log import LogError, read_imu_csv
+    from navgate.systems.attitude.circuit_engine import run_circuit
+
+    if method != "mahony":
+        raise CliError(f"--engine {engine} runs seed 003's Mahony circuit; use --filter mahony")
+    if no_mag:
+        raise CliError(f"--engine {engine}: the circuit always uses the magnetometer "
+                       f"(drop --no-mag)")
+    start = time.perf_counter()
+    try:
+        log = read_imu_csv(input_csv, gyro_unit=gyro_unit)
+    except LogError as error:
+        raise CliError(str(error)) from None
+    if len(log) < 2:
+        raise CliError(f"{input_csv}: need at least two samples")
+    if engine == "fp32":
+        console.print(f"running the float32 model over {len(log)} samples "
+                      f"(about 50 ms a sample)")
+    try:
+        circuit = run_circuit(log, engine, axes=axes, kp=kp, ki=ki)
+    except ValueError as error:
+        raise CliError(str(error)) from None
+    except RuntimeError as error:  # a Verilator build or run failure
+        raise CliError(f"--engine rtl: {str(error).splitlines()[0]}") from None
+    res = circuit.result
+    if out is not None:
+        with atomic_output_file(out, inputs=[input_csv]) as tmp:
+            with open(tmp, "w") as fh:
+                fh.write(HEADER + "\n")
+                np.savetxt(fh, np.column_stack([res.t, res.q, res.roll_deg, res.pitch_deg,
+                                                res.yaw_deg]), delimiter=",", fmt=FMT)
+    elapsed = time.perf_counter() - start
+    table = Table(title=f"navgate ahrs: seed 003 circuit ({engine}) on {input_csv}")
+    table.add_column("item")
+    table.add_column("value", justify="right")
+    table.add_row("samples", f"{len(res.t)}")
+    table.add_row("skipped rows", f"{log.skipped_rows}")
+    table.add_row("duration", f"{res.t[-1] - res.t[0]:.2f} s")
+    table.add_row("header style / axes", f"{log.style} / {res.axes}")
+    table.add_row("final roll / pitch / yaw",
+                  f"{res.roll_deg[-1]:.2f} / {res.pitch_deg[-1]:.2f} / {res.yaw_deg[-1]:.2f} deg")
+    table.add_row("engine", f"{engine} (seed 003 circuit, T = {circuit.params.dt:.6g} s, "
+                            f"starts from reset)")
+    table.add_row("flagged samples (invalid / atan saturated)",
+                  f"{circuit.invalid} / {circuit.saturated}")
+    if engine == "rtl":
+        table.add_row("simulated cycles", f"{circuit.cycles}")
+        table.add_row("Verilator build", f"{circuit.build_seconds:.1f} s")
+    table.add_row("engine time / samples per s",
+                  f"{circuit.seconds:.2f} s / {len(res.t) / max(circuit.seconds, 1e-9):.0f}")
+    table.add_row("wall time", f"{elapsed:.2f} s")
+    table_console.print(table)
+    if out is not None:
+        console.print(f"wrote {len(res.t)} rows to {out}", highlight=False)
 
 
 HEADER = "t,qw,qx,qy,qz,roll_deg,pitch_deg,yaw_deg"

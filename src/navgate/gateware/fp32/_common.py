@@ -16,8 +16,8 @@ from amaranth.hdl import C, Cat, Module, Mux, Signal, Value
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-__all__ = ["QNAN", "Pipe", "StreamOp", "unpack", "leading_zeros", "round_pack", "round_split",
-           "select_special", "finish_recurrence"]
+__all__ = ["QNAN", "Pipe", "StreamOp", "unpack", "leading_zeros", "round_pack",
+           "round_split", "select_special", "finish_recurrence"]
 
 QNAN = 0x7FC00000
 
@@ -63,6 +63,19 @@ class Pipe:
         with m.If(self.en):
             m.d.sync += valid.eq(Cat(self.i.valid, valid[:-1]))
             m.d.sync += self._stmts
+
+
+def _wire(m: Module):
+    """A stand-in for :meth:`Pipe.reg` that registers nothing (a named wire): the cores'
+    ``steps_per_stage`` option chains several steps between two pipeline registers."""
+
+    def wire(value, name=None, shape=None, reset=False):
+        value = Value.cast(value) if shape is None else value
+        sig = Signal(Value.cast(value).shape() if shape is None else shape, name=name)
+        m.d.comb += sig.eq(value)
+        return sig
+
+    return wire
 
 
 class Unpacked:

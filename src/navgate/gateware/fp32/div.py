@@ -13,13 +13,17 @@ The final remainder is non-zero exactly when the discarded tail of the
 quotient is, which gives the sticky bit for round-to-nearest-even.
 
 Latency 30 cycles (1 unpack + 1 pre-normalise + 25 recurrence + 1 sticky + 2
-round), one result per cycle.
+round), one result per cycle. ``steps_per_stage = s > 1`` chains ``s`` recurrence steps
+between registers (latency ``5 + ceil(25 / s)``; the same arithmetic, a longer path per
+stage): seed 003's attitude circuit uses ``s = 2`` to shorten its dependency chain.
 """
+
+import math
 
 from amaranth.hdl import Cat, Module, Signal, signed, unsigned
 from amaranth.lib import data
 
-from ._common import Pipe, StreamOp, finish_recurrence, unpack
+from ._common import Pipe, StreamOp, _wire, finish_recurrence, unpack
 
 __all__ = ["Fp32Div"]
 
@@ -32,6 +36,15 @@ class Fp32Div(StreamOp):
     THROUGHPUT = 1.0
     IN_LAYOUT = data.StructLayout({"a": unsigned(32), "b": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
+
+    def __init__(self, steps_per_stage: int = 1):
+        if not isinstance(steps_per_stage, int) or not 1 <= steps_per_stage <= 25:
+            self._MustUse__silence = True
+            raise ValueError(f"steps_per_stage must be in [1, 25], got {steps_per_stage!r}")
+        self.steps_per_stage = steps_per_stage
+        if steps_per_stage != 1:
+            self.LATENCY = 5 + math.ceil(self.QUOTIENT_BITS / steps_per_stage)
+        super().__init__()
 
     def elaborate(self, platform):
         m = Module()
@@ -64,6 +77,8 @@ class Fp32Div(StreamOp):
         # ---- stages 3..27: one quotient bit per stage --------------------------------
         q = None
         for k in range(self.QUOTIENT_BITS):
+            keep = k == self.QUOTIENT_BITS - 1 or (k + 1) % self.steps_per_stage == 0
+            reg = p.reg if keep else _wire(m)
             diff = Signal(26, name=f"q{k}_diff")
             m.d.comb += diff.eq(r - d)
             bit = ~diff[25]  # r >= d
@@ -72,13 +87,13 @@ class Fp32Div(StreamOp):
                 m.d.comb += nxt.eq(diff[0:24] << 1)
             with m.Else():
                 m.d.comb += nxt.eq(r[0:24] << 1)
-            q = p.reg(bit if q is None else Cat(bit, q), f"q{k}_q")
-            r = p.reg(nxt, f"q{k}_r", unsigned(25))
+            q = reg(bit if q is None else Cat(bit, q), f"q{k}_q")
+            r = reg(nxt, f"q{k}_r", unsigned(25))
             if k != self.QUOTIENT_BITS - 1:
-                d = p.reg(d, f"q{k}_d")
-            e = p.reg(e - s1_shift if k == 0 else e, f"q{k}_exp", signed(10), reset=True)
-            s = p.reg(s, f"q{k}_sign", reset=True)
-            kind = p.reg(kind, f"q{k}_kind", reset=True)
+                d = reg(d, f"q{k}_d")
+            e = reg(e - s1_shift if k == 0 else e, f"q{k}_exp", signed(10), reset=True)
+            s = reg(s, f"q{k}_sign", reset=True)
+            kind = reg(kind, f"q{k}_kind", reset=True)
 
         # ---- sticky stage, round, range check, pack (q[24] == 1: quotient in [1, 2)) -----
         finish_recurrence(m, p, q, r, e, s, kind, self.o.payload.r)

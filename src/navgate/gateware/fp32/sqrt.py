@@ -15,13 +15,16 @@ remainder is non-zero exactly when the root has a non-zero tail, giving the
 sticky bit for round-to-nearest-even.
 
 Latency 29 cycles (1 unpack + 25 recurrence + 1 sticky + 2 round), one result
-per cycle.
+per cycle. ``steps_per_stage = s > 1`` chains ``s`` recurrence steps between registers
+(latency ``4 + ceil(25 / s)``), as :class:`~navgate.gateware.fp32.div.Fp32Div`.
 """
+
+import math
 
 from amaranth.hdl import C, Cat, Module, Signal, signed, unsigned
 from amaranth.lib import data
 
-from ._common import Pipe, StreamOp, finish_recurrence, unpack
+from ._common import Pipe, StreamOp, _wire, finish_recurrence, unpack
 
 __all__ = ["Fp32Sqrt"]
 
@@ -34,6 +37,15 @@ class Fp32Sqrt(StreamOp):
     THROUGHPUT = 1.0
     IN_LAYOUT = data.StructLayout({"a": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
+
+    def __init__(self, steps_per_stage: int = 1):
+        if not isinstance(steps_per_stage, int) or not 1 <= steps_per_stage <= 25:
+            self._MustUse__silence = True
+            raise ValueError(f"steps_per_stage must be in [1, 25], got {steps_per_stage!r}")
+        self.steps_per_stage = steps_per_stage
+        if steps_per_stage != 1:
+            self.LATENCY = 4 + math.ceil(self.ROOT_BITS / steps_per_stage)
+        super().__init__()
 
     def elaborate(self, platform):
         m = Module()
@@ -61,6 +73,8 @@ class Fp32Sqrt(StreamOp):
 
         # ---- stages 2..26: one root bit per stage -----------------------------------------
         for k in range(self.ROOT_BITS):
+            keep = k == self.ROOT_BITS - 1 or (k + 1) % self.steps_per_stage == 0
+            reg = p.reg if keep else _wire(m)
             if len(rest) >= 2:
                 pair = rest[-2:]
                 rest_next = rest[:-2]
@@ -80,15 +94,15 @@ class Fp32Sqrt(StreamOp):
                 m.d.comb += nrem.eq(diff)
             with m.Else():
                 m.d.comb += nrem.eq(rem2)
-            root = p.reg(Cat(bit, root) if k else bit, f"r{k}_root")
-            rem = p.reg(nrem, f"r{k}_remr")
+            root = reg(Cat(bit, root) if k else bit, f"r{k}_root")
+            rem = reg(nrem, f"r{k}_remr")
             if rest_next is not None and len(rest_next):
-                rest = p.reg(rest_next, f"r{k}_rest")
+                rest = reg(rest_next, f"r{k}_rest")
             else:
                 rest = C(0, 0)
-            e = p.reg(e, f"r{k}_exp", reset=True)
-            s = p.reg(s, f"r{k}_sign", reset=True)
-            kind = p.reg(kind, f"r{k}_kind", reset=True)
+            e = reg(e, f"r{k}_exp", reset=True)
+            s = reg(s, f"r{k}_sign", reset=True)
+            kind = reg(kind, f"r{k}_kind", reset=True)
 
         # ---- sticky stage, round (a root never overflows or underflows), pack ------------
         finish_recurrence(m, p, root, rem, e, s, kind, self.o.payload.r)
