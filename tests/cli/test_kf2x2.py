@@ -26,7 +26,7 @@ def test_model_run_writes_summary_plot_and_csv(tmp_path, capsys):
     s = json.loads((out / "summary.json").read_text())
     assert s["frames"] == 1200 and s["cycles_per_frame"] == 34
     assert s["n"] == 20 and s["frac"] == 10 and s["engine"] == "model"
-    assert s["mismatches_vs_bit_true"] is None
+    assert "mismatches_vs_bit_true" not in s  # not applicable: absent, never null
     for i in (0, 1):
         # the estimate beats the raw measurement, fixed point close to float64
         assert s["rms_error_fixed"][i] < 0.5 * s["rms_error_measurement"][i]

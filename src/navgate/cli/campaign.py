@@ -12,7 +12,16 @@ import math
 
 import click
 
-from navgate.cli.common import CliError, prepare_out_dir, write_summary
+from navgate.cli.common import (
+    CliError,
+    atomic_output_dir,
+    check_out_dir,
+    consoles,
+    default_out_dir,
+    non_finite_keys,
+    out_option,
+    write_summary,
+)
 
 
 @click.command()
@@ -32,10 +41,9 @@ from navgate.cli.common import CliError, prepare_out_dir, write_summary
 @click.option("--scheduler", default=None,
               help="Address of an existing Dask scheduler (tcp://host:8786) instead of a "
                    "LocalCluster; its workers must have navgate installed.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="navgate-campaign",
-              show_default=True, help="Output directory.")
-@click.option("--quiet", is_flag=True, help="No progress bar.")
-def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out_dir, quiet):
+@out_option(default_out_dir("campaign"), "Output directory (written atomically).")
+@click.option("--quiet", is_flag=True, help="No progress bar and no table.")
+def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quiet):
     """Monte Carlo campaign of GPS-denied flights: seeds x DEMs x TRN options, on Dask."""
     from rich.console import Console
     from rich.progress import (
@@ -78,8 +86,8 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out_dir, 
         except (DemError, RouteError) as error:
             raise CliError(str(error)) from None
     spec = camp.Campaign.build(seed_list, dems, trns, rangers, duration_s=duration)
-    out = prepare_out_dir(out_dir)
-    console = Console(stderr=True, quiet=quiet)
+    check_out_dir(out)
+    table_console, console = consoles(quiet)
     n_runs = len(spec.tasks())
     console.print(f"[bold]navgate campaign[/]: {len(seed_list)} seeds x "
                   f"{len(spec.configurations)} configurations = {n_runs} runs of {duration:g} s, "
@@ -110,10 +118,16 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out_dir, 
         except OSError as error:
             raise CliError(f"cannot reach the Dask scheduler {scheduler}: {error}") from None
     summary = result.summary()
-    files = camp.write_report(result, out)
-    path = write_summary(out, summary)
-    _print_table(Console(width=max(console.width, 200)), summary)
-    click.echo(f"wrote {path} and {', '.join(p.name for p in files.values())} in {out}")
+    with atomic_output_dir(out, inputs=[d for d in dems if d != "default"]) as stage:
+        files = camp.write_report(result, stage)
+        write_summary(stage, summary)
+    if not quiet:
+        _print_table(Console(width=max(table_console.width, 200)), summary)
+    console.print(f"wrote summary.json and {', '.join(p.name for p in files.values())} in "
+                  f"{out}", highlight=False)
+    bad = non_finite_keys(summary)
+    if bad:
+        raise CliError(f"the campaign produced non-finite results ({', '.join(bad[:4])})")
 
 
 def _fmt(v, spec=".1f"):

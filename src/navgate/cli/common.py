@@ -276,11 +276,17 @@ def prepare_out_dir(path: str | Path) -> Path:
 
 
 def _json_ready(value: Any) -> Any:
-    """Convert NumPy scalars/arrays and non-finite floats into plain JSON values."""
+    """Convert NumPy scalars/arrays and non-finite floats into plain JSON values.
+
+    A dictionary entry whose value is ``None`` (not applicable to this run, such as the NIS
+    of a run without TRN fixes) is left out: a summary never holds ``null`` for "does not
+    apply"; the key is absent (docs/conventions.md). Non-finite floats become ``null`` so
+    the file stays valid JSON, and the commands then fail (:func:`non_finite_keys`).
+    """
     if hasattr(value, "tolist"):
         value = value.tolist()
     if isinstance(value, dict):
-        return {str(k): _json_ready(v) for k, v in value.items()}
+        return {str(k): _json_ready(v) for k, v in value.items() if v is not None}
     if isinstance(value, (list, tuple)):
         return [_json_ready(v) for v in value]
     if isinstance(value, float) and not math.isfinite(value):
