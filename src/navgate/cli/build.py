@@ -1,9 +1,11 @@
 """``navgate build`` and ``navgate report``: Verilog, block descriptions and resource figures.
 
-``navgate build BLOCK [--target xc7z020] [--out DIR] [--timing]`` writes ``DIR/BLOCK.v``,
-``DIR/BLOCK.json`` and ``DIR/BLOCK.utilization.json``; ``navgate build --list`` names the blocks.
-``navgate report [--timing] [--out FILE]`` synthesises every block and prints one markdown
-table. The flow itself lives in :mod:`navgate.hw.flow`.
+``navgate build BLOCK [--target xc7z020] [--out DIR] [--timing] [--keep-work]`` writes
+``DIR/BLOCK.v``, ``DIR/BLOCK.json`` and ``DIR/BLOCK.utilization.json``, with ``--timing`` also
+``DIR/BLOCK.timing.json`` (xc7 logic-only path, ECP5 and Nexus routed proxy Fmax); Yosys and
+nextpnr work files stay in ``DIR/work/BLOCK`` only with ``--keep-work``. ``navgate build
+--list`` names the blocks. ``navgate report [--timing] [--out FILE]`` synthesises every block
+and prints one markdown table. The flow itself lives in :mod:`navgate.hw.flow`.
 """
 
 from __future__ import annotations
@@ -40,7 +42,18 @@ def _progress(console: Console) -> Progress:
     )
 
 
-def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Progress, task):
+def _parse_seeds(text: str) -> tuple[int, ...]:
+    try:
+        seeds = tuple(int(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise CliError(f"--ecp5-seeds must be comma-separated integers, got {text!r}") from None
+    if not seeds or any(seed < 0 for seed in seeds):
+        raise CliError(f"--ecp5-seeds must name at least one non-negative seed, got {text!r}")
+    return seeds
+
+
+def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Progress, task,
+               keep_work: bool = False, ecp5_seeds: tuple[int, ...] = (1,)):
     from navgate.hw.flow import build_block
     from navgate.hw.synth import SynthesisError
 
@@ -48,7 +61,8 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
         progress.update(task, description=message)
 
     try:
-        return build_block(name, out_dir, target=target, timing=timing, progress=say)
+        return build_block(name, out_dir, target=target, timing=timing, progress=say,
+                           keep_work=keep_work, ecp5_seeds=ecp5_seeds)
     except SynthesisError as error:
         raise CliError(str(error)) from None
     except OSError as error:
@@ -59,9 +73,14 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
 @click.argument("block", required=False)
 @click.option("--target", default=DEFAULT_TARGET, show_default=True, help="synthesis target")
 @click.option("--out", "out", default="build/hw", show_default=True, help="output directory")
-@click.option("--timing", is_flag=True, help="also place and route for the ECP5 Fmax proxy")
+@click.option("--timing", is_flag=True,
+              help="also time it: xc7 logic-only path (yosys sta), ECP5 and Nexus routed proxies")
+@click.option("--ecp5-seeds", default="1", show_default=True,
+              help="nextpnr-ecp5 placer seeds for --timing (comma-separated; Fmax is the mean)")
+@click.option("--keep-work", is_flag=True, help="keep the tool work files in OUT/work/BLOCK")
 @click.option("--list", "list_", is_flag=True, help="list the blocks and exit")
-def build(block: str | None, target: str, out: str, timing: bool, list_: bool) -> None:
+def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: str,
+          keep_work: bool, list_: bool) -> None:
     """Emit Verilog for BLOCK, describe it and synthesise it for resource figures."""
     from navgate.hw.blocks import all_blocks
 
@@ -76,6 +95,7 @@ def build(block: str | None, target: str, out: str, timing: bool, list_: bool) -
     if block not in blocks:
         raise CliError(f"unknown block {block!r}; known blocks: {', '.join(blocks)}")
     _check_target(target)
+    seeds = _parse_seeds(ecp5_seeds)
     out_dir = prepare_out_dir(out)
     if not os.access(out_dir, os.W_OK):
         raise CliError(f"output directory {out_dir} is not writable")
@@ -83,18 +103,40 @@ def build(block: str | None, target: str, out: str, timing: bool, list_: bool) -
     console.print(f"[dim]{_yowasp_note()}[/dim]")
     with _progress(console) as progress:
         task = progress.add_task(block, total=1)
-        built = _run_build(block, out_dir, target, timing, progress, task)
+        built = _run_build(block, out_dir, target, timing, progress, task, keep_work, seeds)
         progress.advance(task)
     use = built["utilization"]
-    fmax = use.get("timing", {}).get("fmax_mhz")
     click.echo(
         f"{block}: LUT {use['lut']}, FF {use['ff']}, DSP {use['dsp']}, CARRY4 {use['carry4']}, "
         f"BRAM36 {use['bram36']}, latency {built['latency_cycles']}, "
         f"throughput {built['throughput']}/cycle"
-        + (f", Fmax {fmax:.1f} MHz (ECP5 proxy)" if fmax is not None else "")
     )
-    for suffix in (".v", ".json", ".utilization.json"):
+    suffixes = [".v", ".json", ".utilization.json"]
+    if "timing" in built:
+        for line in _timing_lines(built["timing"]):
+            click.echo(line)
+        suffixes.append(".timing.json")
+    for suffix in suffixes:
         click.echo(f"wrote {out_dir / (block + suffix)}")
+    if keep_work:
+        click.echo(f"kept tool work files in {out_dir / 'work' / block}")
+
+
+def _timing_lines(timing: dict) -> list[str]:
+    def fmt(value, unit, digits):
+        return "-" if value is None else f"{value:.{digits}f} {unit}"
+
+    seeds = timing.get("ecp5_fmax_by_seed") or {}
+    seed_note = f" (mean of seeds {', '.join(seeds)})" if len(seeds) > 1 else ""
+    return [
+        f"  xc7 logic-only critical path (yosys sta, no routing): "
+        f"{fmt(timing['xc7_logic_path_ns'], 'ns', 3)}",
+        f"    from {timing['xc7_logic_path_start']}",
+        f"    to   {timing['xc7_logic_path_end']}",
+        f"  ECP5 routed proxy Fmax (nextpnr-ecp5): "
+        f"{fmt(timing['ecp5_fmax_mhz'], 'MHz', 1)}{seed_note}",
+        f"  Nexus routed proxy Fmax (nextpnr-nexus): {fmt(timing['nexus_fmax_mhz'], 'MHz', 1)}",
+    ]
 
 
 def _yowasp_note() -> str:
@@ -106,10 +148,10 @@ def _yowasp_note() -> str:
 def report_markdown(timing: bool, target: str, console: Console) -> str:
     """Build every block in a scratch directory and return the markdown table."""
     from navgate.hw.blocks import all_blocks
-    from navgate.hw.flow import report_row, report_table
+    from navgate.hw.flow import path_line, report_row, report_table
 
     blocks = list(all_blocks())
-    rows = []
+    rows, paths = [], []
     console.print(f"[dim]{_yowasp_note()}[/dim]")
     with tempfile.TemporaryDirectory(prefix="navgate-report-") as scratch:
         with _progress(console) as progress:
@@ -117,13 +159,18 @@ def report_markdown(timing: bool, target: str, console: Console) -> str:
             for name in blocks:
                 out_dir = Path(scratch) / name
                 out_dir.mkdir()
-                rows.append(report_row(_run_build(name, out_dir, target, timing, progress, task)))
+                built = _run_build(name, out_dir, target, timing, progress, task)
+                rows.append(report_row(built))
+                line = path_line(built)
+                if line:
+                    paths.append(line)
                 progress.advance(task)
-    return report_table(rows)
+    return report_table(rows, paths)
 
 
 @click.command()
-@click.option("--timing", is_flag=True, help="add the ECP5 proxy Fmax column (place and route)")
+@click.option("--timing", is_flag=True,
+              help="add the xc7 logic-only path and the ECP5 / Nexus routed proxy Fmax columns")
 @click.option("--target", default=DEFAULT_TARGET, show_default=True, help="synthesis target")
 @click.option("--out", "out", default=None, help="also write the table to this file")
 def report(timing: bool, target: str, out: str | None) -> None:
