@@ -257,7 +257,7 @@ XC7_STA_LABEL = (
 
 _STA_HEAD = re.compile(r"^Latest arrival time in '([^']+)' is (\d+):\s*$")
 _STA_CELL = re.compile(r"^\s+(\d+)\s+(\S+)\s+\(([A-Za-z0-9_$]+)\.([^)]*)\)\s*$")
-_STA_INPUT = re.compile(r"^\s+(\d+)\s+(\S+)\s+\(<primary input>\)\s*$")
+_STA_INPUT = re.compile(r"^\s+(\d+)\s+(.+?)\s+\(<primary input>\)\s*$")
 _STA_OUTPUT = re.compile(r"^\s+(\d+)\s+\(<primary output>\)\s*$")
 _STA_NET = re.compile(r"^\s+(\\?\S+(?: \[\d+\])?)\s*$")
 _INSTANCE = re.compile(
@@ -334,7 +334,7 @@ def parse_sta_log(log_text: str, ff_q: dict[str, str] | None = None) -> dict[str
     steps.reverse()  # source first
     end = steps[-1]
     first = steps[0]
-    if source_input == "clk" and "CLK" in first["pin"].upper().split("->")[0]:
+    if source_input == "clk":  # launched by a clocked cell: that cell is the start point
         start = _point(first["cell"], first["type"], first["pin"], ff_q)
     elif source_input is not None:
         start = f"input port {source_input}"
