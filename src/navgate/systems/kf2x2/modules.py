@@ -93,7 +93,8 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
     mul_a, mul_b, mul_r, mul_f = {}, {}, {}, {}
     for k in mul_ids:
         wide = has_div and k == DIV_MUL_UNIT
-        w = n + 3 if wide else n
+        # the divider's operands are unsigned and below 2**(F+1) (F = n): signed n+2 bits
+        w = n + 2 if wide else n
         a = Signal(signed(w), name=f"{prefix}mul{k}_a", reset_less=True)
         b = Signal(signed(w), name=f"{prefix}mul{k}_b", reset_less=True)
         p = Signal(signed(2 * w), name=f"{prefix}mul{k}_p", reset_less=True)

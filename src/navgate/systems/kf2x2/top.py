@@ -18,7 +18,7 @@ Flags: ``div_zero`` (det(S) was 0: 1/det saturated) and ``div_overflow`` are val
 the next frame's.
 
 Resources: 4 multipliers (multiplier 3 also serves the Goldschmidt divider, so it is
-(N+3) x (N+3) bits), 6 adder/subtractors, one divider sequencer, operand registers per unit
+(N+2) x (N+2) bits), 6 adder/subtractors, one divider sequencer, operand registers per unit
 and a register for every intermediate value that is read after its ready cycle.
 ``LATENCY = 34``, ``THROUGHPUT = 1/34``.
 """

@@ -114,8 +114,11 @@ class GoldschmidtSerial(wiring.Component):
 
     ``start`` is high for one cycle with ``d`` valid (``d`` is registered then). The shared
     multiplier registers its operands when ``mul_load`` is high (``mul_a``, ``mul_b``:
-    unsigned F+2 bits, zero otherwise) and its raw product one cycle later; ``mul_p`` is
-    that product's ``>> F``, available two cycles after the load. Plan (s = cycles after
+    unsigned F+1 bits, zero otherwise: every operand is below 2**(F+1), since Dn < 1,
+    x0 = 2 / (lo + hi) < 2, every G = 2 - D is within the seed error of 1 and every
+    intermediate N = x0 G1 G2 ... < 2, e.g. N1 = x0 (2 - x0 Dn) <= 1 / Dn <= 2 with
+    equality only at x0 = 2) and its raw product one cycle later; ``mul_p`` is that
+    product's ``>> F``, available two cycles after the load. Plan (s = cycles after
     the start, :func:`divider_plan`): s1 sign, |d|, leading one, normalised D; s2 seed
     x0 = ROM[D bits] (N = x0) and load D x0; k = 1: s4 load N x (2 - D) with ``2 - D``
     computed from the product straight into the operand register; k > 1: D and the
@@ -136,7 +139,8 @@ class GoldschmidtSerial(wiring.Component):
             "start": In(1), "d": In(signed(n)),
             "q": Out(signed(n)), "q_next": Out(signed(n)),
             "div_zero": Out(1), "overflow": Out(1),
-            "mul_a": Out(unsigned(rw)), "mul_b": Out(unsigned(rw)), "mul_load": Out(1),
+            "mul_a": Out(unsigned(self.F + 1)), "mul_b": Out(unsigned(self.F + 1)),
+            "mul_load": Out(1),
             "mul_p": In(unsigned(rw)),
         })
 
