@@ -94,10 +94,12 @@ def divider_mul_offsets(params: KfParams) -> list[int]:
 
 
 def divider_latency(params: KfParams) -> int:
-    """Cycles from the divider's issue to its result being forwarded: the last multiply's
-    product is ready 2 cycles after its load, then one cycle of denormalising shift and
-    rounding and one of saturation and sign (forwarded in that cycle)."""
-    return divider_mul_offsets(params)[-1] + 3
+    """Cycles from the divider's issue to its result being forwarded (from its ``q``
+    register): the last multiply's product is ready 2 cycles after its load, then one cycle
+    of denormalising shift and rounding, one of saturation and sign into ``q``."""
+    from navgate.systems.kf2x2.units import divider_plan
+
+    return divider_plan(params.div_iterations)[1]
 
 
 @dataclass(frozen=True)

@@ -202,24 +202,34 @@ class GoldschmidtSerial(wiring.Component):
         m.d.comb += [self.mul_a.eq(acc_a), self.mul_b.eq(acc_b),
                      self.mul_load.eq(ctl.at(self.offsets))]
         # L-1: denormalising shift and rounding of the last product (as
-        # navgate.gateware.goldschmidt)
+        # navgate.gateware.goldschmidt); the result is registered with what saturation and
+        # sign need (its negation, its top bit, whether the bits below are non-zero), so
+        # that the forwarded result is a few LUTs behind registers
         n_last = self.mul_p
         q_low = Signal(unsigned(w))
+        q_neg = Signal(unsigned(w))
         big = Signal()
+        top = Signal()
+        rest = Signal()
         left_amt = Signal(range(w + 1))
         right_m1 = Signal(range(max(2, F + w + 3)))
         m.d.comb += [left_amt.eq(Mux(sh[-1], 0, sh)), right_m1.eq(Mux(sh[-1], -sh - 1, 0))]
         left = n_last << left_amt
         right = ((n_last >> right_m1) + 1) >> 1
-        shifted = Mux(sh[-1], right, left)
+        shifted = Signal(unsigned(F + w + 3))
+        m.d.comb += shifted.eq(Mux(sh[-1], right, left))
         with m.If(ctl.at({L - 1})):
-            m.d.sync += [q_low.eq(shifted[:w]), big.eq(shifted[w:].any())]
-        # L: saturation, sign, divide-by-zero override (forwarded as q_next)
-        limit = Mux(neg, 1 << (w - 1), (1 << (w - 1)) - 1)
-        over = big | (q_low > limit)
-        q_mag = Mux(over, limit, q_low)
-        value = Mux(neg, -q_mag, q_mag)
-        m.d.comb += self.q_next.eq(Mux(zero, (1 << (w - 1)) - 1, value))
+            m.d.sync += [q_low.eq(shifted[:w]), q_neg.eq(-shifted[:w]),
+                         big.eq(shifted[w:].any()), top.eq(shifted[w - 1]),
+                         rest.eq(shifted[:w - 1].any())]
+        # L: saturation, sign, divide-by-zero override (forwarded as q_next).
+        # q_low > limit, limit = 2**(w-1) - 1 (positive) or 2**(w-1) (negative)
+        over = big | (top & (~neg | rest))
+        max_pos = (1 << (w - 1)) - 1
+        min_neg = 1 << (w - 1)  # -2**(w-1) as a w-bit pattern
+        value = Signal(unsigned(w))
+        m.d.comb += value.eq(Mux(over, Mux(neg, min_neg, max_pos), Mux(neg, q_neg, q_low)))
+        m.d.comb += self.q_next.eq(Mux(zero, max_pos, value.as_signed()))
         with m.If(ctl.at({L})):
             m.d.sync += [self.q.eq(self.q_next), self.overflow.eq(over & ~zero),
                          self.div_zero.eq(zero)]
