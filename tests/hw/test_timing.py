@@ -233,3 +233,37 @@ def test_build_block_keep_work(tmp_path):
     assert (tmp_path / "work" / "mul_24x17" / "xc7z020" / "netlist_xc7.v").is_file()
     with pytest.raises(KeyError, match="unknown timing model"):
         build_block("mul_24x17", tmp_path, timing=True, models=("vivado",))
+
+
+def test_nexus_retries_the_next_seed_when_routing_fails(tmp_path, monkeypatch):
+    """A 'Failed to route' from nextpnr-nexus moves to the next placer seed (reported);
+    any other failure, or the last seed failing, is an error."""
+    from navgate.hw import synth
+
+    def fake_yosys(script, cwd, log_name="yosys.log"):
+        wrapper = script.split("-top ")[1].split()[0]
+        (cwd / f"{wrapper}.json").write_text(json.dumps({"modules": {wrapper: {"cells": {}}}}))
+
+    seeds = []
+
+    def fake_tool(module, function, argv, cwd, log):
+        seed = int(argv[argv.index("--seed") + 1])
+        seeds.append(seed)
+        if seed == 1:
+            raise synth.SynthesisError("nextpnr-nexus failed (exit 125): ERROR: Failed to "
+                                       "route arc 0.0 of net 'clk'")
+        (cwd / "nextpnr_nexus_report.json").write_text(
+            json.dumps({"fmax": {"clk$glb_clk": {"achieved": 123.456}}}))
+
+    monkeypatch.setattr(synth, "run_yosys", fake_yosys)
+    monkeypatch.setattr(synth, "_run_tool", fake_tool)
+    text = emit_verilog(FixedMul(width=8, frac=4), "fm")
+    timing = timing_nexus(text, "fm", tmp_path)
+    assert seeds == [1, 2] and timing["fmax_mhz"] == 123.46 and "seed 2" in timing["proxy"]
+
+    def always_fails(module, function, argv, cwd, log):
+        raise synth.SynthesisError("nextpnr-nexus failed (exit 125): ERROR: Failed to route")
+
+    monkeypatch.setattr(synth, "_run_tool", always_fails)
+    with pytest.raises(synth.SynthesisError, match="Failed to route"):
+        timing_nexus(text, "fm", tmp_path / "b")

