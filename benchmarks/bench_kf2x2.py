@@ -6,7 +6,12 @@ synthesises the gateware (yosys synth_xilinx for the xc7z020: LUT, FF, DSP48E1, 
 ``--timing`` adds the ECP5 nextpnr proxy Fmax (about 7 minutes per word length).
 Prints a markdown table (docs/seed004-kf2x2.md carries its output).
 
-    python benchmarks/bench_kf2x2.py [--n 16 20 24 28] [--timing] [--frames 4000]
+    python benchmarks/bench_kf2x2.py [--n 16 20 24 28 32] [--timing] [--frames 4000]
+                                     [--no-synth]
+
+N runs up to 32: the Goldschmidt model switches to Python integers where its products
+exceed int64 (``navgate.numerics.goldschmidt.goldschmidt_normalised``). ``--no-synth`` prints
+the accuracy columns only (the synthesis of one word length takes minutes).
 """
 
 from __future__ import annotations
@@ -58,7 +63,9 @@ def accuracy(p: KfParams, frames: int, seed: int = 0) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, nargs="+", default=[16, 18, 20, 22, 24, 26, 28])
+    ap.add_argument("--n", type=int, nargs="+",
+                    default=[16, 18, 20, 22, 24, 26, 28, 30, 32])
+    ap.add_argument("--no-synth", action="store_true", help="accuracy only, no synthesis")
     ap.add_argument("--frames", type=int, default=4000)
     ap.add_argument("--timing", action="store_true")
     args = ap.parse_args()
@@ -67,11 +74,13 @@ def main() -> None:
         p = KfParams(n=n, frac=frac_for(n))
         t0 = time.perf_counter()
         acc = accuracy(p, args.frames)
-        text = emit_verilog(Kf2x2(n=n, frac=p.frac), "kf2x2")
-        with tempfile.TemporaryDirectory() as tmp:
-            use = synthesize(text, "kf2x2", "xc7z020", Path(tmp) / "xc7")
-            fmax = timing_ecp5(text, "kf2x2", Path(tmp) / "ecp5")["fmax_mhz"] \
-                if args.timing else None
+        use, fmax = {k: None for k in ("lut", "ff", "dsp", "carry4")}, None
+        if not args.no_synth:
+            text = emit_verilog(Kf2x2(n=n, frac=p.frac), "kf2x2")
+            with tempfile.TemporaryDirectory() as tmp:
+                use = synthesize(text, "kf2x2", "xc7z020", Path(tmp) / "xc7")
+                fmax = timing_ecp5(text, "kf2x2", Path(tmp) / "ecp5")["fmax_mhz"] \
+                    if args.timing else None
         rows.append((n, p.frac, acc, use, fmax, time.perf_counter() - t0))
         print(f"# N={n} done in {rows[-1][-1]:.0f} s", flush=True)
     print("| N | FRAC | RMS err fixed | RMS err float64 | RMS fixed-float64 | overflow frames "
@@ -79,8 +88,13 @@ def main() -> None:
     print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for n, frac, acc, use, fmax, _ in rows:
         print(f"| {n} | {frac} | {acc['rms_fixed']:.4f} | {acc['rms_float']:.4f} | "
-              f"{acc['rms_diff']:.2e} | {acc['overflow']} | {use['lut']} | {use['ff']} | "
-              f"{use['dsp']} | {use['carry4']} | {'-' if fmax is None else f'{fmax:.1f}'} |")
+              f"{acc['rms_diff']:.2e} | {acc['overflow']} | {_cell(use['lut'])} | "
+              f"{_cell(use['ff'])} | {_cell(use['dsp'])} | {_cell(use['carry4'])} | "
+              f"{'-' if fmax is None else f'{fmax:.1f}'} |")
+
+
+def _cell(value) -> str:
+    return "-" if value is None else str(value)
 
 
 if __name__ == "__main__":

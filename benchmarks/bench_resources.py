@@ -1,7 +1,9 @@
 """Resource, latency and Fmax table of every registered gateware block.
 
 Prints the same markdown table as ``navgate report --timing``: xc7z020 cell counts from
-Yosys ``synth_xilinx`` and the ECP5 place-and-route Fmax proxy (see docs/build-flow.md).
+Yosys ``synth_xilinx``, the xc7 logic-only critical path (Yosys ``sta``) and the ECP5 and
+Nexus place-and-route Fmax proxies, then every block's xc7 critical path (see
+docs/build-flow.md).
 
     python benchmarks/bench_resources.py [--no-timing] [--out FILE]
 """

@@ -62,6 +62,17 @@ def test_bad_option_is_one_line(tmp_path):
     assert_one_line_error(navgate("build", "fixed_mul", "--bogus"), "--bogus")
 
 
+def test_bad_ecp5_seeds(tmp_path):
+    assert_one_line_error(navgate("build", "fixed_mul", "--timing", "--ecp5-seeds", "1,x",
+                                  "--out", str(tmp_path)), "--ecp5-seeds")
+
+
+def test_list_names_the_yardsticks():
+    proc = navgate("build", "--list")
+    names = [line.split()[0] for line in proc.stdout.splitlines()]
+    assert {"mul_24x17", "mul_20x20", "mul_24x24", "kf2x2", "fp32_mul"} <= set(names)
+
+
 @pytest.fixture(scope="module")
 def built_fixed_mul(tmp_path_factory):
     out = tmp_path_factory.mktemp("build")
@@ -84,6 +95,8 @@ def test_build_writes_three_files(built_fixed_mul):
     assert (use["lut"], use["ff"], use["dsp"], use["carry4"], use["bram36"]) == (37, 81, 2, 4, 0)
     assert "timing" not in use
     assert "fixed_mul: LUT 37, FF 81, DSP 2" in proc.stdout
+    # tool work files are removed unless --keep-work
+    assert not (out / "work").exists() and not (out / "fixed_mul.timing.json").exists()
 
 
 def test_build_is_deterministic(built_fixed_mul, tmp_path):

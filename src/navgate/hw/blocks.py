@@ -52,6 +52,19 @@ REGISTRY: dict[str, tuple[str, str]] = {
         "navgate.gateware.fixed:FixedMul",
         "signed Q-format multiplier: full product, truncated/saturated result, overflow flag",
     ),
+    # timing yardsticks (navgate.gateware.yardstick): measured in every report's run
+    "mul_24x17": (
+        "navgate.gateware.yardstick:mul_24x17",
+        "yardstick: bare registered unsigned 24x17 multiply (fp32_mul's wider DSP half)",
+    ),
+    "mul_20x20": (
+        "navgate.gateware.yardstick:mul_20x20",
+        "yardstick: bare registered signed 20x20 multiply (kf2x2's Q(20, FRAC) product)",
+    ),
+    "mul_24x24": (
+        "navgate.gateware.yardstick:mul_24x24",
+        "yardstick: bare registered unsigned 24x24 multiply (whole fp32 significand product)",
+    ),
 }
 
 #: where the float32 cores keep their own registry (name -> class)

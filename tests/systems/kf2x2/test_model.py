@@ -198,3 +198,55 @@ def test_wide_reciprocal_path_equals_goldschmidt_reciprocal():
             assert q == ref[j]
             assert f["overflow"] == flags["overflow"][j]
             assert f["divide_by_zero"] == flags["divide_by_zero"][j]
+
+
+def _reciprocal_exact(d: int, p: KfParams) -> tuple[int, bool]:
+    """Independent Python-int re-statement of the divider for the N > 29 check: normalise,
+    table seed, k iterations, round half up, saturate."""
+    from navgate.numerics.goldschmidt import goldschmidt_seed_table
+
+    n, frac, F, sb = p.n, p.frac, p.n, p.div_seed_bits
+    a = abs(d)
+    e = a.bit_length() - 1
+    D = a << (F - 1 - e)
+    x0 = int(goldschmidt_seed_table(sb, F)[(D >> (F - 1 - sb)) - (1 << sb)])
+    N, Dk = ((1 << F) * x0) >> F, (D * x0) >> F
+    for _ in range(p.div_iterations):
+        G = (2 << F) - Dk
+        N, Dk = (N * G) >> F, (Dk * G) >> F
+    shift = 2 * frac - e - 1 - F
+    q = N << shift if shift >= 0 else (N + (1 << (-shift - 1))) >> (-shift)
+    limit = (1 << (n - 1)) if d < 0 else p.max_int
+    return (-min(q, limit) if d < 0 else min(q, limit)), q > limit
+
+
+@pytest.mark.parametrize("n", [30, 32])
+def test_word_lengths_up_to_32_bits_without_int64_overflow(n):
+    """N = 30 and 32 (the sweep's top end): the reciprocal runs in Python integers where
+    its 2F + 4-bit products exceed int64, equals an independent re-statement on random and
+    edge operands, is within the Goldschmidt relative bound (plus one rounding LSB) of the
+    true 1/d, and a 400-frame RLC run tracks the float64 filter."""
+    from navgate.numerics.goldschmidt import goldschmidt_error_bound
+    from navgate.systems.kf2x2.model import reciprocal
+
+    p = KfParams(n=n, frac=n - 10)
+    rel = goldschmidt_error_bound(p.div_iterations, p.div_seed_bits, p.n)
+    rng = np.random.default_rng(n)
+    ds = [int(v) for v in rng.integers(p.min_int, p.max_int + 1, 400)]
+    ds += [1, -1, p.max_int, p.min_int, 1 << p.frac, -(1 << p.frac), 3 << (p.frac - 1)]
+    for d in ds:
+        q, flags = reciprocal(d, p)
+        want, over = _reciprocal_exact(d, p)
+        assert (q, flags["overflow"]) == (want, over), d
+        if not over and abs(d) >= 1 << p.frac:  # |1/d| <= 1: no saturation, tight bound
+            exact = (1 << (2 * p.frac)) / d
+            assert abs(q - exact) <= 1 + abs(exact) * rel
+    assert reciprocal(0, p) == (p.max_int, {"divide_by_zero": True, "overflow": False})
+    sc = rlc_scenario(400, seed=3, sigma_process=0.1, sigma_meas=(1.0, 1.0))
+    st = init_state(p, Q=(0.01, 0, 0.01), R=(1.0, 0, 1.0))
+    bt = run_frames(p, st, quantize_frames(p, sc), adapt_q=False)
+    fl = run_frames_float(p, {"x": [0, 0], "P": np.eye(2), "Q": np.eye(2) * 0.01,
+                              "R": np.eye(2), "dq": [0, 0]}, sc, adapt_q=False)
+    x = np.stack([bt["x0"], bt["x1"]], axis=1) / p.scale
+    assert int(bt["overflow"].sum()) == 0
+    assert np.sqrt(np.mean((x - fl["x"]) ** 2)) < 1e-3

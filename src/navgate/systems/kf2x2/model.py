@@ -109,8 +109,8 @@ class KfParams:
     div_seed_bits: int = 8
 
     def __post_init__(self):
-        if not 8 <= self.n <= 29:
-            raise ValueError(f"n must be in [8, 29] (Goldschmidt int64 model), got {self.n}")
+        if not 8 <= self.n <= 32:
+            raise ValueError(f"n must be in [8, 32], got {self.n}")
         if not 1 <= self.frac <= self.n - 2:
             raise ValueError(f"frac must be in [1, n-2], got {self.frac}")
         for name in ("q_shift", "r_shift"):
@@ -240,7 +240,8 @@ def reciprocal(d: int, params: KfParams) -> tuple[int, dict]:
     itself. Its int64 model stops at N = 20 (it needs F + 2N + 1 <= 62), so for wider words
     the same datapath runs as: normalisation and the final rounding/saturation
     (``_finish`` of that module, round half up on the magnitude) in Python integers around
-    :func:`~navgate.numerics.goldschmidt.goldschmidt_normalised` (int64 up to F = 29).
+    :func:`~navgate.numerics.goldschmidt.goldschmidt_normalised` (int64 up to F = 29, Python
+    integers beyond, so N runs up to 32 without overflow).
     The tests check that both paths agree wherever both exist.
     """
     n, frac = params.n, params.frac

@@ -1,33 +1,53 @@
-"""The eight computation modules of seed 004's 2x2 Kalman filter, generated from the schedule.
+"""The datapath of seed 004's 2x2 Kalman filter, generated from the schedule, and the eight
+modules as views of it.
 
 Reference: seed 004's module table (prior state, prior covariance, estimated output, Kalman
 gain with the serial 2x2 inverse, posterior state, posterior covariance, Q update, R update)
-and its Gantt chart. Each module is a :class:`KfModule`: the operations of
-:func:`navgate.systems.kf2x2.model.frame_program` that belong to it, at the cycles that
-:func:`navgate.systems.kf2x2.schedule.build_schedule` gave them, relative to the module's
-``start`` pulse (its seed release cycle). A module owns one register per value it computes
-(``o_<name>``), reads the values of other modules and the frame inputs on ``i_<name>``, and
-issues its operations on the shared units through ports:
+and its Gantt chart; the re-timing of issue 15 (docs/seed004-kf2x2.md, "Timing").
 
-* ``mul<k>_a``, ``mul<k>_b`` -> multiplier k, result ``mul<k>_r`` (Q product, saturated);
-* ``alu<k>_a``, ``alu<k>_b``, ``alu<k>_op`` -> adder/subtractor k, result ``alu<k>_r``;
-* ``div_start``, ``div_d`` -> the Goldschmidt reciprocal, result ``div_q`` (Kalman gain only).
+:func:`build_datapath` turns scheduled operations (:mod:`navgate.systems.kf2x2.schedule`)
+into hardware in which every arithmetic unit works from registers only:
 
-Operand ports are zero when the module does not issue (the top ORs them). A result is
-written into its register at the end of the issue cycle. ``done`` is high in the cycle
-whose end writes the module's last result.
+* **registered one-hot control**: :class:`Control` is a shift register of phase bits (one
+  per cycle of the frame, phase 0 = the start pulse); every control word (an operand
+  select, an ALU op code, a write enable, a flag enable) is a register loaded with the OR
+  of the phase bits one cycle earlier, so no counter is decoded in the datapath;
+* **operand registers written by the producer**: each unit has operand registers (the
+  DSP48E1 A/B registers for a multiplier) loaded, in an operation's issue cycle, through an
+  AND-OR multiplexer from value registers or directly from the unit that computes the
+  operand in that cycle (forwarding);
+* **raw product registered**: a multiplier registers the full 2N-bit product (DSP48E1 M/P
+  register); truncation and saturation happen in the next cycle, on the way to the value
+  register and the consumers' operand registers;
+* **pipelined, sticky overflow flag**: each unit's saturation flag is registered (gated by
+  the cycles in which the unit delivers a scheduled result), and the frame's sticky flag
+  ORs those registers one cycle later.
+
+A module (:class:`ModulePlan`) is the subset of the frame's operations that the seed assigns
+to it; :class:`~navgate.systems.kf2x2.top.ModuleHarness` builds one module alone with
+private units, :class:`~navgate.systems.kf2x2.top.Kf2x2` builds the whole frame.
 """
 
 from __future__ import annotations
 
-from amaranth import Module, Signal, signed
-from amaranth.lib import wiring
-from amaranth.lib.wiring import In, Out
+from dataclasses import dataclass, field
 
-from navgate.systems.kf2x2.schedule import SEED_WINDOWS, Schedule
-from navgate.systems.kf2x2.units import ALU_ABSDIFF, ALU_ADD, ALU_SUB
+from amaranth import Module, Mux, Signal, signed
+from amaranth.hdl import Value
 
-__all__ = ["KfModule", "MODULE_CLASS_NAMES"]
+from navgate.systems.kf2x2.model import KfParams
+from navgate.systems.kf2x2.schedule import DIV_MUL_UNIT, Schedule, Scheduled
+from navgate.systems.kf2x2.units import (
+    ALU_ABSDIFF,
+    ALU_ADD,
+    ALU_SUB,
+    Control,
+    GoldschmidtSerial,
+    q_alu,
+    q_mul,
+)
+
+__all__ = ["Control", "Datapath", "ModulePlan", "build_datapath", "MODULE_CLASS_NAMES"]
 
 _ALU_CODE = {"add": ALU_ADD, "sub": ALU_SUB, "absdiff": ALU_ABSDIFF}
 
@@ -40,90 +60,170 @@ MODULE_CLASS_NAMES = {
 }
 
 
-class KfModule(wiring.Component):
-    """One seed-004 module as scheduled; see the module docstring for its ports."""
+@dataclass
+class Datapath:
+    """What :func:`build_datapath` built: value registers, forwarded results, flags."""
 
-    def __init__(self, schedule: Schedule, module: str):
-        self.schedule = schedule
-        self.module = module
-        self.n = n = schedule.params.n
-        self.release = SEED_WINDOWS[module][0]
-        self.ops = schedule.module_ops(module)
+    values: dict[str, Value]  # name -> value register (the divider's: its q register)
+    forwarded: dict[str, Value]  # name -> the result in its ready cycle (combinational)
+    ready: dict[str, int]  # name -> ready cycle (relative to the datapath's cycle 0)
+    flags: list[Signal]  # registered per-unit saturation flags
+    divider: GoldschmidtSerial | None = None
+    length: int = 0  # last ready cycle + 1
+
+    def final(self, name: str, cycle: int) -> Value:
+        """``name`` as seen in ``cycle`` (forwarded in its ready cycle, else its register)."""
+        if self.ready[name] > cycle:
+            raise ValueError(f"{name} is not ready in cycle {cycle}")
+        return self.forwarded[name] if self.ready[name] == cycle else self.values[name]
+
+
+def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Control,
+                   env: dict[str, Value], base: int = 0, prefix: str = "") -> Datapath:
+    """Units, operand registers, value registers and control for ``ops`` (cycles relative to
+    ``base``); operands not produced by ``ops`` come from ``env``."""
+    n, frac = params.n, params.frac
+    ready = {s.op.name: s.ready - base for s in ops}
+    has_div = any(s.unit == "div" for s in ops)
+    mul_ids = sorted({s.index for s in ops if s.unit == "mul"} | ({DIV_MUL_UNIT} if has_div
+                                                                    else set()))
+    alu_ids = sorted({s.index for s in ops if s.unit == "alu"})
+
+    # --- units -------------------------------------------------------------------------
+    mul_a, mul_b, mul_r, mul_f = {}, {}, {}, {}
+    for k in mul_ids:
+        wide = has_div and k == DIV_MUL_UNIT
+        # the divider's operands are unsigned and below 2**(F+1) (F = n): signed n+2 bits
+        w = n + 2 if wide else n
+        a = Signal(signed(w), name=f"{prefix}mul{k}_a", reset_less=True)
+        b = Signal(signed(w), name=f"{prefix}mul{k}_b", reset_less=True)
+        p = Signal(signed(2 * w), name=f"{prefix}mul{k}_p", reset_less=True)
+        m.d.sync += p.eq(a * b)
+        r, f = q_mul(p, n, frac)
+        rs = Signal(signed(n), name=f"{prefix}mul{k}_r")
+        m.d.comb += rs.eq(r)
+        mul_a[k], mul_b[k], mul_r[k], mul_f[k] = a, b, rs, f
+        if wide:
+            mul_p_wide = p
+    alu_a, alu_b, alu_op, alu_r, alu_f = {}, {}, {}, {}, {}
+    for k in alu_ids:
+        a = Signal(signed(n), name=f"{prefix}alu{k}_a", reset_less=True)
+        b = Signal(signed(n), name=f"{prefix}alu{k}_b", reset_less=True)
+        op = Signal(2, name=f"{prefix}alu{k}_op", reset_less=True)
+        r, f = q_alu(m, a, b, op, n, f"{prefix}alu{k}")
+        rs = Signal(signed(n), name=f"{prefix}alu{k}_r")
+        m.d.comb += rs.eq(r)
+        alu_a[k], alu_b[k], alu_op[k], alu_r[k], alu_f[k] = a, b, op, rs, f
+    div = None
+    if has_div:
+        div = GoldschmidtSerial(params.n, params.frac, params.div_iterations,
+                                params.div_seed_bits)
+        m.submodules[f"{prefix}div"] = div
+        m.d.comb += div.mul_p.eq((mul_p_wide >> div.F)[:div.F + 2])
+
+    # --- results: forwarded in the ready cycle, then in a value register ---------------
+    forwarded: dict[str, Value] = {}
+    values: dict[str, Value] = {}
+    for s in ops:
+        name = s.op.name
+        if s.unit == "div":
+            forwarded[name] = div.q_next
+            values[name] = div.q
+            continue
+        forwarded[name] = mul_r[s.index] if s.unit == "mul" else alu_r[s.index]
+        reg = Signal(signed(n), name=f"{prefix}v_{name}", reset_less=True)
+        with m.If(ctl.at({ready[name]})):
+            m.d.sync += reg.eq(forwarded[name])
+        values[name] = reg
+
+    def source(src, cycle: int) -> tuple[tuple, Value]:
+        name, shift = (src, 0) if isinstance(src, str) else (src[1], src[2])
+        if name in ready:
+            if cycle < ready[name]:
+                raise ValueError(f"{name} used in cycle {cycle} before it is ready")
+            where = "fwd" if cycle == ready[name] else "reg"
+            value = forwarded[name] if where == "fwd" else values[name]
+        else:
+            where, value = "env", env[name]
+        return (where, name, shift), (value >> shift if shift else value)
+
+    # --- operand multiplexers: AND-OR under registered one-hot selects -----------------
+    regs: dict[str, Signal] = {}
+    ports: dict[str, dict[tuple, tuple[set, Value]]] = {}
+
+    def load(reg, key, value, cycle):
+        regs[reg.name] = reg
+        entry = ports.setdefault(reg.name, {}).setdefault(key, (set(), value))
+        entry[0].add(cycle)
+
+    div_start = None
+    for s in ops:
+        c = s.cycle - base
+        srcs = [source(x, c) for x in s.op.srcs]
+        if s.unit == "mul":
+            load(mul_a[s.index], *srcs[0], c)
+            load(mul_b[s.index], *srcs[1], c)
+        elif s.unit == "alu":
+            load(alu_a[s.index], *srcs[0], c)
+            if len(srcs) > 1:
+                load(alu_b[s.index], *srcs[1], c)
+            code = _ALU_CODE[s.op.kind]
+            if code:
+                load(alu_op[s.index], ("code", code, 0), code, c)
+        else:
+            div_start = c
+            key, value = srcs[0]
+            m.d.comb += [div.start.eq(ctl.at({c})), div.d.eq(value)]
+    extra: dict[str, list[Value]] = {}
+    if has_div:
+        for reg, value in ((mul_a[DIV_MUL_UNIT], div.mul_a), (mul_b[DIV_MUL_UNIT], div.mul_b)):
+            regs[reg.name] = reg
+            extra[reg.name] = [Mux(div.mul_load, value, 0)]
+    for reg_name, reg in regs.items():
+        terms = [Mux(ctl.at(cycles), value, 0)
+                 for cycles, value in ports.get(reg_name, {}).values()]
+        terms += extra.get(reg_name, [])
+        acc = 0
+        for term in terms:
+            acc = acc | term
+        m.d.sync += reg.eq(acc)
+    assert not has_div or div_start is not None
+
+    # --- flags: registered per unit, enabled in the cycles of scheduled results ---------
+    flags: list[Signal] = []
+    for unit, ids, flag in (("mul", mul_ids, mul_f), ("alu", alu_ids, alu_f)):
+        for k in ids:
+            cycles = {ready[s.op.name] for s in ops if s.unit == unit and s.index == k}
+            if not cycles:
+                continue
+            reg = Signal(name=f"{prefix}{unit}{k}_ovf")
+            m.d.sync += reg.eq(flag[k] & ctl.at(cycles))
+            flags.append(reg)
+    return Datapath(values, forwarded, ready, flags, div, max(ready.values()) + 1)
+
+
+@dataclass
+class ModulePlan:
+    """One seed module in the schedule: its operations, inputs and timing."""
+
+    schedule: Schedule
+    module: str
+    ops: list[Scheduled] = field(init=False)
+    produced: list[str] = field(init=False)
+    inputs: list[str] = field(init=False)
+    release: int = field(init=False)  # first issue cycle in the frame
+    length: int = field(init=False)  # cycles from release to the last result, inclusive
+
+    def __post_init__(self):
+        self.ops = self.schedule.module_ops(self.module)
         if not self.ops:
-            raise ValueError(f"module {module!r} has no operations")
+            raise ValueError(f"module {self.module!r} has no operations")
         self.produced = [s.op.name for s in self.ops]
         produced = set(self.produced)
-        ext: list[str] = []
+        self.inputs = []
         for s in self.ops:
             for d in s.op.deps:
-                if d not in produced and d not in ext:
-                    ext.append(d)
-        self.inputs = ext
-        #: cycles from start to the cycle whose end writes the last result, plus one
-        self.length = max(s.ready for s in self.ops) - self.release
-        self.units = sorted({(s.unit, s.index) for s in self.ops})
-        sig: dict = {"start": In(1), "done": Out(1)}
-        for name in ext:
-            sig[f"i_{name}"] = In(signed(n))
-        for name in self.produced:
-            sig[f"o_{name}"] = Out(signed(n))
-        for unit, k in self.units:
-            if unit == "mul":
-                sig.update({f"mul{k}_a": Out(signed(n)), f"mul{k}_b": Out(signed(n)),
-                            f"mul{k}_r": In(signed(n))})
-            elif unit == "alu":
-                sig.update({f"alu{k}_a": Out(signed(n)), f"alu{k}_b": Out(signed(n)),
-                            f"alu{k}_op": Out(2), f"alu{k}_r": In(signed(n))})
-            else:
-                sig.update({"div_start": Out(1), "div_d": Out(signed(n)),
-                            "div_q": In(signed(n))})
-        super().__init__(sig)
-
-    def elaborate(self, platform):
-        m = Module()
-        L = self.length
-        cnt = Signal(range(L + 1))
-        run = Signal()
-        with m.If(self.start):
-            m.d.sync += [run.eq(L > 1), cnt.eq(1)]
-        with m.Elif(run):
-            m.d.sync += cnt.eq(cnt + 1)
-            with m.If(cnt == L - 1):
-                m.d.sync += run.eq(0)
-        m.d.comb += self.done.eq(self.start if L == 1 else (run & (cnt == L - 1)))
-
-        values = {}
-        for name in self.inputs:
-            values[name] = getattr(self, f"i_{name}")
-        for s in self.ops:
-            if s.unit == "div":
-                values[s.op.name] = self.div_q
-                m.d.comb += getattr(self, f"o_{s.op.name}").eq(self.div_q)
-            else:
-                values[s.op.name] = getattr(self, f"o_{s.op.name}")
-
-        def operand(src):
-            if isinstance(src, str):
-                return values[src]
-            _, name, sh = src
-            return values[name] >> sh
-
-        for s in self.ops:
-            local = s.cycle - self.release
-            cond = self.start if local == 0 else (run & (cnt == local))
-            srcs = [operand(x) for x in s.op.srcs]
-            with m.If(cond):
-                if s.unit == "mul":
-                    k = s.index
-                    m.d.comb += [getattr(self, f"mul{k}_a").eq(srcs[0]),
-                                 getattr(self, f"mul{k}_b").eq(srcs[1])]
-                    m.d.sync += values[s.op.name].eq(getattr(self, f"mul{k}_r"))
-                elif s.unit == "alu":
-                    k = s.index
-                    m.d.comb += [getattr(self, f"alu{k}_a").eq(srcs[0]),
-                                 getattr(self, f"alu{k}_b").eq(srcs[1] if len(srcs) > 1 else 0),
-                                 getattr(self, f"alu{k}_op").eq(_ALU_CODE[s.op.kind])]
-                    m.d.sync += values[s.op.name].eq(getattr(self, f"alu{k}_r"))
-                else:
-                    m.d.comb += [self.div_start.eq(1), self.div_d.eq(srcs[0])]
-        return m
+                if d not in produced and d not in self.inputs:
+                    self.inputs.append(d)
+        self.release = min(s.cycle for s in self.ops)
+        self.length = max(s.ready for s in self.ops) - self.release + 1

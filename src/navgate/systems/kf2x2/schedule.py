@@ -1,37 +1,40 @@
-"""Static schedule of seed 004's frame program onto shared arithmetic units (C0-C33).
+"""Static schedule of seed 004's frame program onto shared, pipelined arithmetic units
+(C0-C33).
 
 Reference: seed 004, "34 周期时序甘特图" (the Gantt chart C0-C33) and its resource list
 (4 multipliers, 2 adders, 4 subtractors, 1 divider). The frame program is
-:func:`navgate.systems.kf2x2.model.frame_program`; this module assigns every operation a cycle
-and a unit with a resource-constrained list scheduler (priority: longest latency-weighted
-slack: as-late-as-possible issue cycle under the
-module windows, then program order), honouring the seed's module release
-cycles:
+:func:`navgate.systems.kf2x2.model.frame_program`; this module assigns every operation an
+issue cycle and a unit with a resource-constrained list scheduler.
 
-=============== ======= =====================================================
-module          release seed window
-=============== ======= =====================================================
-prior_state     C0      C0-C7
-prior_cov       C0      C0-C8
-est_output      C8      C8-C11
-kalman_gain     C8      C8-C24
-q_update        C10     C10-C12
-r_update        C12     C12-C14
-post_state      C25     C25-C29
-post_cov        C25     C25-C33
-=============== ======= =====================================================
+Timing model (issue 15 re-timing; the gateware is :mod:`navgate.systems.kf2x2.modules`).
+An operation *issued* in cycle c has its operands loaded into its unit's operand registers
+at the end of c (from value registers, or forwarded from the unit that produces them in
+that very cycle); the unit works from registers only:
 
-Units and timing: every ``mul`` / ``add`` / ``sub`` / ``abs`` reads its operands from
-registers in cycle c and writes its result register at the end of c (readable in c+1): the
-seed's combinational fixed units between registers. Units: ``MUL_UNITS`` = 4 multipliers;
-``ALU_UNITS`` = 6 adder/subtractors (the seed's 2 adders + 4 subtractors, each able to add,
-subtract or take the absolute value, so that the scheduler may use any of them); one
-Goldschmidt divider whose multiplies run on multiplier 3 (reserved for it at offsets 2 ..
-2k+1 after its start), result readable ``2k + 4`` cycles after its start.
+* multiply (``MUL_LATENCY = 2``): c+1 the product of the operand registers goes into the
+  raw product register (the DSP48E1 M/P register, 2N bits); c+2 truncation and saturation
+  of that register, whose result is forwarded to operand loads in c+2 and written to the
+  value register at the end of c+2;
+* add / sub / |a - b| (``ALU_LATENCY = 1``): c+1 the unit computes from its operand
+  registers and saturates; forwarded in c+1, value register at the end of c+1;
+* the serial Goldschmidt reciprocal (``divider_latency = 2k + 5`` for k = 1 iteration,
+  :class:`~navgate.systems.kf2x2.units.GoldschmidtSerial`): its multiplies are loaded on
+  multiplier 3 at the offsets :func:`divider_mul_offsets` after its issue.
 
-:func:`build_schedule` raises ``ScheduleError`` if an operation would leave its module's
-seed window or the frame; the schedule is therefore verified at construction, and the
-tests assert the per-module windows and the frame length.
+A result is *ready* in the cycle it is forwarded (issue + latency): consumers may issue
+from that cycle on. Every committed value must be ready by C33 (``done``), where the
+commit takes it forwarded or from its value register.
+
+Priority: the longest latency-weighted path to the end of the frame (critical path), ties
+broken by a deterministic jitter; :func:`build_schedule` tries jitter seeds 0, 1, 2, ... in
+order and keeps the first schedule that fits (the result is a fixed function of the
+program and parameters). The seed's per-module windows (:data:`SEED_WINDOWS`) are not
+constraints any more: with two-cycle multiplies the modules overlap differently, and the
+Q/R updates, which use the previous frame's values, move freely. ``Schedule.windows``
+gives the windows the schedule produced; docs/seed004-kf2x2.md sets them against the seed's
+chart.
+
+:func:`build_schedule` raises ``ScheduleError`` if the program does not fit the frame.
 """
 
 from __future__ import annotations
@@ -49,7 +52,7 @@ from navgate.systems.kf2x2.model import (
 
 __all__ = ["ScheduleError", "Scheduled", "Schedule", "build_schedule", "SEED_WINDOWS",
            "MUL_UNITS", "ALU_UNITS", "FRAME_CYCLES", "DIV_MUL_UNIT", "divider_latency",
-           "min_frame_cycles"]
+           "divider_mul_offsets", "MUL_LATENCY", "ALU_LATENCY", "min_frame_cycles"]
 
 #: seed 004's Gantt chart: module -> (first cycle, last cycle)
 SEED_WINDOWS = {
@@ -66,18 +69,37 @@ FRAME_CYCLES = 34
 MUL_UNITS = 4
 ALU_UNITS = 6
 DIV_MUL_UNIT = 3
+MUL_LATENCY = 2
+ALU_LATENCY = 1
 UNIT_OF_KIND = {"mul": "mul", "add": "alu", "sub": "alu", "absdiff": "alu",
                 "recip": "div"}
+#: how many jitter seeds :func:`build_schedule` tries before giving up
+SCHEDULE_TRIES = 512
 
 
 class ScheduleError(RuntimeError):
-    """The program does not fit the seed's windows with the given units."""
+    """The program does not fit the frame with the given units."""
+
+
+def divider_mul_offsets(params: KfParams) -> list[int]:
+    """Cycles after the divider's issue in which it loads multiplier 3's operand registers.
+
+    k = 1: D0 = Dn x0 at 2, N = x0 (2 - D0) at 4 (``2 - D`` goes straight into the operand
+    register). k > 1: D0 at 2; per middle iteration D G then N G on consecutive cycles, every
+    operand from registers (period 3); the last N (2 - D) after the last N G.
+    """
+    from navgate.systems.kf2x2.units import divider_plan
+
+    return divider_plan(params.div_iterations)[0]
 
 
 def divider_latency(params: KfParams) -> int:
-    """Cycles from the divider's start to its result being readable: normalise, seed,
-    2k multiplies, denormalise/round, saturate/sign."""
-    return 2 * params.div_iterations + 4
+    """Cycles from the divider's issue to its result being forwarded (from its ``q``
+    register): the last multiply's product is ready 2 cycles after its load, then one cycle
+    of denormalising shift and rounding, one of saturation and sign into ``q``."""
+    from navgate.systems.kf2x2.units import divider_plan
+
+    return divider_plan(params.div_iterations)[1]
 
 
 @dataclass(frozen=True)
@@ -86,23 +108,27 @@ class Scheduled:
     cycle: int  # global issue cycle
     unit: str  # "mul", "alu", "div"
     index: int  # unit index
-    ready: int  # first cycle the result is readable
+    ready: int  # the cycle the result is forwarded (written to its register at its end)
 
 
 @dataclass
 class Schedule:
     params: KfParams
     ops: list[Scheduled]
-    windows: dict  # module -> (first issue, last issue)
+    windows: dict  # module -> (first issue, last cycle that computes a result)
+    seed: int = 0  # the jitter seed that produced it
 
     def module_ops(self, module: str) -> list[Scheduled]:
         return [s for s in self.ops if s.op.module == module]
 
     def usage(self) -> dict:
-        """Peak number of units of each kind busy in one cycle (divider multiplies counted)."""
+        """Peak number of units of each kind issued in one cycle (divider loads counted)."""
         per: dict[tuple[str, int], int] = {}
         for s in self.ops:
             per[(s.unit, s.cycle)] = per.get((s.unit, s.cycle), 0) + 1
+            if s.unit == "div":
+                for t in divider_mul_offsets(self.params):
+                    per[("mul", s.cycle + t)] = per.get(("mul", s.cycle + t), 0) + 1
         peak = {"mul": 0, "alu": 0, "div": 0}
         for (unit, _), n in per.items():
             peak[unit] = max(peak[unit], n)
@@ -110,48 +136,41 @@ class Schedule:
 
     def table(self) -> str:
         """Gantt table: one row per cycle with the ops issued on each unit."""
-        k = self.params.div_iterations
         cells: dict[int, list[tuple[str, int, str]]] = {c: [] for c in range(FRAME_CYCLES)}
         for s in self.ops:
             cells[s.cycle].append((s.unit, s.index, s.op.name))
             if s.unit == "div":
-                for t in range(2 * k):
-                    cells[s.cycle + 2 + t].append(("mul", DIV_MUL_UNIT, f"({s.op.name})"))
+                for t in divider_mul_offsets(self.params):
+                    cells[s.cycle + t].append(("mul", DIV_MUL_UNIT, f"({s.op.name})"))
         return "\n".join(f"C{c:<3d} " + "  ".join(f"{u}{i}:{name}" for u, i, name in
                                                    sorted(cells[c]))
                          for c in range(FRAME_CYCLES))
 
 
-def build_schedule(params: KfParams | None = None, program: list[Op] | None = None,
-                   windows: dict | None = None, check: bool = True, mul_latency: int = 1,
-                   frame_cycles: int = FRAME_CYCLES) -> Schedule:
-    """Schedule the frame program. ``mul_latency`` > 1 (pipelined multipliers, one issue
-    per cycle) and ``frame_cycles`` are for the trade-off analysis of
-    :func:`min_frame_cycles` only; the gateware implements ``mul_latency = 1``."""
-    params = KfParams() if params is None else params
-    prog = frame_program(params) if program is None else program
-    windows = SEED_WINDOWS if windows is None else windows
+def _latencies(prog: list[Op], params: KfParams, mul_latency: int) -> dict[str, int]:
     k = params.div_iterations
-    dl = 4 + 2 * k * mul_latency
-    div_offsets = [2 + i * mul_latency for i in range(2 * k)]
-    lat = {o.name: (dl if o.kind == "recip" else mul_latency if o.kind == "mul" else 1)
-           for o in prog}
+    if mul_latency == MUL_LATENCY:
+        dl = divider_latency(params)
+    else:  # trade-off analysis: divider multiplies at the same spacing
+        dl = 4 + 2 * k * mul_latency
+    return {o.name: (dl if o.kind == "recip" else mul_latency if o.kind == "mul" else 1)
+            for o in prog}
+
+
+def _list_schedule(prog, params, lat, div_offsets, frame_cycles, jitter_seed):
+    import random
+
     producers = {o.name: o for o in prog}
-    for o in prog:
-        for d in o.deps:
-            if d not in producers and d not in FRAME_INPUTS and d not in STATE_NAMES:
-                raise ScheduleError(f"{o.name}: unknown operand {d}")
-    # priority: least slack first. alap = latest issue cycle that still meets the module
-    # windows of the op and of every op that uses its result (as-late-as-possible times)
     users: dict[str, list[Op]] = {o.name: [] for o in prog}
     for o in prog:
         for d in o.deps:
             if d in users:
                 users[d].append(o)
-    alap: dict[str, int] = {}
+    tail: dict[str, int] = {}
     for o in reversed(prog):
-        due = min([windows[o.module][1] + 1] + [alap[u.name] for u in users[o.name]])
-        alap[o.name] = due - lat[o.name]
+        tail[o.name] = lat[o.name] + max([tail[u.name] for u in users[o.name]] + [0])
+    rnd = random.Random(jitter_seed)
+    jitter = {o.name: (rnd.random() if jitter_seed else 0.0) for o in prog}
     order = {o.name: i for i, o in enumerate(prog)}
     ready_at: dict[str, int] = {}
     busy: set[tuple[str, int, int]] = set()
@@ -159,17 +178,18 @@ def build_schedule(params: KfParams | None = None, program: list[Op] | None = No
     todo = list(prog)
     for c in range(frame_cycles):
         cands = [o for o in todo
-                 if windows[o.module][0] <= c
-                 and all(ready_at.get(d, 0 if d not in producers else 10**9) <= c
-                         for d in o.deps)]
-        cands.sort(key=lambda o: (alap[o.name], order[o.name]))
+                 if all(ready_at.get(d, 0 if d not in producers else 10**9) <= c
+                        for d in o.deps)]
+        cands.sort(key=lambda o: (-tail[o.name] - jitter[o.name], order[o.name]))
         for o in cands:
+            if c + lat[o.name] > frame_cycles - 1:
+                continue
             unit = UNIT_OF_KIND[o.kind]
             if unit == "div":
                 need = [("mul", DIV_MUL_UNIT, c + t) for t in div_offsets]
                 if ("div", 0, c) in busy or any(n in busy for n in need):
                     continue
-                for t in range(dl):
+                for t in range(lat[o.name]):
                     busy.add(("div", 0, c + t))
                 busy.update(need)
                 index = 0
@@ -183,35 +203,64 @@ def build_schedule(params: KfParams | None = None, program: list[Op] | None = No
             ready_at[o.name] = c + lat[o.name]
             placed.append(Scheduled(o, c, unit, index, c + lat[o.name]))
             todo.remove(o)
-    if todo:
+    return placed, todo
+
+
+def build_schedule(params: KfParams | None = None, program: list[Op] | None = None,
+                   mul_latency: int = MUL_LATENCY,
+                   frame_cycles: int = FRAME_CYCLES, tries: int = SCHEDULE_TRIES) -> Schedule:
+    """Schedule the frame program (every result ready by cycle ``frame_cycles - 1``).
+
+    ``mul_latency`` other than :data:`MUL_LATENCY` is for the trade-off analysis of
+    :func:`min_frame_cycles` only; the gateware implements :data:`MUL_LATENCY`.
+    """
+    params = KfParams() if params is None else params
+    prog = frame_program(params) if program is None else program
+    producers = {o.name for o in prog}
+    for o in prog:
+        for d in o.deps:
+            if d not in producers and d not in FRAME_INPUTS and d not in STATE_NAMES:
+                raise ScheduleError(f"{o.name}: unknown operand {d}")
+    lat = _latencies(prog, params, mul_latency)
+    if mul_latency == MUL_LATENCY:
+        div_offsets = divider_mul_offsets(params)
+    else:
+        div_offsets = [2 + i * mul_latency for i in range(2 * params.div_iterations)]
+    for seed in range(tries):
+        placed, todo = _list_schedule(prog, params, lat, div_offsets, frame_cycles, seed)
+        if not todo:
+            break
+    else:
         raise ScheduleError(f"{len(todo)} operations do not fit in {frame_cycles} cycles: "
                             f"{', '.join(o.name for o in todo[:8])}")
     got = {}
     for module in MODULES:
         mine = [s for s in placed if s.op.module == module]
-        first = min(s.cycle for s in mine)
-        last = max(s.ready for s in mine) - 1  # the cycle whose end writes the last result
-        got[module] = (first, last)
-        lo, hi = windows[module]
-        if check and (first < lo or last > hi):
-            raise ScheduleError(f"{module} occupies C{first}-C{last}, outside its window "
-                                f"C{lo}-C{hi}")
-    if max(s.ready for s in placed) > frame_cycles:
-        raise ScheduleError(f"results are not ready within {frame_cycles} cycles")
+        if mine:
+            got[module] = (min(s.cycle for s in mine), max(s.ready for s in mine))
     placed.sort(key=lambda s: (s.cycle, s.unit, s.index))
-    return Schedule(params, placed, got)
+    return Schedule(params, placed, got, seed)
 
 
-def min_frame_cycles(params: KfParams | None = None, mul_latency: int = 1) -> int:
-    """Shortest frame (cycles from start to the last result, done included) that the list
-    scheduler finds with the same units and no module windows, for multipliers pipelined
-    ``mul_latency`` deep: the cost in cycles of a faster clock (docs/seed004-kf2x2.md)."""
+def min_frame_cycles(params: KfParams | None = None, mul_latency: int = MUL_LATENCY) -> int:
+    """Shortest frame (cycles from start to done, every result ready by done) that the list
+    scheduler finds (64 jitter seeds per length, from the critical-path bound up) with the
+    same units, for multipliers ``mul_latency`` deep."""
     params = KfParams() if params is None else params
-    for cycles in range(8, 200):
-        windows = {m: (0, cycles - 1) for m in SEED_WINDOWS}
+    prog = frame_program(params)
+    lat = _latencies(prog, params, mul_latency)
+    users: dict[str, list[Op]] = {o.name: [] for o in prog}
+    for o in prog:
+        for d in o.deps:
+            if d in users:
+                users[d].append(o)
+    tail: dict[str, int] = {}
+    for o in reversed(prog):
+        tail[o.name] = lat[o.name] + max([tail[u.name] for u in users[o.name]] + [0])
+    bound = max(tail.values()) + 1  # the critical path, last result ready in the last cycle
+    for cycles in range(bound, 200):
         try:
-            build_schedule(params, windows=windows, mul_latency=mul_latency,
-                           frame_cycles=cycles)
+            build_schedule(params, mul_latency=mul_latency, frame_cycles=cycles, tries=64)
         except ScheduleError:
             continue
         return cycles

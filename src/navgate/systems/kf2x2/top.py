@@ -1,23 +1,26 @@
 """Top level of seed 004's 2x2 adaptive fixed-point Kalman filter (``top_kf.v``), 34 cycles a
 frame, and a stream wrapper for the shared verification harness.
 
-:class:`Kf2x2`: start/done handshake. ``start`` (while not busy) is cycle C0; the eight
-:class:`~navgate.systems.kf2x2.modules.KfModule` receive their start pulses at their seed
-release cycles (C0, C0, C8, C8, C10, C12, C25, C25); ``done`` is high in C33, exactly 34
-cycles after start, and at the end of C33 the state is committed: x <- x+, P <- P+,
-Q <- Q_next (if ``adapt_q``), R <- R_next (if ``adapt_r``), plus the previous correction,
-innovation and (H Pp H^T) diagonal used by next frame's Q/R updates. A new ``start`` is
-accepted from C34 on. The frame inputs (A, B, H, u, z, ``adapt_q``, ``adapt_r``) must be held
-from C0 to C33 (the seed's testbench does the same; :class:`Kf2x2Stream` registers them).
-``init`` (while not busy, priority over ``start``) loads x, P, Q, R from the ``init_*``
-ports and clears the adaptation memory.
+:class:`Kf2x2`: start/done handshake. ``start`` (while not busy) is cycle C0; the frame's
+operations run at the cycles of :func:`~navgate.systems.kf2x2.schedule.build_schedule` on
+the datapath of :func:`~navgate.systems.kf2x2.modules.build_datapath` (registered one-hot
+control, operand registers, registered raw products, pipelined flags); ``done`` is high in
+C33, exactly 34 cycles after start, and at the end of C33 the state is committed: x <- x+,
+P <- P+, Q <- Q_next (if ``adapt_q``), R <- R_next (if ``adapt_r``), plus the previous
+correction, innovation and (H Pp H^T) diagonal used by next frame's Q/R updates. A new
+``start`` is accepted from C34 on. The frame inputs (A, B, H, u, z, ``adapt_q``,
+``adapt_r``) must be held from C0 to C33 (the seed's testbench does the same;
+:class:`Kf2x2Stream` registers them). ``init`` (while not busy, priority over ``start``)
+loads x, P, Q, R from the ``init_*`` ports and clears the adaptation memory.
 
-Flags, valid from C34 until the next done: ``overflow`` (some operation of the frame
-saturated), ``div_zero`` (det(S) was 0: 1/det saturated), ``div_overflow``.
+Flags: ``div_zero`` (det(S) was 0: 1/det saturated) and ``div_overflow`` are valid from C34,
+``overflow`` (some operation of the frame saturated; sticky, pipelined) from C35, each until
+the next frame's.
 
 Resources: 4 multipliers (multiplier 3 also serves the Goldschmidt divider, so it is
-(N+3) x (N+3) bits), 6 adder/subtractors, one divider sequencer, registers for every
-intermediate value. ``LATENCY = 34``, ``THROUGHPUT = 1/34``.
+(N+2) x (N+2) bits), 6 adder/subtractors, one divider sequencer, operand registers per unit
+and a register for every intermediate value that is read after its ready cycle.
+``LATENCY = 34``, ``THROUGHPUT = 1/34``.
 """
 
 from __future__ import annotations
@@ -28,101 +31,16 @@ from amaranth import Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from navgate.systems.kf2x2.model import COMMIT, FRAME_INPUTS, MODULES, STATE_NAMES, KfParams
-from navgate.systems.kf2x2.modules import KfModule
-from navgate.systems.kf2x2.schedule import (
-    ALU_UNITS,
-    DIV_MUL_UNIT,
-    FRAME_CYCLES,
-    MUL_UNITS,
-    SEED_WINDOWS,
-    build_schedule,
-)
-from navgate.systems.kf2x2.units import GoldschmidtSerial, q_alu, q_mul
+from navgate.systems.kf2x2.model import COMMIT, FRAME_INPUTS, STATE_NAMES, KfParams
+from navgate.systems.kf2x2.modules import ModulePlan, build_datapath
+from navgate.systems.kf2x2.schedule import FRAME_CYCLES, build_schedule
+from navgate.systems.kf2x2.units import Control
 
-__all__ = ["Kf2x2", "Kf2x2Stream", "ModuleHarness", "INIT_NAMES", "attach_units"]
+__all__ = ["Kf2x2", "Kf2x2Stream", "ModuleHarness", "INIT_NAMES", "GAIN_NAMES"]
 
 #: state words loaded by ``init`` (the others are cleared)
 INIT_NAMES = ("x0", "x1", "P00", "P01", "P11", "Q00", "Q01", "Q11", "R00", "R01", "R11")
 GAIN_NAMES = ("k00", "k01", "k10", "k11")
-
-
-def _or(values, shape):
-    out = Signal(shape)
-    acc = 0
-    for v in values:
-        acc = acc | v
-    return out, acc
-
-
-def attach_units(m: Module, modules: list[KfModule], params: KfParams, active) -> Signal:
-    """Instantiate the shared units used by ``modules`` and wire them (AND-OR operand
-    multiplexing). Returns a signal that is high when an operation issued in this cycle
-    saturated (``active`` gates it)."""
-    n, frac = params.n, params.frac
-    flags = []
-    used = {u for mod in modules for u in mod.units}
-    div = None
-    if ("div", 0) in used:
-        div = GoldschmidtSerial(n, frac, params.div_iterations, params.div_seed_bits)
-        m.submodules.div = div
-        users = [mod for mod in modules if ("div", 0) in mod.units]
-        start, d = Signal(), Signal(signed(n))
-        m.d.comb += [start.eq(_or([u.div_start for u in users], 1)[1]),
-                     d.eq(_or([u.div_d for u in users], signed(n))[1])]
-        m.d.comb += [div.start.eq(start), div.d.eq(d)]
-        for u in users:
-            m.d.comb += u.div_q.eq(div.q)
-    for k in range(MUL_UNITS):
-        users = [mod for mod in modules if ("mul", k) in mod.units]
-        if not users and not (div is not None and k == DIV_MUL_UNIT):
-            continue
-        a = Signal(signed(n), name=f"mul{k}_a")
-        b = Signal(signed(n), name=f"mul{k}_b")
-        m.d.comb += [a.eq(_or([getattr(u, f"mul{k}_a") for u in users], signed(n))[1]),
-                     b.eq(_or([getattr(u, f"mul{k}_b") for u in users], signed(n))[1])]
-        if div is not None and k == DIV_MUL_UNIT:
-            wide = params.n + 3
-            a2 = Signal(signed(wide), name=f"mul{k}_a_wide")
-            b2 = Signal(signed(wide), name=f"mul{k}_b_wide")
-            m.d.comb += [a2.eq(Mux(div.mul_en, div.mul_a, a)),
-                         b2.eq(Mux(div.mul_en, div.mul_b, b))]
-            p = Signal(signed(2 * wide), name=f"mul{k}_p")
-            m.d.comb += p.eq(a2 * b2)
-            m.d.comb += div.mul_p.eq((p >> params.n)[:params.n + 2])
-            r, f = q_mul(p, n, frac)
-            f = f & ~div.mul_en
-        else:
-            p = Signal(signed(2 * n), name=f"mul{k}_p")
-            m.d.comb += p.eq(a * b)
-            r, f = q_mul(p, n, frac)
-        rs = Signal(signed(n), name=f"mul{k}_r")
-        m.d.comb += rs.eq(r)
-        for u in users:
-            m.d.comb += getattr(u, f"mul{k}_r").eq(rs)
-        flags.append(f)
-    for k in range(ALU_UNITS):
-        users = [mod for mod in modules if ("alu", k) in mod.units]
-        if not users:
-            continue
-        a = Signal(signed(n), name=f"alu{k}_a")
-        b = Signal(signed(n), name=f"alu{k}_b")
-        op = Signal(2, name=f"alu{k}_op")
-        m.d.comb += [a.eq(_or([getattr(u, f"alu{k}_a") for u in users], signed(n))[1]),
-                     b.eq(_or([getattr(u, f"alu{k}_b") for u in users], signed(n))[1]),
-                     op.eq(_or([getattr(u, f"alu{k}_op") for u in users], 2)[1])]
-        r, f = q_alu(m, a, b, op, n, f"alu{k}")
-        rs = Signal(signed(n), name=f"alu{k}_r")
-        m.d.comb += rs.eq(r)
-        for u in users:
-            m.d.comb += getattr(u, f"alu{k}_r").eq(rs)
-        flags.append(f)
-    any_flag = Signal()
-    acc = 0
-    for f in flags:
-        acc = acc | f
-    m.d.comb += any_flag.eq(active & acc)
-    return any_flag, div
 
 
 def _params_kw(n, frac, q_shift, r_shift, div_iterations, div_seed_bits):
@@ -157,40 +75,34 @@ class Kf2x2(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         last = FRAME_CYCLES - 1
-        cyc = Signal(range(FRAME_CYCLES))
         go = Signal()
         m.d.comb += go.eq(self.start & ~self.busy & ~self.init)
+        ctl = Control(m, go, FRAME_CYCLES)
+        m.d.comb += self.done.eq(ctl.phase[last])
         with m.If(go):
-            m.d.sync += [self.busy.eq(1), cyc.eq(1)]
-        with m.Elif(self.busy):
-            m.d.sync += cyc.eq(cyc + 1)
-            with m.If(cyc == last):
-                m.d.sync += [self.busy.eq(0), cyc.eq(0)]
-        m.d.comb += self.done.eq(self.busy & (cyc == last))
+            m.d.sync += self.busy.eq(1)
+        with m.Elif(self.done):
+            m.d.sync += self.busy.eq(0)
+        env = {name: getattr(self, name) for name in FRAME_INPUTS + STATE_NAMES}
+        dp = build_datapath(m, self.schedule.ops, self.params, ctl, env)
+        for name in GAIN_NAMES:
+            m.d.comb += getattr(self, name).eq(dp.values[name])
 
-        mods = {}
-        for name in MODULES:
-            mod = KfModule(self.schedule, name)
-            m.submodules[name] = mod
-            mods[name] = mod
-            rel = SEED_WINDOWS[name][0]
-            m.d.comb += mod.start.eq(go if rel == 0 else (self.busy & (cyc == rel)))
-        producer = {o: mod for mod in mods.values() for o in mod.produced}
-        for mod in mods.values():
-            for name in mod.inputs:
-                if name in producer:
-                    src = getattr(producer[name], f"o_{name}")
-                else:
-                    src = getattr(self, name)  # frame input or state register
-                m.d.comb += getattr(mod, f"i_{name}").eq(src)
-        flag, div = attach_units(m, list(mods.values()), self.params, go | self.busy)
+        # pipelined sticky overflow: per-unit flag registers, OR-ed one cycle later
+        any_flag = Signal()
+        acc = 0
+        for f in dp.flags:
+            acc = acc | f
+        m.d.comb += any_flag.eq(acc)
         ovf = Signal()
         with m.If(go):
-            m.d.sync += ovf.eq(flag)
-        with m.Elif(self.busy):
-            m.d.sync += ovf.eq(ovf | flag)
-        for name in GAIN_NAMES:
-            m.d.comb += getattr(self, name).eq(getattr(producer[name], f"o_{name}"))
+            m.d.sync += ovf.eq(0)
+        with m.Else():
+            m.d.sync += ovf.eq(ovf | any_flag)
+        done_d = Signal()
+        m.d.sync += done_d.eq(self.done)
+        with m.If(done_d):
+            m.d.sync += self.overflow.eq(ovf | any_flag)
 
         with m.If(~self.busy & self.init):
             for name in STATE_NAMES:
@@ -198,14 +110,14 @@ class Kf2x2(wiring.Component):
                 m.d.sync += getattr(self, name).eq(src)
         with m.If(self.done):
             for reg, src in COMMIT.items():
-                value = getattr(producer[src], f"o_{src}")
+                value = dp.final(src, last)
                 if reg.startswith("Q"):
                     value = Mux(self.adapt_q, value, getattr(self, reg))
                 elif reg.startswith("R"):
                     value = Mux(self.adapt_r, value, getattr(self, reg))
                 m.d.sync += getattr(self, reg).eq(value)
-            m.d.sync += [self.overflow.eq(ovf | flag), self.div_zero.eq(div.div_zero),
-                         self.div_overflow.eq(div.overflow)]
+            m.d.sync += [self.div_zero.eq(dp.divider.div_zero),
+                         self.div_overflow.eq(dp.divider.overflow)]
         return m
 
 
@@ -223,13 +135,14 @@ class Kf2x2Stream(wiring.Component):
     """:class:`Kf2x2` behind a stream interface: one input payload = one frame (with an
     optional ``init`` of the state first), one output payload = the committed state, the
     gains, the flags and ``cycles``, the number of cycles from ``start`` to ``done``
-    inclusive (34), measured by the wrapper."""
+    inclusive (34), measured by the wrapper. The result is offered from C35 (the overflow
+    flag is pipelined)."""
 
     def __init__(self, **kw):
         self.core = Kf2x2(**kw)
         self.params = self.core.params
-        self.LATENCY = FRAME_CYCLES + 2
-        self.THROUGHPUT = Fraction(1, FRAME_CYCLES + 2)
+        self.LATENCY = FRAME_CYCLES + 3
+        self.THROUGHPUT = Fraction(1, FRAME_CYCLES + 3)
         li, lo = stream_layouts(self.params.n)
         super().__init__({"i": In(stream.Signature(li)), "o": Out(stream.Signature(lo))})
 
@@ -260,7 +173,9 @@ class Kf2x2Stream(wiring.Component):
                 m.d.sync += counting.eq(counting + 1)
                 with m.If(core.done):
                     m.d.sync += cycles.eq(counting + 1)
-                    m.next = "OUT"
+                    m.next = "FLAGS"
+            with m.State("FLAGS"):  # the pipelined overflow flag settles in C34
+                m.next = "OUT"
             with m.State("OUT"):
                 m.d.comb += self.o.valid.eq(1)
                 with m.If(self.o.ready):
@@ -280,14 +195,15 @@ class Kf2x2Stream(wiring.Component):
 
 
 class ModuleHarness(wiring.Component):
-    """One module alone with private shared units (for per-module tests): the module's
-    ports ``start``, ``done``, ``i_*``, ``o_*`` plus ``overflow`` (an issued operation
-    saturated in this cycle)."""
+    """One module alone with private units (for per-module tests), its operations at their
+    scheduled cycles relative to the module's first issue: ports ``start``, ``done`` (high
+    in the cycle of the module's last result), ``i_*``, ``o_*`` (value registers) plus
+    ``overflow`` (registered: an operation saturated in the previous cycle)."""
 
     def __init__(self, module: str, params: KfParams | None = None):
         self.params = params = KfParams() if params is None else params
         self.schedule = build_schedule(params)
-        self.mod = KfModule(self.schedule, module)
+        self.mod = ModulePlan(self.schedule, module)
         n = params.n
         sig = {"start": In(1), "done": Out(1), "overflow": Out(1)}
         for name in self.mod.inputs:
@@ -299,12 +215,14 @@ class ModuleHarness(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         mod = self.mod
-        m.submodules.mod = mod
-        m.d.comb += [mod.start.eq(self.start), self.done.eq(mod.done)]
-        for name in mod.inputs:
-            m.d.comb += getattr(mod, f"i_{name}").eq(getattr(self, f"i_{name}"))
+        ctl = Control(m, self.start, mod.length, "mph")
+        env = {name: getattr(self, f"i_{name}") for name in mod.inputs}
+        dp = build_datapath(m, mod.ops, self.params, ctl, env, base=mod.release)
+        m.d.comb += self.done.eq(ctl.phase[mod.length - 1] if mod.length > 1 else self.start)
         for name in mod.produced:
-            m.d.comb += getattr(self, f"o_{name}").eq(getattr(mod, f"o_{name}"))
-        flag, _ = attach_units(m, [mod], self.params, 1)
-        m.d.comb += self.overflow.eq(flag)
+            m.d.comb += getattr(self, f"o_{name}").eq(dp.values[name])
+        acc = 0
+        for f in dp.flags:
+            acc = acc | f
+        m.d.comb += self.overflow.eq(acc)
         return m

@@ -1,20 +1,21 @@
 """Shared arithmetic units of the 2x2 Kalman filter and its serial Goldschmidt reciprocal.
 
 Reference: seed 004 (``fxp_mul.v``, ``fxp_add.v``, ``fxp_sub.v``, ``fxp_abs.v``,
-``goldschmidt_struct.v``). The units are combinational, between the modules' registers, as
-in the seed; operands arrive OR-ed from the modules (a module drives zeros when it does not
-issue on a unit, so an AND-OR multiplexer replaces a select tree).
+``goldschmidt_struct.v``). :func:`q_mul` and :func:`q_alu` are the combinational result
+logic; :mod:`navgate.systems.kf2x2.modules` puts them between operand registers and (for the
+multiplier) a raw product register (issue 15 re-timing).
 
 * :func:`q_mul`: ``sat((a * b) >> FRAC)`` and its overflow flag, bit-true to
   ``fixed_mul_trunc(a, b, fmt, mode="saturate")`` (:mod:`navgate.numerics.fixed`).
 * :func:`q_alu`: add, subtract, absolute difference, saturating (``fixed_add``,
   ``fixed_sub``, ``fixed_abs(fixed_sub_full(...))``).
 * :class:`GoldschmidtSerial`: :func:`navgate.numerics.goldschmidt.goldschmidt_reciprocal`
-  (table seed, F = N, rounding to nearest) sequenced over ``2k + 4`` cycles, its ``2k``
-  multiplies issued on a shared multiplier (multiplier 3 of the pool) instead of owning
-  ``2k`` multipliers as the pipelined :class:`navgate.gateware.goldschmidt.GoldschmidtReciprocal`
-  does (that one would cost 4 DSP48E1 more at N=20 and break the 8-DSP budget). The seed
-  ROM contents come from ``goldschmidt_seed_table`` and the leading-one detector from
+  (table seed, F = N, rounding to nearest) sequenced over :func:`divider_plan` cycles, its
+  ``2k`` multiplies issued on a shared, pipelined multiplier (multiplier 3 of the pool)
+  instead of owning ``2k`` multipliers as the pipelined
+  :class:`navgate.gateware.goldschmidt.GoldschmidtReciprocal` does (that one would cost
+  4 DSP48E1 more at N=20 and break the 8-DSP budget). The seed ROM contents come from
+  ``goldschmidt_seed_table`` and the leading-one detector from
   :mod:`navgate.gateware.goldschmidt`, so the three faces share them.
 """
 
@@ -28,7 +29,8 @@ from navgate.gateware.fixed import saturate_value
 from navgate.gateware.goldschmidt import leading_one
 from navgate.numerics.goldschmidt import goldschmidt_seed_table
 
-__all__ = ["q_mul", "q_alu", "ALU_ADD", "ALU_SUB", "ALU_ABSDIFF", "GoldschmidtSerial"]
+__all__ = ["q_mul", "q_alu", "ALU_ADD", "ALU_SUB", "ALU_ABSDIFF", "Control", "GoldschmidtSerial",
+           "divider_plan"]
 
 ALU_ADD, ALU_SUB, ALU_ABSDIFF = 0, 1, 2
 
@@ -49,28 +51,96 @@ def q_alu(m: Module, a, b, op, n: int, name: str):
     return saturate_value(full, n)
 
 
-class GoldschmidtSerial(wiring.Component):
-    """Serial Goldschmidt reciprocal 1/d in Q(n, frac) on a borrowed multiplier.
+class Control:
+    """Registered one-hot control of a sequence of ``length`` cycles started by ``go``.
 
-    ``start`` is high for one cycle with ``d`` valid; ``q``, ``div_zero``, ``overflow`` are
-    registers, valid from ``LATENCY = 2k + 4`` cycles after the start until the next start.
-    Cycle plan (l = cycles after start): 0 sign, |d|, leading one, normalised D; 1 seed
-    x0 = ROM[D bits] (N = x0); 2 D <- (D x0) >> F; per iteration j < k: G = 2 - D
-    registered and D <- (D G) >> F, then N <- (N G) >> F; last iteration N <- (N (2 - D))
-    >> F; 2k+2 denormalising shift with rounding; 2k+3 saturation and sign.
-    ``mul_a``, ``mul_b`` (unsigned F+2 bits, zero when idle) go to the shared multiplier,
-    ``mul_p`` is its ``(a b) >> F``; ``mul_en`` marks the cycles that use it.
+    ``phase[c]`` is high in cycle c after ``go`` (``phase[0]`` is ``go`` itself, the others
+    are a shift register). :meth:`at` returns a control word high exactly in the given
+    cycles: a register loaded with the OR of the phase bits one cycle earlier (``go`` is
+    OR-ed in when cycle 0 is among them, since nothing can be registered before the start).
+    No counter is decoded anywhere.
+    """
+
+    def __init__(self, m: Module, go, length: int, name: str = "ph"):
+        self.m, self.go, self.length, self.name = m, go, length, name
+        self.phase = [go]
+        for c in range(1, length):
+            bit = Signal(name=f"{name}{c}")
+            m.d.sync += bit.eq(self.phase[c - 1])
+            self.phase.append(bit)
+        self._words: dict[frozenset, object] = {}
+
+    def at(self, cycles):
+        cycles = frozenset(cycles)
+        if not cycles:
+            raise ValueError("a control word needs at least one cycle")
+        if max(cycles) >= self.length or min(cycles) < 0:
+            raise ValueError(f"cycle outside the frame 0..{self.length - 1}: {sorted(cycles)}")
+        if cycles in self._words:
+            return self._words[cycles]
+        later = sorted(c for c in cycles if c >= 1)
+        word = None
+        if later:
+            reg = Signal(name=f"{self.name}_w{len(self._words)}")
+            acc = 0
+            for c in later:
+                acc = acc | self.phase[c - 1]
+            self.m.d.sync += reg.eq(acc)
+            word = reg
+        if 0 in cycles:
+            word = self.go if word is None else (self.go | word)
+        self._words[cycles] = word
+        return word
+
+
+def divider_plan(iterations: int) -> tuple[list[int], int]:
+    """(cycles after the start in which the divider loads the shared multiplier, latency).
+
+    The latency is the cycle (after the start) in which the result is forwarded; the ``q``
+    register holds it from the next cycle on."""
+    k = iterations
+    if k == 1:
+        offsets = [2, 4]
+    else:
+        offsets = [2]
+        for i in range(k - 1):
+            offsets += [5 + 3 * i, 6 + 3 * i]
+        offsets.append(5 + 3 * (k - 2) + 4)
+    return offsets, offsets[-1] + 3
+
+
+class GoldschmidtSerial(wiring.Component):
+    """Serial Goldschmidt reciprocal 1/d in Q(n, frac) on a borrowed, pipelined multiplier.
+
+    ``start`` is high for one cycle with ``d`` valid (``d`` is registered then). The shared
+    multiplier registers its operands when ``mul_load`` is high (``mul_a``, ``mul_b``:
+    unsigned F+1 bits, zero otherwise: every operand is below 2**(F+1), since Dn < 1,
+    x0 = 2 / (lo + hi) < 2, every G = 2 - D is within the seed error of 1 and every
+    intermediate N = x0 G1 G2 ... < 2, e.g. N1 = x0 (2 - x0 Dn) <= 1 / Dn <= 2 with
+    equality only at x0 = 2) and its raw product one cycle later; ``mul_p`` is that
+    product's ``>> F``, available two cycles after the load. Plan (s = cycles after
+    the start, :func:`divider_plan`): s1 sign, |d|, leading one, normalised D; s2 seed
+    x0 = ROM[D bits] (N = x0) and load D x0; k = 1: s4 load N x (2 - D) with ``2 - D``
+    computed from the product straight into the operand register; k > 1: D and the
+    registered ``G = 2 - D`` at s4, then per middle iteration D G and N G on consecutive
+    cycles (period 3), the last N G last; two cycles after the last load the denormalising
+    shift with rounding (registered), then saturation and sign: ``q_next`` is the result in
+    that cycle (``LATENCY``, forwarded) and ``q``, ``div_zero``, ``overflow`` hold it from the
+    next cycle until the next result. Every step is enabled by a registered one-hot control
+    word (:class:`Control`).
     """
 
     def __init__(self, n: int = 20, frac: int = 10, iterations: int = 1, seed_bits: int = 8):
         self.n, self.frac, self.iterations, self.seed_bits = n, frac, iterations, seed_bits
         self.F = n
-        self.LATENCY = 2 * iterations + 4
+        self.offsets, self.LATENCY = divider_plan(iterations)
         rw = self.F + 2
         super().__init__({
             "start": In(1), "d": In(signed(n)),
-            "q": Out(signed(n)), "div_zero": Out(1), "overflow": Out(1),
-            "mul_a": Out(unsigned(rw)), "mul_b": Out(unsigned(rw)), "mul_en": Out(1),
+            "q": Out(signed(n)), "q_next": Out(signed(n)),
+            "div_zero": Out(1), "overflow": Out(1),
+            "mul_a": Out(unsigned(self.F + 1)), "mul_b": Out(unsigned(self.F + 1)),
+            "mul_load": Out(1),
             "mul_p": In(unsigned(rw)),
         })
 
@@ -79,14 +149,10 @@ class GoldschmidtSerial(wiring.Component):
         w, F, frac, k = self.n, self.F, self.frac, self.iterations
         rw = F + 2
         L = self.LATENCY
-        step = Signal(range(L + 1))
-        run = Signal()
+        ctl = Control(m, self.start, L + 1, "gs")
+        d_reg = Signal(signed(w), reset_less=True)
         with m.If(self.start):
-            m.d.sync += [run.eq(1), step.eq(1)]
-        with m.Elif(run):
-            m.d.sync += step.eq(step + 1)
-            with m.If(step == L - 1):
-                m.d.sync += run.eq(0)
+            m.d.sync += d_reg.eq(self.d)
         neg = Signal()
         zero = Signal()
         sh = Signal(signed(max(F + w + 2, 2 * w + 2).bit_length() + 1))
@@ -94,67 +160,77 @@ class GoldschmidtSerial(wiring.Component):
         N = Signal(unsigned(rw))
         D = Signal(unsigned(rw))
         G = Signal(unsigned(rw))
-        # step 0: sign/magnitude and normalisation (model: a = |d|, D = a << (F-1-p))
-        d = self.d
+        # s1: sign/magnitude and normalisation (model: a = |d|, D = a << (F-1-p))
+        d = d_reg
         d_zero = d == 0
         a = Mux(d_zero, 1, Mux(d[-1], -d, d))[:w]
         pd, lzd = leading_one(m, a, "kf_pd")
-        with m.If(self.start):
+        with m.If(ctl.at({1})):
             m.d.sync += [neg.eq(d[-1]), zero.eq(d_zero), sh.eq(2 * frac - pd - 1 - F),
                          Dn.eq((a << lzd)[:w] << (F - w))]
-        # step 1: seed
+        # s2: seed from the ROM, first multiply D x0
         rom = Array(Const(int(v), unsigned(F + 1))
                     for v in goldschmidt_seed_table(self.seed_bits, F))
         index = Dn[F - 1 - self.seed_bits: F - 1] if self.seed_bits else 0
+        seed = Signal(unsigned(F + 1))
+        m.d.comb += seed.eq(rom[index])
         two = Const(2 << F, unsigned(rw + 1))
-        plan: list[tuple[int, str]] = [(2, "D0")]
-        c = 3
-        for j in range(1, k + 1):
-            if j < k:
-                plan += [(c, "DG"), (c + 1, "NG")]
-                c += 2
-            else:
-                plan.append((c, "NLAST"))
-                c += 1
-        assert c == 2 * k + 2
-        with m.If(run):
-            with m.Switch(step):
-                with m.Case(1):
-                    m.d.sync += N.eq(rom[index])
-                for cyc, what in plan:
-                    with m.Case(cyc):
-                        m.d.comb += self.mul_en.eq(1)
-                        if what == "D0":
-                            m.d.comb += [self.mul_a.eq(Dn), self.mul_b.eq(N)]
-                            m.d.sync += D.eq(self.mul_p)
-                        elif what == "DG":
-                            g = (two - D)[:rw]
-                            m.d.comb += [self.mul_a.eq(D), self.mul_b.eq(g)]
-                            m.d.sync += [D.eq(self.mul_p), G.eq(g)]
-                        elif what == "NG":
-                            m.d.comb += [self.mul_a.eq(N), self.mul_b.eq(G)]
-                            m.d.sync += N.eq(self.mul_p)
-                        else:
-                            m.d.comb += [self.mul_a.eq(N), self.mul_b.eq((two - D)[:rw])]
-                            m.d.sync += N.eq(self.mul_p)
-        # step 2k+2: denormalising shift and rounding (as navgate.gateware.goldschmidt)
+        g_now = Signal(unsigned(rw))
+        m.d.comb += g_now.eq((two - self.mul_p)[:rw])
+        loads: list[tuple[int, object, object]] = [(2, Dn, seed)]
+        with m.If(ctl.at({2})):
+            m.d.sync += N.eq(seed)
+        if k == 1:
+            loads.append((4, N, g_now))
+        else:
+            with m.If(ctl.at({4})):
+                m.d.sync += [D.eq(self.mul_p), G.eq(g_now)]
+            for i in range(k - 1):
+                t0 = 5 + 3 * i
+                loads += [(t0, D, G), (t0 + 1, N, G)]
+                with m.If(ctl.at({t0 + 2})):
+                    m.d.sync += [D.eq(self.mul_p), G.eq(g_now)]
+                with m.If(ctl.at({t0 + 3})):
+                    m.d.sync += N.eq(self.mul_p)
+            loads.append((self.offsets[-1], N, G))
+        assert [t for t, _, _ in loads] == self.offsets
+        acc_a = acc_b = 0
+        for t, va, vb in loads:
+            sel = ctl.at({t})
+            acc_a = acc_a | Mux(sel, va, 0)
+            acc_b = acc_b | Mux(sel, vb, 0)
+        m.d.comb += [self.mul_a.eq(acc_a), self.mul_b.eq(acc_b),
+                     self.mul_load.eq(ctl.at(self.offsets))]
+        # L-1: denormalising shift and rounding of the last product (as
+        # navgate.gateware.goldschmidt); the result is registered with what saturation and
+        # sign need (its negation, its top bit, whether the bits below are non-zero), so
+        # that the forwarded result is a few LUTs behind registers
+        n_last = self.mul_p
         q_low = Signal(unsigned(w))
+        q_neg = Signal(unsigned(w))
         big = Signal()
+        top = Signal()
+        rest = Signal()
         left_amt = Signal(range(w + 1))
         right_m1 = Signal(range(max(2, F + w + 3)))
         m.d.comb += [left_amt.eq(Mux(sh[-1], 0, sh)), right_m1.eq(Mux(sh[-1], -sh - 1, 0))]
-        left = N << left_amt
-        right = ((N >> right_m1) + 1) >> 1
-        shifted = Mux(sh[-1], right, left)
-        # step 2k+3: saturation, sign, divide-by-zero override
-        limit = Mux(neg, 1 << (w - 1), (1 << (w - 1)) - 1)
-        over = big | (q_low > limit)
-        q_mag = Mux(over, limit, q_low)
-        value = Mux(neg, -q_mag, q_mag)
-        with m.If(run):
-            with m.If(step == 2 * k + 2):
-                m.d.sync += [q_low.eq(shifted[:w]), big.eq(shifted[w:].any())]
-            with m.If(step == 2 * k + 3):
-                m.d.sync += [self.q.eq(Mux(zero, (1 << (w - 1)) - 1, value)),
-                             self.overflow.eq(over & ~zero), self.div_zero.eq(zero)]
+        left = n_last << left_amt
+        right = ((n_last >> right_m1) + 1) >> 1
+        shifted = Signal(unsigned(F + w + 3))
+        m.d.comb += shifted.eq(Mux(sh[-1], right, left))
+        with m.If(ctl.at({L - 1})):
+            m.d.sync += [q_low.eq(shifted[:w]), q_neg.eq(-shifted[:w]),
+                         big.eq(shifted[w:].any()), top.eq(shifted[w - 1]),
+                         rest.eq(shifted[:w - 1].any())]
+        # L: saturation, sign, divide-by-zero override (forwarded as q_next).
+        # q_low > limit, limit = 2**(w-1) - 1 (positive) or 2**(w-1) (negative)
+        over = big | (top & (~neg | rest))
+        max_pos = (1 << (w - 1)) - 1
+        min_neg = 1 << (w - 1)  # -2**(w-1) as a w-bit pattern
+        value = Signal(unsigned(w))
+        m.d.comb += value.eq(Mux(over, Mux(neg, min_neg, max_pos), Mux(neg, q_neg, q_low)))
+        m.d.comb += self.q_next.eq(Mux(zero, max_pos, value.as_signed()))
+        with m.If(ctl.at({L})):
+            m.d.sync += [self.q.eq(self.q_next), self.overflow.eq(over & ~zero),
+                         self.div_zero.eq(zero)]
         return m
