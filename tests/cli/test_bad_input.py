@@ -570,7 +570,7 @@ def test_kf2x2_overflow_fails_unless_accepted(tmp_path, capsys):
 def test_kf2x2_word_length_range(n, frac, tmp_path, capsys):
     code, _, err = run(["kf2x2", "--n", n, "--frac", frac, "--out", tmp_path], capsys)
     line = assert_one_line(err, code, 2, "must be in [")
-    assert "29]" in line
+    assert "32]" in line
 
 
 @pytest.mark.parametrize("scale", [1000.0, 1e30])

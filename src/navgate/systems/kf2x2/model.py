@@ -121,7 +121,7 @@ class KfParams:
         if not 0 <= self.div_seed_bits <= 8:
             raise ValueError("div_seed_bits must be in [0, 8]")
         if self.div_seed_bits > self.n - 1:  # Goldschmidt seed table: seed_bits <= F - 1, F = n
-            raise ValueError(f"n must be in [{self.div_seed_bits + 1}, 29] with the "
+            raise ValueError(f"n must be in [{self.div_seed_bits + 1}, 32] with the "
                              f"{self.div_seed_bits}-bit divider seed table, got {self.n}")
 
     @property
