@@ -54,7 +54,7 @@ from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32Div, Fp32FromInt, Fp
 
 __all__ = ["UNIT_OF_KIND", "UNIT_LATENCY", "Units", "SOp", "ScheduledProgram", "ScheduleError",
            "schedule_program", "RegisterLayout", "MachineImage", "ScheduledMachine",
-           "ONE_BITS", "QNAN_BITS"]
+           "ONE_BITS", "QNAN_BITS", "ScheduledMachineStream", "CMD_WRITE", "CMD_READ", "CMD_START"]
 
 UNIT_OF_KIND = {"add": "add", "sub": "add", "mul": "mul", "div": "div", "sqrt": "sqrt",
                 "le": "cmp", "lt": "cmp", "cvt": "cvt", "mov": "mov"}
@@ -493,4 +493,70 @@ class ScheduledMachine(wiring.Component):
                 m.d.comb += [wp.en.eq(fld(unit, k, "we")), wp.addr.eq(fld(unit, k, "wa")),
                              wp.data.eq(res)]
         del aw
+        return m
+
+
+CMD_WRITE, CMD_READ, CMD_START = 0, 1, 2
+
+
+class ScheduledMachineStream(wiring.Component):
+    """:class:`ScheduledMachine` behind one command stream (for the verification harness and
+    the ``rtl`` engine). Input payload ``{cmd, addr, data, prog}``: ``cmd`` 0 writes ``data``
+    to register ``addr``, 1 reads register ``addr``, 2 runs program ``prog``. One output
+    ``{data, cycles}`` per command: the word read (0 otherwise) and, for a run, the cycles
+    from start to done (``cycles(prog) + 1``). A write or read takes 2 cycles + the
+    handshake, a run ``cycles + 2``."""
+
+    LATENCY = 3
+    THROUGHPUT = 0.5
+
+    def __init__(self, image: MachineImage, init: dict | None = None):
+        from amaranth.lib import data, stream
+
+        self.core = ScheduledMachine(image, init)
+        aw = image.fields.aw
+        pw = max(1, (len(self.core.keys) - 1).bit_length())
+        self.in_layout = data.StructLayout({"cmd": 2, "addr": aw, "data": 32, "prog": pw})
+        self.out_layout = data.StructLayout({"data": 32, "cycles": 16})
+        super().__init__({"i": In(stream.Signature(self.in_layout)),
+                          "o": Out(stream.Signature(self.out_layout))})
+
+    def elaborate(self, platform):
+        m = Module()
+        core = self.core
+        m.submodules.core = core
+        res = Signal(32)
+        cyc = Signal(16)
+        p = self.i.payload
+        m.d.comb += [core.host_waddr.eq(p.addr), core.host_wdata.eq(p.data),
+                     core.host_raddr.eq(p.addr), core.prog.eq(p.prog),
+                     self.o.payload.data.eq(res), self.o.payload.cycles.eq(cyc)]
+        with m.FSM():
+            with m.State("IDLE"):
+                m.d.comb += self.i.ready.eq(1)
+                with m.If(self.i.valid):
+                    with m.Switch(p.cmd):
+                        with m.Case(CMD_WRITE):
+                            m.d.comb += core.host_we.eq(1)
+                            m.d.sync += [res.eq(0), cyc.eq(0)]
+                            m.next = "RESP"
+                        with m.Case(CMD_READ):
+                            m.d.sync += cyc.eq(0)
+                            m.next = "READ"
+                        with m.Default():
+                            m.d.comb += core.start.eq(1)
+                            m.d.sync += [res.eq(0), cyc.eq(1)]
+                            m.next = "RUN"
+            with m.State("READ"):
+                m.d.sync += res.eq(core.host_rdata)
+                m.next = "RESP"
+            with m.State("RUN"):
+                m.d.sync += cyc.eq(cyc + 1)
+                with m.If(core.done):
+                    m.d.sync += cyc.eq(cyc)
+                    m.next = "RESP"
+            with m.State("RESP"):
+                m.d.comb += self.o.valid.eq(1)
+                with m.If(self.o.ready):
+                    m.next = "IDLE"
         return m

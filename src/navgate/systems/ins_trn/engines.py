@@ -126,3 +126,70 @@ def random_registers(rng: np.random.Generator, names) -> dict:
                        * (1 if rng.random() < 0.5 else -1))
         out[n] = int(v.view(np.uint32))
     return out
+
+
+def command_vectors(image: MachineImage, regs: dict, calls) -> dict:
+    """Input arrays for :class:`ScheduledMachineStream`: write every register of ``regs``,
+    then per call ``(key, inputs)``: write the inputs, run ``key``, read every persistent
+    register and the program's outputs."""
+    from navgate.gateware.scheduled import CMD_READ, CMD_START, CMD_WRITE
+
+    keys = list(image.programs)
+    rows = [(CMD_WRITE, image.layout.fixed[n], int(v) & 0xFFFFFFFF, 0) for n, v in regs.items()]
+    names = [n for n in image.layout.fixed if not n.startswith("c:")]
+    for key, inputs in calls:
+        rows += [(CMD_WRITE, image.layout.fixed[n], int(v) & 0xFFFFFFFF, 0)
+                 for n, v in inputs.items()]
+        rows.append((CMD_START, 0, 0, keys.index(key)))
+        rows += [(CMD_READ, image.layout.fixed[n], 0, 0) for n in names]
+        rows += [(CMD_READ, a, 0, 0) for a in image.output_addr(key).values()]
+    arr = np.array(rows, dtype=np.int64)
+    return {"cmd": arr[:, 0], "addr": arr[:, 1], "data": arr[:, 2], "prog": arr[:, 3]}
+
+
+def stream_model(image: MachineImage):
+    """Bit-true model of :class:`ScheduledMachineStream` over ``image`` (the register file as
+    a dict, each run by :func:`navgate.systems.ins_trn.fp32_exec.run_bittrue`)."""
+    from navgate.gateware.scheduled import CMD_READ, CMD_WRITE
+    from navgate.systems.ins_trn.fp32_exec import run_bittrue
+
+    keys = list(image.programs)
+    allp = programs(True)
+    by_addr = {a: n for n, a in image.layout.fixed.items()}
+
+    def model(seen: dict) -> dict:
+        mem = {a: 0 for a in range(image.layout.depth)}
+        mem.update(image.layout.const_init)
+        data_out, cycles = [], []
+        for cmd, addr, word, prog in zip(seen["cmd"], seen["addr"], seen["data"],
+                                         seen["prog"], strict=True):
+            cmd, addr, word = int(cmd), int(addr), int(word)
+            if cmd == CMD_WRITE:
+                mem[addr] = word
+                data_out.append(0)
+                cycles.append(0)
+            elif cmd == CMD_READ:
+                data_out.append(mem[addr])
+                cycles.append(0)
+            else:
+                key = keys[int(prog)]
+                p = allp[key]
+                regs = {n: mem[image.layout.fixed[n]] for n in by_addr.values()
+                        if not n.startswith("c:")}
+                state = {n: v for n, v in regs.items() if n not in p.inputs}
+                inputs = {}
+                for n in p.inputs:
+                    w = regs[n]
+                    inputs[n] = (float(w - (1 << 32) if w >= 1 << 31 else w)
+                                 if n in IMU_WORDS else np.uint32(w))
+                new, outs, _ = run_bittrue(p, state, inputs)
+                for n, v in new.items():
+                    mem[image.layout.fixed[n]] = int(v[0])
+                for n, a in image.output_addr(key).items():
+                    mem[a] = int(outs[n][0])
+                data_out.append(0)
+                cycles.append(image.cycles(key) + 1)
+        return {"data": np.array(data_out, dtype=np.int64),
+                "cycles": np.array(cycles, dtype=np.int64)}
+
+    return model
