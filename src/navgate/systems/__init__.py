@@ -20,4 +20,12 @@ is published to :mod:`navgate.hw.blocks` through the ``navgate.blocks`` entry po
 #: name -> ("module:attribute" of a zero-argument factory, one-line description)
 BLOCKS: dict[str, tuple[str, str]] = {
     "kf2x2": ("navgate.systems.kf2x2.top:Kf2x2", "seed 004 2x2 adaptive Kalman filter"),
+    "ins_engines": ("navgate.systems.ins_trn.engines:InsEngines",
+                    "seed 000 INS engines: propagate + altitude/TRN updates, shared fp32 units"),
+    "kalman_update_engine": ("navgate.systems.ins_trn.engines:KalmanUpdateEngine",
+                             "seed 000 Kalman update engine (1-D altitude, 2-D TRN), fp32"),
+    "ins_mechanization": ("navgate.systems.ins_trn.engines:InsMechanization",
+                          "seed 000 IMU calibration + INS mechanization, fp32, one sample"),
+    "covariance_propagator": ("navgate.systems.ins_trn.engines:CovariancePropagator",
+                              "seed 000 Phi/Q generation + covariance propagation, fp32"),
 }

@@ -10,6 +10,7 @@ import pytest
 from navgate.systems.ins_trn.engines import (
     IMU_WORDS,
     engine_image,
+    engine_programs,
     random_registers,
     simulate_calls,
 )
@@ -75,18 +76,20 @@ def _words_to_inputs(prog, regs):
 def _reference_sequence(regs, calls):
     regs = dict(regs)
     out = []
+    allp = engine_programs()
     for key, inputs in calls:
         regs.update(inputs)
-        p = programs()[key]
+        p = allp[key]
         state = {n: regs[n] for n in regs if n not in p.inputs}
         new, outs, _ = run_bittrue(p, state, _words_to_inputs(p, regs))
         regs.update({k: int(v[0]) for k, v in new.items()})
+        regs.update({k: int(v[0]) for k, v in outs.items() if k in regs})
         out.append((dict(regs), {k: int(v[0]) for k, v in outs.items()}))
     return out
 
 
-def _check(regs, calls):
-    img = engine_image("ins_engines")
+def _check(regs, calls, which="ins_engines"):
+    img = engine_image(which)
     got = simulate_calls(img, regs, calls)
     exp = _reference_sequence(regs, calls)
     for (key, _), (g_regs, g_out, cyc), (e_regs, e_out) in zip(calls, got, exp, strict=True):
@@ -181,3 +184,41 @@ def test_ins_engines_bit_exact_verilator():
     runs = np.flatnonzero(vec["cmd"] == 2)
     assert [int(res.outputs["cycles"][k]) for k in runs] == \
         [CYCLES[k] + 1 for k, _ in calls]
+
+
+def test_split_halves_compose_to_propagate():
+    """ins_mechanization then covariance_propagator (each from the same starting state, the
+    exported temporaries passed on) give the propagate program's result bit for bit."""
+    allp = engine_programs()
+    rng = np.random.default_rng(4)
+    regs = random_registers(rng, STATE_REGS)
+    imu = {n: float(rng.integers(-32768, 32768)) for n in IMU_WORDS}
+    full, _, _ = run_bittrue(allp["propagate"], dict(regs), imu)
+    m_new, m_out, _ = run_bittrue(allp["mechanization"], dict(regs), imu)
+    cov_in = {n: np.uint32(m_out[n][0]) for n in allp["covariance"].inputs}
+    c_new, _, _ = run_bittrue(allp["covariance"], dict(regs), cov_in)
+    assert set(allp["mechanization"].commit).isdisjoint(allp["covariance"].commit)
+    assert len(allp["mechanization"].commit) + len(allp["covariance"].commit) == \
+        len(allp["propagate"].commit)
+    comb = dict(regs)
+    comb.update({k: int(m_new[k][0]) for k in allp["mechanization"].commit})
+    comb.update({k: int(c_new[k][0]) for k in allp["covariance"].commit})
+    assert {n: int(full[n][0]) for n in STATE_REGS} == comb
+    assert sum(comb[n] != regs[n] for n in STATE_REGS) > 200
+
+
+def test_mechanization_block_bit_exact_amaranth():
+    img = engine_image("ins_mechanization")
+    assert img.cycles("mechanization") == 466
+    rng = np.random.default_rng(13)
+    names = [n for n in img.layout.fixed if not n.startswith("c:")]
+    _check(random_registers(rng, names), [("mechanization", {})], "ins_mechanization")
+
+
+@pytest.mark.slow
+def test_covariance_block_bit_exact_amaranth():
+    img = engine_image("covariance_propagator")
+    assert img.cycles("covariance") == 449
+    rng = np.random.default_rng(14)
+    names = [n for n in img.layout.fixed if not n.startswith("c:")]
+    _check(random_registers(rng, names), [("covariance", {})], "covariance_propagator")

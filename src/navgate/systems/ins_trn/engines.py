@@ -15,16 +15,24 @@ converts them exactly, as the bit-true model does).
 
 from __future__ import annotations
 
+from fractions import Fraction
 from functools import lru_cache
 
 import numpy as np
 from amaranth.sim import Simulator
 
-from navgate.gateware.scheduled import MachineImage, ScheduledMachine, Units
+from navgate.gateware.scheduled import (
+    MachineImage,
+    ScheduledMachine,
+    ScheduledMachineStream,
+    Units,
+)
 from navgate.systems.ins_trn.fp32_engine import programs
-from navgate.systems.ins_trn.fp32_program import STATE_REGS
+from navgate.systems.ins_trn.fp32_program import STATE_REGS, Program
 
-__all__ = ["ENGINE_UNITS", "PROGRAM_SETS", "fixed_names", "engine_image", "IMU_WORDS",
+__all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePropagator",
+           "split_program", "engine_programs", "command_vectors", "stream_model",
+           "ENGINE_UNITS", "PROGRAM_SETS", "fixed_names", "engine_image", "IMU_WORDS",
            "word_bits", "simulate_program", "simulate_calls", "random_registers"]
 
 #: unit instances of the engines (counts chosen against the cycle targets and the DSP budget)
@@ -33,24 +41,77 @@ ENGINE_UNITS = Units(mul=4, add=4)
 PROGRAM_SETS = {
     "ins_engines": ("propagate", "alt_gate", "alt_apply", "trn_gate", "trn_apply"),
     "kalman_update_engine": ("alt_gate", "alt_apply", "trn_gate", "trn_apply"),
-    "propagation_engine": ("propagate",),
+    "ins_mechanization": ("mechanization",),
+    "covariance_propagator": ("covariance",),
+}
+#: modules of the propagate program that each split block runs
+SPLIT_MODULES = {
+    "mechanization": ("imu_calibration", "ins_mechanization"),
+    "covariance": ("phi_q_generation", "covariance_propagator"),
 }
 IMU_WORDS = ("wg0", "wg1", "wg2", "wa0", "wa1", "wa2")
 
 
 def fixed_names(progs: dict) -> list:
-    """Persistent registers: every state register, then every program input."""
+    """Persistent registers: every state register, then every input of ``progs``."""
     names = list(STATE_REGS)
     for p in progs.values():
         names += [n for n in p.inputs if n not in names]
     return names
 
 
+def _half(prog: Program, modules):
+    """(ops, imported temporaries) of the ops in ``modules`` plus the negs they read."""
+    by_dst = {op.dst: op for op in prog.ops}
+    keep = {op.dst for op in prog.ops if op.module in modules}
+    for op in prog.ops:
+        if op.module not in modules:
+            continue
+        for src in op.srcs:
+            o = by_dst.get(src)
+            while o is not None and o.kind == "neg" and o.dst not in keep:
+                keep.add(o.dst)
+                o = by_dst.get(o.srcs[0])
+    ops = [op for op in prog.ops if op.dst in keep]
+    imports = []
+    for op in ops:
+        for src in op.srcs:
+            if src in by_dst and src not in keep and src not in imports:
+                imports.append(src)
+    return ops, imports
+
+
+def split_program(prog: Program, modules, name: str) -> Program:
+    """The ops of ``prog`` that belong to ``modules``, as a program of its own: temporaries
+    it reads from the other modules become inputs (registers named like the temporaries),
+    temporaries the other modules read become outputs, and it commits the registers whose
+    values it computes. A ``neg`` of another module that it reads is repeated here (a sign
+    flip costs nothing). Run on the same starting state, the two halves of the propagate
+    program together give exactly its result (tests/systems/ins_trn/test_engines.py)."""
+    modules = set(modules)
+    ops, imports = _half(prog, modules)
+    keep = {op.dst for op in ops}
+    _, other_imports = _half(prog, {op.module for op in prog.ops} - modules)
+    outputs = {t: t for t in other_imports if t in keep}
+    outputs.update({k: v for k, v in prog.outputs.items() if v in keep})
+    commit = {r: t for r, t in prog.commit.items() if t in keep}
+    inputs = tuple(n for n in prog.inputs if any(n in op.srcs for op in ops)) + tuple(imports)
+    return Program(name, ops=ops, inputs=inputs, commit=commit, outputs=outputs)
+
+
+def engine_programs() -> dict:
+    """The five programs of the fp32 engine plus the two halves of propagate."""
+    allp = dict(programs(True))
+    for key, mods in SPLIT_MODULES.items():
+        allp[key] = split_program(allp["propagate"], mods, key)
+    return allp
+
+
 @lru_cache(maxsize=8)
 def engine_image(which: str = "ins_engines", units: Units = ENGINE_UNITS) -> MachineImage:
-    allp = programs(True)
+    allp = engine_programs()
     progs = {k: allp[k] for k in PROGRAM_SETS[which]}
-    return MachineImage.build(progs, units, fixed_names(allp))
+    return MachineImage.build(progs, units, fixed_names(progs))
 
 
 def word_bits(name: str, value) -> int:
@@ -154,7 +215,7 @@ def stream_model(image: MachineImage):
     from navgate.systems.ins_trn.fp32_exec import run_bittrue
 
     keys = list(image.programs)
-    allp = programs(True)
+    allp = engine_programs()
     by_addr = {a: n for n, a in image.layout.fixed.items()}
 
     def model(seen: dict) -> dict:
@@ -193,3 +254,44 @@ def stream_model(image: MachineImage):
                 "cycles": np.array(cycles, dtype=np.int64)}
 
     return model
+
+
+class _EngineBlock(ScheduledMachineStream):
+    """A block of seed 000's engines: :class:`ScheduledMachineStream` over the image of
+    ``WHICH``. ``LATENCY``: command accepted -> result valid for its longest program
+    (``cycles + 2``); ``THROUGHPUT``: one such program per ``cycles + 3`` cycles."""
+
+    WHICH = "ins_engines"
+
+    def __init__(self):
+        image = engine_image(self.WHICH)
+        super().__init__(image)
+        longest = max(image.cycles(k) for k in image.programs)
+        self.LATENCY = longest + 2
+        self.THROUGHPUT = Fraction(1, longest + 3)
+        self.program_cycles = {k: image.cycles(k) for k in image.programs}
+
+
+class InsEngines(_EngineBlock):
+    """Seed 000 ins_mechanization + covariance_propagator + kalman_update_engine on one pool
+    of float32 units with the state memory (propagate, altitude and TRN updates)."""
+
+    WHICH = "ins_engines"
+
+
+class KalmanUpdateEngine(_EngineBlock):
+    """Seed 000 kalman_update_engine: 1-D altitude and 2-D TRN updates (gate and apply)."""
+
+    WHICH = "kalman_update_engine"
+
+
+class InsMechanization(_EngineBlock):
+    """Seed 000 ins_mechanization (with imu_calibration): one IMU sample."""
+
+    WHICH = "ins_mechanization"
+
+
+class CovariancePropagator(_EngineBlock):
+    """Seed 000 phi_q_generation + covariance_propagator: one IMU sample of P."""
+
+    WHICH = "covariance_propagator"
