@@ -24,8 +24,10 @@ Timing of one op issued in cycle ``c`` (every figure exact):
 * cycle ``c + 1``: operands (sign-flipped where a ``neg`` was folded) enter the unit;
 * cycle ``w = c + 1 + L`` (L: the core's ``LATENCY``): the unit's result is valid and the
   control word of cycle ``w`` writes it (write port of that unit instance) at the end of ``w``;
-* a read issued in cycle ``r`` sees the write iff ``w < r``: results are ready ``L + 2``
-  cycles after issue. A register may be overwritten in the same cycle as its last read.
+* the operand read ports are transparent to the units' write ports (a read in the cycle of
+  a write to the same address returns the new word), so a read issued in cycle ``r`` sees
+  the write iff ``w <= r``: results are ready ``L + 1`` cycles after issue, and a register
+  may be overwritten only after the cycle of its last read.
 
 Units: ``mul`` (Fp32Mul, 5), ``add`` (Fp32Add, add/sub, 8), ``div`` (30), ``sqrt`` (29),
 ``cmp`` (Fp32Compare, 2, result 1.0/0.0), ``cvt`` (Fp32FromInt(32): a register holding a
@@ -64,8 +66,8 @@ UNIT_ORDER = ("mul", "add", "div", "sqrt", "cmp", "cvt", "mov")
 N_SRCS = {"mul": 2, "add": 2, "div": 2, "sqrt": 1, "cmp": 2, "cvt": 1, "mov": 1}
 ONE_BITS = 0x3F800000
 QNAN_BITS = 0x7FC00000
-#: issue -> readable: operand read (1) + unit latency + write (1)
-OVERHEAD = 2
+#: issue -> readable: operand read (1) + unit latency (the write is bypassed to the reads)
+OVERHEAD = 1
 
 
 class ScheduleError(RuntimeError):
@@ -213,10 +215,10 @@ def schedule_program(prog, units: Units, fixed) -> ScheduledProgram:
     for reg, tmp in prog.commit.items():
         if tmp not in producer:
             raise ScheduleError(f"{prog.name}: commit of {reg} from non-temporary {tmp}")
-        if producer[tmp].write >= last_read.get(reg, -1) and tmp not in direct:
+        if producer[tmp].write > last_read.get(reg, -1) and tmp not in direct:
             direct[tmp] = reg
         else:
-            early = max(producer[tmp].ready, last_read.get(reg, -1) - 1 - UNIT_LATENCY["mov"])
+            early = max(producer[tmp].ready, last_read.get(reg, -1) - UNIT_LATENCY["mov"])
             movs.append((early, reg, tmp))
     busy: set = set()
     for early, reg, tmp in sorted(movs):
@@ -272,7 +274,7 @@ def allocate(scheduled: dict, fixed_names) -> RegisterLayout:
                 continue
             if s.dst not in sp.last_use:
                 continue  # dead: not written
-            while active and active[0][0] <= s.write:
+            while active and active[0][0] < s.write:
                 heapq.heappush(free, heapq.heappop(active)[1])
             slot = heapq.heappop(free) if free else nslots
             nslots = max(nslots, slot + 1)
@@ -451,12 +453,18 @@ class ScheduledMachine(wiring.Component):
         hr = regs.read_port()
         m.d.comb += [hr.addr.eq(self.host_raddr), self.host_rdata.eq(hr.data)]
 
+        wports = {}
+        for unit, n in img.units.items():
+            for k in range(n):
+                wp = regs.write_port()
+                m.d.comb += [wp.en.eq(fld(unit, k, "we")), wp.addr.eq(fld(unit, k, "wa"))]
+                wports[(unit, k)] = wp
         for unit, n in img.units.items():
             for k in range(n):
                 name = f"{unit}{k}"
                 ops = []
                 for j in range(N_SRCS[unit]):
-                    p = regs.read_port()
+                    p = regs.read_port(transparent_for=tuple(wports.values()))
                     m.d.comb += p.addr.eq(fld(unit, k, f"s{j}"))
                     flip = Signal(name=f"{name}_f{j}")
                     m.d.sync += flip.eq(fld(unit, k, f"f{j}"))
@@ -489,9 +497,7 @@ class ScheduledMachine(wiring.Component):
                     else:
                         m.d.comb += res.eq(core.o.payload.r)
                 m.submodules[name] = core
-                wp = regs.write_port()
-                m.d.comb += [wp.en.eq(fld(unit, k, "we")), wp.addr.eq(fld(unit, k, "wa")),
-                             wp.data.eq(res)]
+                m.d.comb += wports[(unit, k)].data.eq(res)
         del aw
         return m
 

@@ -99,9 +99,49 @@ def split_program(prog: Program, modules, name: str) -> Program:
     return Program(name, ops=ops, inputs=inputs, commit=commit, outputs=outputs)
 
 
+def reuse_gate(gate: Program, apply: Program, prefix: str) -> tuple[Program, Program]:
+    """The apply half without the work the gate half already did: every op of ``apply``
+    that repeats an op of ``gate`` (same kind, same operands after this renaming) reads the
+    gate's result instead, which the gate now commits to a register ``<prefix>.<temp>``
+    (written in place at no cost). Both programs read the same state and inputs and the
+    sequencer writes nothing between them, so the results are those of the original pair
+    bit for bit (tests/systems/ins_trn/test_engines.py)."""
+    from navgate.systems.ins_trn.fp32_program import Op
+
+    sig = {(op.kind, op.srcs): op.dst for op in gate.ops if op.kind != "neg"}
+    ren: dict = {}
+    ops = []
+    kept: list = []
+    for op in apply.ops:
+        srcs = tuple(ren.get(x, x) for x in op.srcs)
+        hit = sig.get((op.kind, srcs))
+        if hit is not None:
+            ren[op.dst] = f"{prefix}.{hit}"
+            continue
+        ops.append(Op(op.dst, op.kind, srcs, op.module))
+    for op in ops:
+        for x in op.srcs:
+            if x.startswith(prefix + ".") and x not in kept:
+                kept.append(x)
+    out = {k: ren.get(v, v) for k, v in apply.outputs.items()}
+    com = {k: ren.get(v, v) for k, v in apply.commit.items()}
+    if any(v.startswith(prefix + ".") for v in list(out.values()) + list(com.values())):
+        raise ValueError("an apply output or commit is a gate result")
+    new_apply = Program(apply.name, ops=ops, inputs=tuple(apply.inputs) + tuple(kept),
+                        commit=com, outputs=out)
+    commit = dict(gate.commit)
+    commit.update({k: k[len(prefix) + 1:] for k in kept})
+    new_gate = Program(gate.name, ops=list(gate.ops), inputs=gate.inputs, commit=commit,
+                       outputs=dict(gate.outputs))
+    return new_gate, new_apply
+
+
 def engine_programs() -> dict:
-    """The five programs of the fp32 engine plus the two halves of propagate."""
+    """The programs the engines run: propagate (and its two halves), and the two update
+    pairs with the apply half reusing the gate half's results (:func:`reuse_gate`)."""
     allp = dict(programs(True))
+    for g, a in (("alt_gate", "alt_apply"), ("trn_gate", "trn_apply")):
+        allp[g], allp[a] = reuse_gate(allp[g], allp[a], g)
     for key, mods in SPLIT_MODULES.items():
         allp[key] = split_program(allp["propagate"], mods, key)
     return allp
