@@ -519,9 +519,10 @@ class ScheduledMachineStream(wiring.Component):
     def __init__(self, image: MachineImage, init: dict | None = None):
         from amaranth.lib import data, stream
 
-        self.core = ScheduledMachine(image, init)
+        self.image = image
+        self.init = init
         aw = image.fields.aw
-        pw = max(1, (len(self.core.keys) - 1).bit_length())
+        pw = max(1, (len(image.programs) - 1).bit_length())
         self.in_layout = data.StructLayout({"cmd": 2, "addr": aw, "data": 32, "prog": pw})
         self.out_layout = data.StructLayout({"data": 32, "cycles": 16})
         super().__init__({"i": In(stream.Signature(self.in_layout)),
@@ -529,7 +530,7 @@ class ScheduledMachineStream(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        core = self.core
+        core = ScheduledMachine(self.image, self.init)
         m.submodules.core = core
         res = Signal(32)
         cyc = Signal(16)

@@ -247,3 +247,24 @@ def test_reuse_gate_bit_identical(pair):
         {k: int(v[0]) for k, v in exp_state.items()}
     assert {k: int(v[0]) for k, v in got_out.items()} == \
         {k: int(v[0]) for k, v in exp_out.items()}
+
+
+@pytest.mark.filterwarnings("ignore:.*created but never used")
+def test_blocks_registered_with_latency_and_throughput():
+    from fractions import Fraction
+
+    from amaranth.hdl import Fragment
+
+    from navgate.hw.blocks import all_blocks, get_block
+
+    names = {"ins_engines", "kalman_update_engine", "ins_mechanization",
+             "covariance_propagator"}
+    assert names <= set(all_blocks())
+    longest = {"ins_engines": CYCLES["propagate"], "kalman_update_engine": CYCLES["trn_apply"],
+               "ins_mechanization": 424, "covariance_propagator": 448}
+    for name in sorted(names):
+        c = get_block(name).factory()
+        assert c.LATENCY == longest[name] + 2
+        assert Fraction(c.THROUGHPUT) == Fraction(1, longest[name] + 3)
+        assert hasattr(c, "i") and hasattr(c, "o")
+    Fragment.get(get_block("kalman_update_engine").factory(), None)
