@@ -33,9 +33,9 @@ from navgate.systems.ins_trn.fp32_program import STATE_REGS, Program
 __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePropagator",
            "split_program", "engine_programs", "command_vectors", "stream_model",
            "ENGINE_UNITS", "PROGRAM_SETS", "fixed_names", "engine_image", "IMU_WORDS",
-           "word_bits", "simulate_program", "simulate_calls", "random_registers"]
+           "simulate_program", "simulate_calls", "random_registers"]
 
-#: unit instances of the engines (counts chosen against the cycle targets and the DSP budget)
+#: unit instances of the engines (counts chosen against the cycle targets)
 ENGINE_UNITS = Units(mul=4, add=4)
 #: the programs each block runs
 PROGRAM_SETS = {
@@ -152,13 +152,6 @@ def engine_image(which: str = "ins_engines", units: Units = ENGINE_UNITS) -> Mac
     allp = engine_programs()
     progs = {k: allp[k] for k in PROGRAM_SETS[which]}
     return MachineImage.build(progs, units, fixed_names(progs))
-
-
-def word_bits(name: str, value) -> int:
-    """The register word for an input value: IMU words as two's complement integers."""
-    if name in IMU_WORDS:
-        return int(value) & 0xFFFFFFFF
-    return int(value) & 0xFFFFFFFF
 
 
 def simulate_calls(image: MachineImage, regs: dict, calls, vcd: str | None = None):
