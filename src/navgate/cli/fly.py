@@ -53,10 +53,12 @@ def _positive_float(ctx, param, value):
 @click.option("--trn", "trn_method", type=click.Choice(["pmf", "tercom"]), default="pmf",
               show_default=True,
               help="TRN method: point-mass filter or batch TERCOM (docs/trn.md compares them).")
-@click.option("--engine", type=click.Choice(["reference", "fp32"]), default="reference",
+@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl"]), default="reference",
               show_default=True,
-              help="PL engine: float64 reference, or the float32 bit-true model (then the "
-                   "reference flies too, for the comparison in summary.json).")
+              help="PL engine: float64 reference, the float32 bit-true model, or the "
+                   "ins_engines gateware in Verilator (equal to fp32 bit for bit; about a "
+                   "minute per flight second); with fp32/rtl the reference flies too, for "
+                   "the comparison in summary.json.")
 @click.option("--record", "record_path", type=click.Path(dir_okay=False), default=None,
               help="Also write the sensor record stream to this log file (navgate replay).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")

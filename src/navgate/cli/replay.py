@@ -17,8 +17,9 @@ from navgate.cli.common import CliError, prepare_out_dir, write_summary
 
 @click.command()
 @click.argument("log_path", type=click.Path(dir_okay=False))
-@click.option("--engine", type=click.Choice(["reference", "fp32"]), default="reference",
-              show_default=True, help="PL engine: float64 reference or float32 bit-true model.")
+@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl"]), default="reference",
+              show_default=True, help="PL engine: float64 reference, float32 bit-true model, "
+                                      "or the ins_engines gateware in Verilator (slow).")
 @click.option("--dem", "dem_path", type=click.Path(dir_okay=True), default=None,
               help="DEM for TRN (default: the embedded Jacksboro fault DEM).")
 @click.option("--no-trn", is_flag=True, help="Run INS-only (with baro) and skip TRN.")

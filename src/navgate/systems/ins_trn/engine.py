@@ -228,6 +228,8 @@ ENGINES: dict[str, tuple[str, str]] = {
              "float32 bit-true model of the PL engines (op programs, compiled)"),
     "fp32-plain": ("navgate.systems.ins_trn.fp32_engine:Fp32EngineUncompensated",
                    "fp32 without the Kahan position compensation (measurement only)"),
+    "rtl": ("navgate.systems.ins_trn.rtl_engine:RtlEngine",
+            "the ins_engines gateware in Verilator (equals fp32 bit for bit; slow)"),
 }
 
 
