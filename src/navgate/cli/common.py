@@ -409,6 +409,10 @@ def warning_handler(prefix: str) -> Iterator[None]:
         # library API deprecations are for navgate's developers, not its users
         for category in (DeprecationWarning, PendingDeprecationWarning, FutureWarning):
             warnings.simplefilter("ignore", category)
+        # Amaranth's notice that a component object was garbage-collected without being
+        # elaborated says nothing to a user (it comes from whatever object the collector
+        # happens to reach, even one made by an earlier call in the same process)
+        warnings.filterwarnings("ignore", message=r".*created but never used")
         warnings.showwarning = show
         root.addHandler(handler)
         if level == logging.NOTSET or level > logging.WARNING:
