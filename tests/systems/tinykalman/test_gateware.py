@@ -2,6 +2,7 @@
 model (directed edge cases and random/real data), and the whole chip at pin level against the
 model through the MPU-6500 device model (timing, latency, faults)."""
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,10 @@ from navgate.systems.tinykalman.spi import Mpu6500Spi, spi_cycles
 from navgate.systems.tinykalman.top import TinyKalmanTop, min_sample_period, timing
 from navgate.systems.tinykalman.uart import UartTx
 
-LOG = Path("/work/shared/data/fusion_sensor_data.csv")
+# the real x-io log in ../shared/data beside the checkout (as tests/conftest.py finds it)
+LOG = Path(os.environ.get("NAVGATE_SHARED_DATA",
+                          Path(__file__).resolve().parents[4] / "shared" / "data")
+           ) / "fusion_sensor_data.csv"
 
 
 def angles_model(s):

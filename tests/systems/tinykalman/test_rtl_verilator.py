@@ -3,6 +3,7 @@ device model on the SPI pins, cocotbext-uart on TX), and the data path block thr
 stream harness, bit-exact against the integer model. Long runs (>= 10,000 samples of the real
 log and of synthetic motion, the real-divider chip) are marked slow."""
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,10 @@ from navgate.systems.tinykalman.datapath import TinyKalmanDatapath
 from navgate.systems.tinykalman.rtl_sim import datapath_inputs, datapath_model, directed_angles
 from navgate.systems.tinykalman.run import Words, model_stream, synthetic_motion, words_from_imu
 
-LOG = Path("/work/shared/data/fusion_sensor_data.csv")
+# the real x-io log in ../shared/data beside the checkout (as tests/conftest.py finds it)
+LOG = Path(os.environ.get("NAVGATE_SHARED_DATA",
+                          Path(__file__).resolve().parents[4] / "shared" / "data")
+           ) / "fusion_sensor_data.csv"
 
 
 def real_words(n=None):
