@@ -360,6 +360,9 @@ class MachineImage:
         sp = self.programs[key]
         return {n: self.layout.temp_addr[key][t] for n, t in sp.outputs.items()}
 
+    def machine(self, init: dict | None = None):
+        return ScheduledMachine(self, init)
+
 
 class _Mov(wiring.Component):
     """One-cycle register (the commit copy)."""
@@ -506,7 +509,8 @@ CMD_WRITE, CMD_READ, CMD_START = 0, 1, 2
 
 
 class ScheduledMachineStream(wiring.Component):
-    """:class:`ScheduledMachine` behind one command stream (for the verification harness and
+    """The machine of ``image`` (:class:`ScheduledMachine`, or the banked machine of
+    :mod:`navgate.gateware.banked`) behind one command stream (for the verification harness and
     the ``rtl`` engine). Input payload ``{cmd, addr, data, prog}``: ``cmd`` 0 writes ``data``
     to register ``addr``, 1 reads register ``addr``, 2 runs program ``prog``. One output
     ``{data, cycles}`` per command: the word read (0 otherwise) and, for a run, the cycles
@@ -530,7 +534,7 @@ class ScheduledMachineStream(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        core = ScheduledMachine(self.image, self.init)
+        core = self.image.machine(self.init)
         m.submodules.core = core
         res = Signal(32)
         cyc = Signal(16)

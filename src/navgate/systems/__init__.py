@@ -66,16 +66,14 @@ BLOCKS: dict[str, tuple[str, str]] = {
                        "seed 003 INS_euler: Euler angles (3.1.7), own units"),
     "attitude_atan": ("navgate.systems.attitude.units:AtanCircuit",
                       "seed 003 fix16 arctangent (3.1.8): float32->Q2.13->CORDIC->float32"),
-    # Seed 000's PL engines (navgate.systems.ins_trn.engines) are bit-exact and meet their cycle
-    # targets, but their multi-ported register file synthesises to about 150k LUT (docs/
-    # seed000-engines.md); they stay out of `navgate build`/`report` until it is banked into
-    # block RAM, so that a report does not spend hours on a design that cannot fit:
-    # "ins_engines": ("navgate.systems.ins_trn.engines:InsEngines",
-    #                 "seed 000 INS engines: propagate + altitude/TRN updates, shared fp32 units"),
-    # "kalman_update_engine": ("navgate.systems.ins_trn.engines:KalmanUpdateEngine",
-    #                          "seed 000 Kalman update engine (1-D altitude, 2-D TRN), fp32"),
-    # "ins_mechanization": ("navgate.systems.ins_trn.engines:InsMechanization",
-    #                       "seed 000 IMU calibration + INS mechanization, fp32, one sample"),
-    # "covariance_propagator": ("navgate.systems.ins_trn.engines:CovariancePropagator",
-    #                           "seed 000 Phi/Q generation + covariance propagation, fp32"),
+    # Seed 000's PL engines (navgate.systems.ins_trn.engines): the banked scheduled float32
+    # datapath (navgate.gateware.banked, docs/seed000-engines.md)
+    "ins_engines": ("navgate.systems.ins_trn.engines:InsEngines",
+                    "seed 000 INS engines: propagate + altitude/TRN updates, shared fp32 units"),
+    "kalman_update_engine": ("navgate.systems.ins_trn.engines:KalmanUpdateEngine",
+                             "seed 000 Kalman update engine (1-D altitude, 2-D TRN), fp32"),
+    "ins_mechanization": ("navgate.systems.ins_trn.engines:InsMechanization",
+                          "seed 000 IMU calibration + INS mechanization, fp32, one sample"),
+    "covariance_propagator": ("navgate.systems.ins_trn.engines:CovariancePropagator",
+                              "seed 000 Phi/Q generation + covariance propagation, fp32"),
 }

@@ -21,12 +21,8 @@ from functools import lru_cache
 import numpy as np
 from amaranth.sim import Simulator
 
-from navgate.gateware.scheduled import (
-    MachineImage,
-    ScheduledMachine,
-    ScheduledMachineStream,
-    Units,
-)
+from navgate.gateware.banked import BankedImage, BankedUnits
+from navgate.gateware.scheduled import ScheduledMachineStream
 from navgate.systems.ins_trn.fp32_engine import programs
 from navgate.systems.ins_trn.fp32_program import STATE_REGS, Program
 
@@ -35,8 +31,8 @@ __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePr
            "ENGINE_UNITS", "PROGRAM_SETS", "fixed_names", "engine_image", "IMU_WORDS",
            "simulate_program", "simulate_calls", "random_registers"]
 
-#: unit instances of the engines (counts chosen against the cycle targets)
-ENGINE_UNITS = Units(mul=4, add=4)
+#: issue slots and banks of the engines (counts chosen against the 2-D update's cycle target)
+ENGINE_UNITS = BankedUnits(mul=4, add=4, read_ports=2)
 #: the programs each block runs
 PROGRAM_SETS = {
     "ins_engines": ("propagate", "alt_gate", "alt_apply", "trn_gate", "trn_apply"),
@@ -148,20 +144,20 @@ def engine_programs() -> dict:
 
 
 @lru_cache(maxsize=8)
-def engine_image(which: str = "ins_engines", units: Units = ENGINE_UNITS) -> MachineImage:
+def engine_image(which: str = "ins_engines", units: BankedUnits = ENGINE_UNITS) -> BankedImage:
     allp = engine_programs()
     progs = {k: allp[k] for k in PROGRAM_SETS[which]}
-    return MachineImage.build(progs, units, fixed_names(progs))
+    return BankedImage.build(progs, units, fixed_names(progs))
 
 
-def simulate_calls(image: MachineImage, regs: dict, calls, vcd: str | None = None):
+def simulate_calls(image: BankedImage, regs: dict, calls, vcd: str | None = None):
     """Run a sequence of programs in one Amaranth simulation: the register file starts from
     ``regs`` (name -> 32-bit word); each call ``(key, inputs)`` writes its inputs through the
     host port, starts program ``key``, waits for ``done`` and reads every persistent register
     and the program's outputs back through the host port. Returns one (registers: name ->
     word, outputs: name -> word, cycles from start to done) per call."""
     init = {image.layout.fixed[n]: int(v) & 0xFFFFFFFF for n, v in regs.items()}
-    dut = ScheduledMachine(image, init=init)
+    dut = image.machine(init)
     names = [n for n in image.layout.fixed if not n.startswith("c:")]
     results: list = []
 
@@ -204,7 +200,7 @@ def simulate_calls(image: MachineImage, regs: dict, calls, vcd: str | None = Non
     return results
 
 
-def simulate_program(image: MachineImage, key: str, regs: dict):
+def simulate_program(image: BankedImage, key: str, regs: dict):
     """One program from ``regs`` (inputs included): (registers, outputs, cycles)."""
     return simulate_calls(image, regs, [(key, {})])[0]
 
@@ -222,7 +218,7 @@ def random_registers(rng: np.random.Generator, names) -> dict:
     return out
 
 
-def command_vectors(image: MachineImage, regs: dict, calls) -> dict:
+def command_vectors(image: BankedImage, regs: dict, calls) -> dict:
     """Input arrays for :class:`ScheduledMachineStream`: write every register of ``regs``,
     then per call ``(key, inputs)``: write the inputs, run ``key``, read every persistent
     register and the program's outputs."""
@@ -241,7 +237,7 @@ def command_vectors(image: MachineImage, regs: dict, calls) -> dict:
     return {"cmd": arr[:, 0], "addr": arr[:, 1], "data": arr[:, 2], "prog": arr[:, 3]}
 
 
-def stream_model(image: MachineImage):
+def stream_model(image: BankedImage):
     """Bit-true model of :class:`ScheduledMachineStream` over ``image`` (the register file as
     a dict, each run by :func:`navgate.systems.ins_trn.fp32_exec.run_bittrue`)."""
     from navgate.gateware.scheduled import CMD_READ, CMD_WRITE

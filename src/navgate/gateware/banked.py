@@ -1,0 +1,643 @@
+"""Banked scheduled float32 datapath: the list scheduler of :mod:`navgate.gateware.scheduled`
+with a register file split into single-write-port banks that map onto block RAM, and the
+Amaranth machine that executes the schedule.
+
+Reference: resource-constrained list scheduling with register-bank (port) constraints, as in
+clustered VLIW compilers and high-level synthesis with multi-bank memories (Gajski et al.,
+"High-Level Synthesis", 1992, ch. 7 and 8; Lapinskii, Jacome and de Veciana, "Cluster
+assignment for high-performance embedded VLIW processors", ACM TODAES 7(3), 2002). The
+unbanked machine (:class:`navgate.gateware.scheduled.ScheduledMachine`) gives every unit its
+own read and write ports on one register file; on a 7-series part that becomes flip-flops and
+wide multiplexers (151,653 LUT for seed 000's mechanization). Here every bank has **one
+write port** and ``read_ports`` read ports (synchronous, not transparent), which is what a
+block RAM (one simple-dual-port RAMB18 per read port) or LUT RAM provides, and the scheduler
+keeps every cycle within those ports. docs/seed000-engines.md describes it.
+
+Machine
+-------
+* Issue slots: ``mul`` instances, ``add`` instances (add/sub) and one ``misc`` slot shared by
+  div, sqrt, compare, int->float conversion and the commit copy ``mov``; each slot issues at
+  most one op per cycle and has two operand ports.
+* Banks: one per issue slot (``mul0..``, ``add0..``, ``misc``). Each bank: one write port whose
+  data comes from any unit's result (a multiplexer set by the microcode), ``read_ports``
+  read ports; every operand port selects one bank read port (a ``banks x read_ports``
+  multiplexer set by the microcode). Persistent registers (state, configuration, inputs,
+  constants) are spread over the banks; every temporary is placed by the scheduler in a bank
+  whose write port is free in its write cycle (its own slot's bank first).
+* Timing of an op issued in cycle ``c``: the control word of cycle ``c`` presents the operand
+  addresses to the banks' read ports; in ``c + 1`` the read data pass the operand
+  multiplexer (and the sign flip where a ``neg`` was folded) into the operand register; in
+  ``c + 2`` they enter the unit; the result is valid in ``w = c + 2 + L`` and the control
+  word of cycle ``w`` writes it at the end of ``w``. Reads are not transparent: an op issued
+  in ``r`` sees the write iff ``w < r`` (ready ``L + 3`` cycles after issue), and a register
+  may be overwritten in the cycle of its last read (the read returns the old word). The
+  operand register keeps the block RAM's clock-to-out delay and the multiplexer out of the
+  units' first stage (xc7 timing).
+* Constraints per cycle: one issue per slot; per bank, at most ``read_ports`` distinct words
+  read and one word written.
+
+Programs and commit rules are those of :mod:`navgate.gateware.scheduled` (SSA ops, commit
+map read at program start, outputs): a committed temporary placed in its register's bank and
+written no earlier than that register's last read is written in place, otherwise a ``mov``
+copies it.
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+
+from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
+from amaranth.lib import wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32Div, Fp32FromInt, Fp32Mul, Fp32Sqrt
+from navgate.gateware.scheduled import (
+    ONE_BITS,
+    UNIT_LATENCY,
+    UNIT_OF_KIND,
+    ScheduledProgram,
+    ScheduleError,
+    SOp,
+    _fold_negs,
+    _Mov,
+)
+
+__all__ = ["BankedUnits", "BankedLayout", "BankedImage", "BankedMachine", "schedule_banked",
+           "MISC_KINDS", "OVERHEAD", "assign_banks", "allocate_banked"]
+
+#: the cores sharing the misc issue slot, in select order
+MISC_KINDS = ("div", "sqrt", "cmp", "cvt", "mov")
+#: issue -> unit input: bank read (1) + operand multiplexer into the operand register (1)
+OPERAND_STAGES = 2
+#: issue -> readable: operand stages + latency + write-before-read (not transparent, 1)
+OVERHEAD = OPERAND_STAGES + 1
+#: a temporary read by at least this many ops goes to the least-read bank
+SPREAD_FANOUT = 2
+
+
+@dataclass(frozen=True)
+class BankedUnits:
+    """Issue slots (and banks): ``mul`` and ``add`` instances, plus one misc slot."""
+
+    mul: int = 3
+    add: int = 3
+    read_ports: int = 2
+
+    def slots(self) -> list:
+        return ([("mul", k) for k in range(self.mul)] + [("add", k) for k in range(self.add)]
+                + [("misc", 0)])
+
+    def slot_of(self, unit: str, inst: int) -> int:
+        if unit == "mul":
+            return inst
+        if unit == "add":
+            return self.mul + inst
+        return self.mul + self.add
+
+    @property
+    def banks(self) -> int:
+        return self.mul + self.add + 1
+
+
+def _slot_unit(unit: str) -> str:
+    return unit if unit in ("mul", "add") else "misc"
+
+
+class BSOp(SOp):
+    """A scheduled op of the banked machine (result written ``OPERAND_STAGES + L`` cycles
+    after issue, in bank ``bank``)."""
+
+    bank = None
+
+    @property
+    def write(self) -> int:
+        return self.issue + OPERAND_STAGES + UNIT_LATENCY[self.unit]
+
+    @property
+    def ready(self) -> int:
+        return self.write + 1
+
+
+def _ready(s: SOp) -> int:
+    return s.issue + UNIT_LATENCY[s.unit] + OVERHEAD
+
+
+def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram:
+    """List-schedule ``prog`` with bank constraints. ``bank_of``: persistent register ->
+    bank. Every op gets ``issue``, ``inst`` (slot instance) and ``bank`` (of its result,
+    attribute added here); movs are appended for commits that cannot be made in place."""
+    if units.read_ports < 2:
+        raise ScheduleError("read_ports must be at least 2 (an op may read two words of one "
+                            "bank in one cycle)")
+    ops = [BSOp(s.index, s.dst, s.kind, s.srcs) for s in _fold_negs(prog)]
+    producer = {s.dst: s for s in ops}
+    for s in ops:
+        s.unit = UNIT_OF_KIND[s.kind]
+        for name, _ in s.srcs:
+            if name not in producer and name not in bank_of:
+                raise ScheduleError(f"{prog.name}: unknown operand {name} of {s.dst}")
+    users: dict = {s.dst: [] for s in ops}
+    for s in ops:
+        for name, _ in s.srcs:
+            if name in users and s not in users[name]:
+                users[name].append(s)
+    needed = set(prog.commit.values()) | set(prog.outputs.values())
+    for s in reversed(ops):
+        lat = UNIT_LATENCY[s.unit] + OVERHEAD
+        s.height = lat + max((u.height for u in users[s.dst]), default=0)
+    commit_to = {}
+    for reg, tmp in prog.commit.items():
+        commit_to.setdefault(tmp, reg)
+    npred = {s.index: len({n for n, _ in s.srcs if n in producer}) for s in ops}
+    bank = {}  # value name -> bank (temporaries, as placed)
+    reads: dict = {}  # (cycle, bank) -> set of names
+    writes: set = set()  # (cycle, bank)
+    issued: set = set()  # (cycle, slot)
+    pending = []
+    for s in ops:
+        if npred[s.index] == 0:
+            heapq.heappush(pending, (0, -s.height, s.index))
+    ready = {"mul": [], "add": [], "misc": []}
+    nslots = {"mul": units.mul, "add": units.add, "misc": 1}
+    nb = units.banks
+    load = [0] * nb  # reads of the temporaries placed in each bank
+
+    def bank_of_name(name):
+        return bank[name] if name in bank else bank_of[name]
+
+    def reads_fit(c, names):
+        need: dict = {}
+        for n in set(names):
+            b = bank_of_name(n)
+            need.setdefault(b, set()).add(n)
+        for b, ns in need.items():
+            have = reads.get((c, b), set())
+            if len(have | ns) > units.read_ports:
+                return False
+        return True
+
+    def take_reads(c, names):
+        for n in names:
+            reads.setdefault((c, bank_of_name(n)), set()).add(n)
+
+    placed = 0
+    c = 0
+    while placed < len(ops):
+        while pending and pending[0][0] <= c:
+            _, h, i = heapq.heappop(pending)
+            heapq.heappush(ready[_slot_unit(ops[i].unit)], (h, i))
+        for su in ("mul", "add", "misc"):
+            q = ready[su]
+            skipped = []
+            inst = 0
+            while q and inst < nslots[su]:
+                h, i = heapq.heappop(q)
+                s = ops[i]
+                names = [n for n, _ in s.srcs]
+                w = c + OPERAND_STAGES + UNIT_LATENCY[s.unit]
+                dead = not users[s.dst] and s.dst not in needed
+                own = units.slot_of(su, inst)
+                target = None
+                if not dead:
+                    prefs = []
+                    if s.dst in commit_to:
+                        prefs.append(bank_of[commit_to[s.dst]])
+                    if len(users[s.dst]) >= SPREAD_FANOUT:
+                        # a word many ops read: the bank least read so far
+                        prefs += sorted(range(nb), key=lambda b: (load[b], b))
+                    prefs.append(own)
+                    prefs += sorted(range(nb), key=lambda b: (b != own, load[b], b))
+                    for b in prefs:
+                        if (w, b) not in writes:
+                            target = b
+                            break
+                if not reads_fit(c, names) or (not dead and target is None):
+                    skipped.append((h, i))
+                    continue
+                take_reads(c, names)
+                s.issue, s.inst = c, (inst if su != "misc" else 0)
+                issued.add((c, own))
+                if not dead:
+                    writes.add((w, target))
+                    bank[s.dst] = target
+                    load[target] += len(users[s.dst])
+                s.bank = target
+                inst += 1
+                placed += 1
+                for u in users[s.dst]:
+                    npred[u.index] -= 1
+                    if npred[u.index] == 0:
+                        early = max(_ready(producer[n]) for n, _ in u.srcs if n in producer)
+                        heapq.heappush(pending, (early, -u.height, u.index))
+            for item in skipped:
+                heapq.heappush(q, item)
+        c += 1
+    # commits: in place when the temporary sits in the register's bank and is written no
+    # earlier than the register's last read; otherwise a mov on the misc slot
+    last_read: dict = {}
+    for s in ops:
+        for name, _ in s.srcs:
+            if name not in producer:
+                last_read[name] = max(last_read.get(name, -1), s.issue)
+    direct = {}
+    movs = []
+    for reg, tmp in prog.commit.items():
+        if tmp not in producer:
+            raise ScheduleError(f"{prog.name}: commit of {reg} from non-temporary {tmp}")
+        p = producer[tmp]
+        if (tmp not in direct and bank.get(tmp) == bank_of[reg]
+                and p.write >= last_read.get(reg, -1)):
+            direct[tmp] = reg
+        else:
+            movs.append((_ready(p), reg, tmp))
+    lat_mov = UNIT_LATENCY["mov"]
+    misc_slot = units.slot_of("misc", 0)
+    for early, reg, tmp in sorted(movs):
+        c = max(early, last_read.get(reg, -1) - OPERAND_STAGES - lat_mov)
+        while ((c, misc_slot) in issued
+               or (c + OPERAND_STAGES + lat_mov, bank_of[reg]) in writes
+               or not reads_fit(c, [tmp])):
+            c += 1
+        issued.add((c, misc_slot))
+        writes.add((c + OPERAND_STAGES + lat_mov, bank_of[reg]))
+        take_reads(c, [tmp])
+        s = BSOp(len(ops), reg, "mov", ((tmp, False),), "mov", 0, c)
+        s.bank = bank_of[reg]
+        ops.append(s)
+    order = {"mul": 0, "add": 1}
+    ops.sort(key=lambda s: (s.issue, order.get(s.unit, 2), s.inst))
+    cycles = max(s.write for s in ops) + 1
+    last_use: dict = {}
+    for s in ops:
+        for name, _ in s.srcs:
+            if name in producer:
+                last_use[name] = max(last_use.get(name, -1), s.issue)
+    for tmp in prog.outputs.values():
+        last_use[tmp] = cycles
+    return ScheduledProgram(prog.name, ops, cycles, dict(prog.commit), dict(prog.outputs),
+                            direct, last_use)
+
+
+@dataclass
+class BankedLayout:
+    """Addresses of the banked register file shared by several programs. A register's
+    host (flat) address is ``bank << local_bits | local``."""
+
+    banks: int
+    local_bits: int
+    fixed: dict  #: persistent name -> flat address
+    depth: int  #: flat address space (banks << local_bits)
+    bank_depth: list  #: words used per bank
+    temp_addr: dict  #: program name -> {temporary: flat address}
+    const_init: dict  #: flat address -> bits
+    temp_base: int = 0  #: persistent words (all banks)
+
+    def split(self, flat: int) -> tuple:
+        return flat >> self.local_bits, flat & ((1 << self.local_bits) - 1)
+
+
+def assign_banks(names: list, units: BankedUnits, reads: dict | None = None) -> dict:
+    """Persistent register -> bank: spread evenly, the most-read registers first (round
+    robin in order of read counts, so that hot words do not share a bank)."""
+    reads = reads or {}
+    order = sorted(names, key=lambda n: (-reads.get(n, 0), names.index(n)))
+    return {n: k % units.banks for k, n in enumerate(order)}
+
+
+def allocate_banked(scheduled: dict, fixed_names: list, bank_of: dict,
+                    units: BankedUnits) -> BankedLayout:
+    nb = units.banks
+    local: dict = {}
+    count = [0] * nb
+    for n in fixed_names:
+        b = bank_of[n]
+        local[n] = count[b]
+        count[b] += 1
+    base = list(count)
+    temps: dict = {}
+    top = [0] * nb
+    for key, sp in scheduled.items():
+        addr: dict = {}
+        active = [[] for _ in range(nb)]
+        free = [[] for _ in range(nb)]
+        used = [0] * nb
+        for s in sorted((s for s in sp.ops if s.kind != "mov"), key=lambda s: s.write):
+            if s.dst in sp.direct:
+                reg = sp.direct[s.dst]
+                addr[s.dst] = (bank_of[reg], local[reg])
+                continue
+            if s.dst not in sp.last_use:
+                continue
+            b = s.bank
+            while active[b] and active[b][0][0] < s.write:
+                heapq.heappush(free[b], heapq.heappop(active[b])[1])
+            slot = heapq.heappop(free[b]) if free[b] else used[b]
+            used[b] = max(used[b], slot + 1)
+            heapq.heappush(active[b], (sp.last_use[s.dst], slot))
+            addr[s.dst] = (b, base[b] + slot)
+        temps[key] = addr
+        top = [max(t, u) for t, u in zip(top, used, strict=True)]
+    depth = [base[b] + top[b] for b in range(nb)]
+    lb = max(1, (max(depth) - 1).bit_length())
+    fixed = {n: (bank_of[n] << lb) | local[n] for n in fixed_names}
+    temp_addr = {k: {t: (b << lb) | a for t, (b, a) in v.items()} for k, v in temps.items()}
+    const_init = {fixed[n]: int(n[2:], 16) for n in fixed_names if n.startswith("c:")}
+    return BankedLayout(nb, lb, fixed, nb << lb, depth, temp_addr, const_init,
+                        sum(base))
+
+
+class _BankedFields:
+    """Bit positions of the control word."""
+
+    def __init__(self, units: BankedUnits, lb: int, n_sources: int, misc_kinds: tuple):
+        self.pos: dict = {}
+        off = 0
+        nb = units.banks
+        self.sel_bits = max(1, (nb * units.read_ports - 1).bit_length())
+        self.src_bits = max(1, (n_sources - 1).bit_length())
+        self.kind_bits = max(1, (len(misc_kinds) - 1).bit_length())
+
+        def add(key, w):
+            nonlocal off
+            self.pos[key] = (off, w)
+            off += w
+
+        for b in range(nb):
+            for r in range(units.read_ports):
+                add(("ra", b, r), lb)
+            add(("we", b), 1)
+            add(("wa", b), lb)
+            add(("wsrc", b), self.src_bits)
+        for slot, _ in enumerate(units.slots()):
+            add(("iss", slot), 1)
+            for j in range(2):
+                add(("sel", slot, j), self.sel_bits)
+                add(("flip", slot, j), 1)
+        add(("mod", "add"), units.add)  # one sub bit per add slot
+        add(("kind",), self.kind_bits)
+        add(("wmod",), 1)
+        self.width = off
+        self.aw = lb + max(1, (nb - 1).bit_length())
+
+
+@dataclass
+class BankedImage:
+    """Everything the banked gateware is generated from: schedules, layout, microcode."""
+
+    units: BankedUnits
+    misc_kinds: tuple  #: misc cores built, in select order
+    sources: list  #: write-data sources: ("mul", k), ("add", k), (misc kind, 0)
+    programs: dict
+    layout: BankedLayout
+    base: dict
+    rom: list
+    fields: _BankedFields
+
+    @classmethod
+    def build(cls, programs: dict, units: BankedUnits, fixed_names) -> BankedImage:
+        fixed_names = list(dict.fromkeys(fixed_names))
+        consts = sorted({s for p in programs.values() for op in p.ops for s in op.srcs
+                         if s.startswith("c:")})
+        names = fixed_names + [c for c in consts if c not in fixed_names]
+        nreads: dict = {}
+        for p in programs.values():
+            for op in p.ops:
+                for s in op.srcs:
+                    nreads[s] = nreads.get(s, 0) + 1
+        bank_of = assign_banks(names, units, nreads)
+        sched = {k: schedule_banked(p, units, bank_of) for k, p in programs.items()}
+        used = {s.unit for sp in sched.values() for s in sp.ops}
+        misc_kinds = tuple(k for k in MISC_KINDS if k in used)
+        sources = ([("mul", k) for k in range(units.mul)]
+                   + [("add", k) for k in range(units.add)] + [(k, 0) for k in misc_kinds])
+        layout = allocate_banked(sched, names, bank_of, units)
+        f = _BankedFields(units, layout.local_bits, len(sources), misc_kinds)
+        lb = layout.local_bits
+        rom: list = []
+        base = {}
+        for key, sp in sched.items():
+            base[key] = len(rom)
+            rows = [0] * sp.cycles
+            addr = dict(layout.fixed)
+            addr.update(layout.temp_addr[key])
+            ports: dict = {}  # (cycle, bank) -> {local address: port}
+
+            def put(row, fkey, value, rows=rows):
+                off, w = f.pos[fkey]
+                assert 0 <= value < (1 << w), (fkey, value)
+                assert rows[row] >> off & ((1 << w) - 1) in (0, value), (fkey, row)
+                rows[row] |= value << off
+
+            for s in sp.ops:
+                su = _slot_unit(s.unit)
+                slot = units.slot_of(su, s.inst)
+                put(s.issue, ("iss", slot), 1)
+                if su == "misc":
+                    put(s.issue, ("kind",), misc_kinds.index(s.unit))
+                for j, (name, flip) in enumerate(s.srcs):
+                    b, a = addr[name] >> lb, addr[name] & ((1 << lb) - 1)
+                    used_ports = ports.setdefault((s.issue, b), {})
+                    if a not in used_ports:
+                        used_ports[a] = len(used_ports)
+                        assert used_ports[a] < units.read_ports
+                        put(s.issue, ("ra", b, used_ports[a]), a)
+                    put(s.issue, ("sel", slot, j), b * units.read_ports + used_ports[a])
+                    put(s.issue, ("flip", slot, j), int(flip))
+                if s.kind == "sub":
+                    off, _ = f.pos[("mod", "add")]
+                    rows[s.issue] |= 1 << (off + s.inst)
+                if s.kind == "le":
+                    put(s.write, ("wmod",), 1)
+                dst = layout.fixed[s.dst] if s.kind == "mov" else addr.get(s.dst)
+                if dst is not None:
+                    b = dst >> lb
+                    src = sources.index((s.unit, s.inst) if su != "misc" else (s.unit, 0))
+                    put(s.write, ("we", b), 1)
+                    put(s.write, ("wa", b), dst & ((1 << lb) - 1))
+                    put(s.write, ("wsrc", b), src)
+            rom += rows
+        return cls(units, misc_kinds, sources, sched, layout, base, rom, f)
+
+    def cycles(self, key: str) -> int:
+        return self.programs[key].cycles
+
+    def output_addr(self, key: str) -> dict:
+        sp = self.programs[key]
+        return {n: self.layout.temp_addr[key][t] for n, t in sp.outputs.items()}
+
+    def machine(self, init: dict | None = None):
+        return BankedMachine(self, init)
+
+
+class BankedMachine(wiring.Component):
+    """Executes the programs of a :class:`BankedImage`; same ports and timing contract as
+    :class:`navgate.gateware.scheduled.ScheduledMachine` (``start``/``prog``/``busy``/``done``,
+    host write and read while idle, ``done`` exactly ``cycles(prog) + 1`` cycles after
+    ``start``); host addresses are the layout's flat addresses."""
+
+    def __init__(self, image: BankedImage, init: dict | None = None):
+        self.image = image
+        self.init = dict(init or {})
+        self.keys = list(image.programs)
+        aw = image.fields.aw
+        super().__init__({
+            "start": In(1), "prog": In(range(max(2, len(self.keys)))),
+            "busy": Out(1), "done": Out(1),
+            "host_we": In(1), "host_waddr": In(aw), "host_wdata": In(32),
+            "host_raddr": In(aw), "host_rdata": Out(32),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        img = self.image
+        f = img.fields
+        u = img.units
+        lay = img.layout
+        lb = lay.local_bits
+        nb = u.banks
+        inits = [[0] * max(2, lay.bank_depth[b]) for b in range(nb)]
+        for flat, v in list(lay.const_init.items()) + list(self.init.items()):
+            b, a = lay.split(flat)
+            if a < len(inits[b]):
+                inits[b][a] = v
+        m.submodules.rom = rom = Memory(shape=unsigned(f.width), depth=len(img.rom),
+                                        init=img.rom)
+        rw = max(1, (len(img.rom) - 1).bit_length())
+        pc = Signal(rw)
+        last = Signal(rw)
+        running = Signal()
+        base_sel = Signal(rw)
+        last_sel = Signal(rw)
+        with m.Switch(self.prog):
+            for i, k in enumerate(self.keys):
+                with m.Case(i):
+                    m.d.comb += [base_sel.eq(img.base[k]),
+                                 last_sel.eq(img.base[k] + img.programs[k].cycles - 1)]
+        rp = rom.read_port()
+        go = Signal()
+        m.d.comb += [go.eq(self.start & ~running), self.busy.eq(running)]
+        nxt = Signal(rw)
+        m.d.comb += [nxt.eq(Mux(go, base_sel, Mux(running & (pc != last), pc + 1, pc))),
+                     rp.addr.eq(nxt)]
+        with m.If(go):
+            m.d.sync += [running.eq(1), pc.eq(base_sel), last.eq(last_sel)]
+        with m.Elif(running):
+            m.d.sync += pc.eq(nxt)
+            with m.If(pc == last):
+                m.d.sync += running.eq(0)
+        m.d.sync += self.done.eq(running & (pc == last))
+        ctl = Signal(f.width)
+        m.d.comb += ctl.eq(rp.data)
+        gated = {k for k in f.pos if k[0] in ("we", "iss")}
+
+        def fld(*key):
+            off, w = f.pos[key]
+            if key in gated:  # no issue and no write while idle
+                return ctl[off:off + w] & running
+            return ctl[off:off + w]
+
+        # one cycle later: operand selects, flips, issue bits, sub bits, misc kind
+        def late(sig, name):
+            r = Signal(len(sig), name=name)
+            m.d.sync += r.eq(sig)
+            return r
+
+        host_bank = self.host_raddr[lb:]
+        host_bank_q = Signal(len(host_bank))
+        m.d.sync += host_bank_q.eq(host_bank)
+        # bank read data
+        rdata = []
+        wports = []
+        for b in range(nb):
+            mem = Memory(shape=unsigned(32), depth=max(2, lay.bank_depth[b]), init=inits[b])
+            m.submodules[f"bank{b}"] = mem
+            wp = mem.write_port()
+            wports.append(wp)
+            ports = []
+            for r in range(u.read_ports):
+                p = mem.read_port()
+                a = fld("ra", b, r)
+                if r == 0:
+                    a = Mux(running, a, self.host_raddr[:lb])
+                m.d.comb += p.addr.eq(a)
+                ports.append(p.data)
+            rdata.append(ports)
+        flat_ports = [d for ports in rdata for d in ports]
+        with m.Switch(host_bank_q):
+            for b in range(nb):
+                with m.Case(b):
+                    m.d.comb += self.host_rdata.eq(rdata[b][0])
+
+        def operand(slot, j):
+            sel = late(fld("sel", slot, j), f"sel{slot}_{j}")
+            flip = late(fld("flip", slot, j), f"flip{slot}_{j}")
+            v = Signal(32, name=f"op{slot}_{j}")
+            with m.Switch(sel):
+                for k, d in enumerate(flat_ports):
+                    with m.Case(k):
+                        m.d.comb += v.eq(d)
+            out = Signal(32, name=f"opr{slot}_{j}")
+            m.d.sync += out.eq(v ^ Cat(Signal(31), flip))
+            return out
+
+        src_res = {}
+        mod_off, _ = f.pos[("mod", "add")]
+        for slot, (unit, k) in enumerate(u.slots()):
+            a, bop = operand(slot, 0), operand(slot, 1)
+            iss = late(late(fld("iss", slot), f"iss{slot}a"), f"iss{slot}")
+            if unit == "mul":
+                core = Fp32Mul()
+                m.d.comb += [core.i.valid.eq(iss), core.o.ready.eq(1),
+                             core.i.payload.a.eq(a), core.i.payload.b.eq(bop)]
+                m.submodules[f"mul{k}"] = core
+                src_res[("mul", k)] = core.o.payload.r
+            elif unit == "add":
+                core = Fp32Add()
+                sub = late(late(ctl[mod_off + k], f"sub{k}a"), f"sub{k}")
+                m.d.comb += [core.i.valid.eq(iss), core.o.ready.eq(1),
+                             core.i.payload.a.eq(a), core.i.payload.b.eq(bop),
+                             core.i.payload.sub.eq(sub)]
+                m.submodules[f"add{k}"] = core
+                src_res[("add", k)] = core.o.payload.r
+            else:
+                kind = late(late(fld("kind"), "misc_kind_a"), "misc_kind")
+                for ki, name in enumerate(img.misc_kinds):
+                    v = Signal(name=f"{name}_valid")
+                    m.d.comb += v.eq(iss & (kind == ki))
+                    if name == "mov":
+                        core = _Mov()
+                        m.d.comb += [core.a.eq(a), core.valid_i.eq(v)]
+                        res = core.r
+                    else:
+                        core = {"div": Fp32Div, "sqrt": Fp32Sqrt, "cmp": Fp32Compare,
+                                "cvt": lambda: Fp32FromInt(32)}[name]()
+                        m.d.comb += [core.i.valid.eq(v), core.o.ready.eq(1)]
+                        if name == "cvt":
+                            m.d.comb += core.i.payload.x.eq(a)
+                        elif name == "sqrt":
+                            m.d.comb += core.i.payload.a.eq(a)
+                        else:
+                            m.d.comb += [core.i.payload.a.eq(a), core.i.payload.b.eq(bop)]
+                        if name == "cmp":
+                            o = core.o.payload
+                            res = Signal(32, name="cmp_res")
+                            m.d.comb += res.eq(Mux(o.lt | (fld("wmod") & o.equal), ONE_BITS, 0))
+                        else:
+                            res = core.o.payload.r
+                    m.submodules[name] = core
+                    src_res[(name, 0)] = res
+        for b in range(nb):
+            wp = wports[b]
+            data = Signal(32, name=f"wdata{b}")
+            with m.Switch(fld("wsrc", b)):
+                for k, key in enumerate(img.sources):
+                    with m.Case(k):
+                        m.d.comb += data.eq(src_res[key])
+            host = self.host_we & ~running & (self.host_waddr[lb:] == b)
+            m.d.comb += [wp.en.eq(fld("we", b) | host),
+                         wp.addr.eq(Mux(running, fld("wa", b), self.host_waddr[:lb])),
+                         wp.data.eq(Mux(running, data, self.host_wdata))]
+        return m
+
