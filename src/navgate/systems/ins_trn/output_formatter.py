@@ -4,7 +4,7 @@ Output" block (POS_N..YAW, docs/seed000-registers.md), Euler angles included, wi
 
 Three faces, side by side (docs/seed000-output-formatter.md has the derivations):
 
-* :func:`reference_format` - float64 (NumPy): compensated sums in float64, the quaternion
+* :func:`reference_format` - float64 (NumPy): POS_D in float64, the quaternion
   normalised, C_b^n, ZYX Euler angles with the ``asin`` argument clamped and an explicit
   gimbal-lock branch (roll = 0, yaw = atan2(-c12, c22) when cos(pitch) < 2^-26).
 * :func:`formatter_bittrue` - the hardware's arithmetic: float32 (``navgate.numerics.fp32``:
@@ -12,14 +12,17 @@ Three faces, side by side (docs/seed000-output-formatter.md has the derivations)
 * :class:`NavOutputFormatter` - Amaranth gateware, bit-exact to :func:`formatter_bittrue`.
 
 Inputs (float32 bit patterns): the navigation state registers of the fp32 engine
-(``fp32_program.NAV_REGS``: ``pN pE h vN vE vD q0..q3``), their Kahan compensation words
-(``cN cE cD cvN cvE cvD cq0..cq3``: the value is ``x - cx``) and ``ref_alt`` (the REF_ALT
-register: the NED origin's height, so POS_D = REF_ALT - h).
+(``fp32_program.NAV_REGS``: ``pN pE h vN vE vD q0..q3``) and ``ref_alt`` (the REF_ALT
+register: the height of the NED origin, so POS_D = REF_ALT - h). The engine's Kahan
+compensation words are not inputs: each is the rounding error of the register's last
+addition, |c| <= ulp(x)/2, so x itself is a correct float32 rounding of x - c (up to a tie)
+and a float32 readout of x - c would show the same word (docs/seed000-output-formatter.md).
 
-Outputs: ``pos_n = pN - cN``, ``pos_e``, ``pos_d = ref_alt - (h - cD)``, ``vel_* = v - cv``,
-``quat_* = q - cq`` (float32 subtractions), ``roll pitch yaw`` (float32 radians, ZYX
-aerospace: C_b^n = Rz(yaw) Ry(pitch) Rx(roll); the quaternion is Hamilton, scalar first,
-C_b^n as in docs/conventions.md) and ``flags`` (:data:`FLAG_INVALID` ...).
+Outputs: ``pos_n = pN``, ``pos_e = pE``, ``pos_d = ref_alt - h`` (one float32
+subtraction), ``vel_* = v*``, ``quat_* = q*`` (the words themselves), ``roll pitch yaw``
+(float32 radians, ZYX aerospace: C_b^n = Rz(yaw) Ry(pitch) Rx(roll); the quaternion is
+Hamilton, scalar first, C_b^n, as in docs/conventions.md) and ``flags``
+(:data:`FLAG_INVALID` ...).
 
 Euler angles without products (the half-angle form; J. Bernardes and S. Viollet,
 "Quaternion to Euler angles conversion: a direct, general and computationally efficient
@@ -40,24 +43,29 @@ explicit rule roll = 0, yaw = 2 t- (+90 deg) or 2 t+ (-90 deg) applies.
 
 Bit-true datapath (every step is what the gateware does):
 
-1. the ten subtractions ``x - cx``, then ``ref_alt - (h - cD)``, on the float32 adder;
+1. ``ref_alt - h`` on the float32 adder;
 2. each quaternion word to fixed point through the same adder: ``fp32_add(q, 6.0)`` lies in
    [4, 8) exactly when q is in [-2, 2) (exponent field 129), and its fraction field minus
-   2^22 is round_ties_even(q 2^21) (Q2.21, 23 bits); any other exponent (NaN, inf,
-   |q| >= 2) makes the result invalid;
-3. exact integer sums a = k0 - k2, b = k3 + k1, c = k0 + k2, d = k3 - k1 (24 bits);
+   2^22 is round_ties_even(q 2^21) (Q2.21, 23 bits); -q1 and -q2 likewise as
+   ``fp32_sub(6.0, q)`` (RNE is symmetric); any other exponent (NaN, inf, |q| >= 2) makes
+   the result invalid;
+3. exact integer sums a = k0 + (-k2), b = k3 + k1, c = k0 + k2, d = k3 + (-k1) (24 bits);
 4. ``cordic_vectoring`` (width 24, 26 iterations, 32-bit binary angles, 5 guard bits) of
    (a, b) -> (m+, t+), of (c, d) -> (m-, t-), and of (min(m+, 2^23-1), min(m-, 2^23-1))
    -> (m3, alpha);
-5. 32-bit wrapping integer angles: yaw = t+ + t-, roll = t+ - t- (gimbal rule when m+ or
-   m- is 0, which happens exactly when its pair is (0, 0)), pitch = clamp(2 alpha - 2^30,
-   -2^30, 2^30) (the clamp to +-90 deg plays the part of the reference's asin clamp);
-6. radians: ``fp32_mul(fp32_from_fixed(angle, 31, 32), PI_F32)`` (half-turns times pi);
+5. the gimbal rule as a substitution: m+ = 0 (pitch +90 deg) -> t+ := t-, m- = 0
+   (pitch -90 deg) -> t- := t+ (m = 0 happens exactly when the pair is (0, 0)); then
+   32-bit wrapping integer angles yaw = t+ + t-, roll = t+ - t- (0 under the rule), and
+   p = clamp(alpha, 0, 2^30) - 2^29 (the clamp to [0, 90 deg] plays the part of the
+   reference's asin clamp);
+6. radians: ``fp32_mul(fp32_from_fixed(angle, 31, 32), PI_F32)`` for yaw and roll (angle in
+   half-turns times pi) and ``fp32_mul(fp32_from_fixed(p, 31, 32), 2 PI_F32)`` for pitch
+   (pitch = 2 p half-turns; doubling is exact);
 7. validity from m3 = K^2 sqrt(2) |q| 2^21 (+ rounding): |q| outside [0.5, 1.5] (zero
    included) or step 2 invalid -> roll, pitch, yaw are the canonical NaN and
    :data:`FLAG_INVALID` is set; |q| outside [1 - 2^-12, 1 + 2^-12] sets
    :data:`FLAG_NON_UNIT` (angles of q/|q|); a gimbal-rule result sets :data:`FLAG_GIMBAL`; a
-   non-finite POS/VEL/QUAT word sets :data:`FLAG_NONFINITE`. A NaN never leaves the block
+   non-finite POS/VEL/QUAT word (input word or POS_D) sets :data:`FLAG_NONFINITE`. A NaN never leaves the block
    without a flag.
 
 The error bound of step 4-6 against the float64 reference is derived in
@@ -82,15 +90,17 @@ from navgate.numerics.cordic import cordic_error_bound, cordic_gain, cordic_vect
 from navgate.numerics.fp32 import QNAN, fp32_add, fp32_from_fixed, fp32_mul, fp32_sub
 
 __all__ = [
-    "STATE_WORDS", "COMP_WORDS", "IN_FIELDS", "OUT_WORDS", "REGISTER_OF",
+    "STATE_WORDS", "IN_FIELDS", "PASS_THROUGH", "OUT_WORDS", "REGISTER_OF",
     "FLAG_INVALID", "FLAG_NON_UNIT", "FLAG_GIMBAL", "FLAG_NONFINITE",
     "reference_format", "reference_euler", "formatter_bittrue",
     "euler_error_bound", "rotation_error_bound", "NavOutputFormatter",
 ]
 
 STATE_WORDS = ("pN", "pE", "h", "vN", "vE", "vD", "q0", "q1", "q2", "q3")
-COMP_WORDS = ("cN", "cE", "cD", "cvN", "cvE", "cvD", "cq0", "cq1", "cq2", "cq3")
-IN_FIELDS = STATE_WORDS + COMP_WORDS + ("ref_alt",)
+IN_FIELDS = STATE_WORDS + ("ref_alt",)
+#: output words that are input words as they are
+PASS_THROUGH = {"pos_n": "pN", "pos_e": "pE", "vel_n": "vN", "vel_e": "vE", "vel_d": "vD",
+                "quat_w": "q0", "quat_x": "q1", "quat_y": "q2", "quat_z": "q3"}
 OUT_WORDS = ("pos_n", "pos_e", "pos_d", "vel_n", "vel_e", "vel_d",
              "quat_w", "quat_x", "quat_y", "quat_z", "roll", "pitch", "yaw")
 #: output word -> register of registers.rdl
@@ -113,7 +123,9 @@ ANGLE_BITS = 32
 QUARTER = 1 << (ANGLE_BITS - 2)
 SAT = (1 << (WIDTH - 1)) - 1  #: third vectoring's inputs are clamped to this
 PI_BITS = 0x40490FDB  #: float32(pi)
+TWO_PI_BITS = PI_BITS + (1 << 23)  #: float32(pi) * 2 (exponent + 1), exact
 PI_F32 = float(np.array([PI_BITS], dtype=np.uint32).view(np.float32)[0])
+HALF_QUARTER = QUARTER >> 1  #: 45 deg
 GAIN = cordic_gain(ITERATIONS)
 #: m3 ~ NORM_SCALE * |q| (two gains, sqrt(2) of M+^2 + M-^2 = 2 |q|^2, 2^FRAC)
 NORM_SCALE = GAIN * GAIN * math.sqrt(2.0) * 2.0**FRAC
@@ -148,19 +160,12 @@ def formatter_bittrue(words) -> dict:
     w = {k: _bits(words, k) for k in IN_FIELDS}
     shape = np.broadcast_shapes(*(v.shape for v in w.values()))
     w = {k: np.broadcast_to(v, shape) for k, v in w.items()}
-    out = {}
-    quat = [fp32_sub(w[f"q{i}"], w[f"cq{i}"]) for i in range(4)]
-    out["quat_w"], out["quat_x"], out["quat_y"], out["quat_z"] = quat
-    out["pos_n"] = fp32_sub(w["pN"], w["cN"])
-    out["pos_e"] = fp32_sub(w["pE"], w["cE"])
-    out["pos_d"] = fp32_sub(w["ref_alt"], fp32_sub(w["h"], w["cD"]))
-    out["vel_n"] = fp32_sub(w["vN"], w["cvN"])
-    out["vel_e"] = fp32_sub(w["vE"], w["cvE"])
-    out["vel_d"] = fp32_sub(w["vD"], w["cvD"])
+    out = {name: w[src].copy() for name, src in PASS_THROUGH.items()}
+    out["pos_d"] = fp32_sub(w["ref_alt"], w["h"])
+    quat = [w[f"q{i}"] for i in range(4)]
     nonfinite = np.zeros(shape, dtype=bool)
     for name in OUT_WORDS[:10]:
         nonfinite |= _nonfinite(out[name])
-    # quaternion -> Q2.21 through the adder
     bad = np.zeros(shape, dtype=bool)
 
     def fixed(s):
@@ -183,12 +188,15 @@ def formatter_bittrue(words) -> dict:
     m3, alpha = np.asarray(m3), np.asarray(alpha)
     g_up = m_plus == 0  # pitch +90 deg: only t- = (yaw - roll)/2 is defined
     g_down = m_minus == 0  # pitch -90 deg: only t+ = (yaw + roll)/2 is defined
-    yaw = _wrap(np.where(g_up, 2 * t_minus, np.where(g_down, 2 * t_plus, t_plus + t_minus)))
-    roll = _wrap(np.where(g_up | g_down, 0, t_plus - t_minus))
-    pitch = 2 * np.clip(alpha, 0, QUARTER) - QUARTER
+    t_plus = np.where(g_up, t_minus, t_plus)
+    t_minus = np.where(g_down & ~g_up, t_plus, t_minus)
+    yaw = _wrap(t_plus + t_minus)
+    roll = _wrap(t_plus - t_minus)
+    p = np.clip(alpha, 0, QUARTER) - HALF_QUARTER  # pitch / 2, binary angle
     invalid = bad | (m3 < NORM_LO) | (m3 > NORM_HI)
-    for name, ang in (("roll", roll), ("pitch", pitch), ("yaw", yaw)):
-        rad = fp32_mul(fp32_from_fixed(ang, ANGLE_BITS - 1, ANGLE_BITS), np.uint32(PI_BITS))
+    for name, ang, scale in (("roll", roll, PI_BITS), ("pitch", p, TWO_PI_BITS),
+                             ("yaw", yaw, PI_BITS)):
+        rad = fp32_mul(fp32_from_fixed(ang, ANGLE_BITS - 1, ANGLE_BITS), np.uint32(scale))
         out[name] = np.where(invalid, np.uint32(QNAN), rad).astype(np.uint32)
     flags = (invalid * FLAG_INVALID
              + (~invalid & ((m3 < UNIT_LO) | (m3 > UNIT_HI))) * FLAG_NON_UNIT
@@ -230,12 +238,9 @@ def reference_format(values) -> dict:
     words as numbers); returns float64 :data:`OUT_WORDS` and ``flags`` (same meaning as the
     bit-true flags, decided on exact |q|)."""
     v = {k: np.asarray(values[k], dtype=np.float64) for k in IN_FIELDS}
-    out = {"pos_n": v["pN"] - v["cN"], "pos_e": v["pE"] - v["cE"],
-           "pos_d": v["ref_alt"] - (v["h"] - v["cD"]),
-           "vel_n": v["vN"] - v["cvN"], "vel_e": v["vE"] - v["cvE"], "vel_d": v["vD"] - v["cvD"]}
-    q = np.stack([v[f"q{i}"] - v[f"cq{i}"] for i in range(4)], axis=-1)
-    for i, name in enumerate(("quat_w", "quat_x", "quat_y", "quat_z")):
-        out[name] = q[..., i]
+    out = {name: v[src] for name, src in PASS_THROUGH.items()}
+    out["pos_d"] = v["ref_alt"] - v["h"]
+    q = np.stack([v[f"q{i}"] for i in range(4)], axis=-1)
     with np.errstate(invalid="ignore", over="ignore"):
         n = np.sqrt(np.sum(q * q, axis=-1))
         finite = np.all(np.isfinite(q), axis=-1)
@@ -259,9 +264,8 @@ def reference_format(values) -> dict:
 
 
 # --- error bounds ------------------------------------------------------------------------
-#: per quaternion component, |fixed value / 2^21 - exact (q - cq)|: float32 rounding of the
-#: difference (half an ulp, <= 2^-24 for |q| < 2) + rounding to Q2.21 (2^-22)
-COMPONENT_ERR = 2.0**-24 + 2.0**-22
+#: per quaternion component, |fixed value / 2^21 - q|: rounding to Q2.21 (2^-22)
+COMPONENT_ERR = 2.0**-22
 #: each CORDIC input pair sums two components: |delta(a, b)| <= sqrt(2) * 2 * COMPONENT_ERR
 PAIR_ERR = 2.0 * math.sqrt(2.0) * COMPONENT_ERR
 _LSB = 2.0**-FRAC
@@ -346,37 +350,30 @@ IN_LAYOUT = data.StructLayout({name: unsigned(32) for name in IN_FIELDS})
 OUT_LAYOUT = data.StructLayout({**{name: unsigned(32) for name in OUT_WORDS},
                                 "flags": unsigned(4)})
 
-#: adder schedule: cycle t (from the first busy cycle) -> (a, b, subtract, result word)
-#: ``"<sum>"`` is the adder's own output in that cycle (bypass), ``"magic"`` the constant
+#: adder schedule: cycle t (from the first busy cycle) -> (a, b, subtract, destination).
+#: ``kx``/``ky`` hold -k2/k1 for the first vectoring (issued in cycle K_READY) and are
+#: rewritten with k2/-k1 for the second one (their writes land after K_READY).
 ADD_ISSUE = {
-    0: ("q0", "cq0", 1, "quat_w"), 1: ("q1", "cq1", 1, "quat_x"),
-    2: ("q2", "cq2", 1, "quat_y"), 3: ("q3", "cq3", 1, "quat_z"),
-    4: ("h", "cD", 1, None), 5: ("q1", "cq1", 1, None), 6: ("q2", "cq2", 1, None),
-    7: ("pN", "cN", 1, "pos_n"),
-    8: ("<sum>", "magic", 0, "k0"), 9: ("<sum>", "magic", 0, "k1"),
-    10: ("<sum>", "magic", 0, "k2"), 11: ("<sum>", "magic", 0, "k3"),
-    12: ("ref_alt", "<sum>", 1, "pos_d"),
-    13: ("magic", "<sum>", 1, "k1n"), 14: ("magic", "<sum>", 1, "k2n"),
-    15: ("pE", "cE", 1, "pos_e"), 16: ("vN", "cvN", 1, "vel_n"),
-    17: ("vE", "cvE", 1, "vel_e"), 18: ("vD", "cvD", 1, "vel_d"),
+    0: ("q0", "magic", 0, "k0"), 1: ("magic", "q2", 1, "kx"), 2: ("q3", "magic", 0, "k3"),
+    3: ("q1", "magic", 0, "ky"), 4: ("ref_alt", "h", 1, "pos_d"),
+    5: ("q2", "magic", 0, "kx"), 6: ("magic", "q1", 1, "ky"),
 }
-#: first cycle in which every Q2.21 word is in its register
-K_READY = max(c for c, v in ADD_ISSUE.items() if (v[3] or "").startswith("k")) \
-    + Fp32Add.LATENCY + 1
+#: first vectoring: the cycle after the first four conversions are written
+K_READY = 3 + Fp32Add.LATENCY + 1
 
 
 class NavOutputFormatter(wiring.Component):
     """Seed 000 ``nav_output_formatter``: {IN_FIELDS} (float32 words) -> {OUT_WORDS, flags}.
 
-    One float32 adder (15 operations: the compensations, REF_ALT - h, the four Q2.21
-    conversions), one iterative CORDIC (three vectorings), one fixed -> float32 converter
-    and one float32 multiplier (x pi), in a fixed schedule; one vector at a time.
-    ``LATENCY`` = 113 cycles from the accepted input to the valid output;
-    ``THROUGHPUT`` = 1/113 (the next input is accepted in the cycle the output is taken).
+    One float32 adder (7 operations: REF_ALT - h and six Q2.21 conversions), one iterative
+    CORDIC (three vectorings), one fixed -> float32 converter and one float32 multiplier
+    (x pi, x 2 pi), on a fixed schedule; one vector at a time. ``LATENCY`` = 105 cycles from
+    the accepted input to the valid output; ``THROUGHPUT`` = 1/105 (the next input is
+    accepted in the cycle the output is taken).
     """
 
-    LATENCY = 113
-    THROUGHPUT = Fraction(1, 113)
+    LATENCY = 105
+    THROUGHPUT = Fraction(1, 105)
 
     def __init__(self):
         super().__init__({"i": In(stream.Signature(IN_LAYOUT)),
@@ -392,147 +389,144 @@ class NavOutputFormatter(wiring.Component):
         m.d.comb += [add.o.ready.eq(1), cor.o.ready.eq(1), tof.o.ready.eq(1),
                      mul.o.ready.eq(1)]
 
-        x = Signal(IN_LAYOUT, reset_less=True)
-        out = Signal(OUT_LAYOUT, reset_less=True)
+        x = Signal(IN_LAYOUT, reset_less=True)  # the state words, held until the next input
+        pos_d = Signal(32, reset_less=True)
+        yaw = Signal(32, reset_less=True)
+        roll = Signal(32, reset_less=True)
+        pitch = Signal(32, reset_less=True)
+        flags = Signal(4, reset_less=True)
         busy = Signal()
         o_valid = Signal()
-        t = Signal(5)  # adder-phase cycle counter (stops at 31)
+        t = Signal(4)  # adder-phase cycle counter (stops at 15)
         accept = Signal()
         m.d.comb += [
             self.i.ready.eq(~busy & (~o_valid | self.o.ready)),
             accept.eq(self.i.valid & self.i.ready),
             self.o.valid.eq(o_valid),
-            self.o.payload.eq(out),
+            self.o.payload.pos_d.eq(pos_d),
+            self.o.payload.yaw.eq(yaw),
+            self.o.payload.roll.eq(roll),
+            self.o.payload.pitch.eq(pitch),
+            self.o.payload.flags.eq(flags),
         ]
+        for name, src in PASS_THROUGH.items():
+            m.d.comb += getattr(self.o.payload, name).eq(getattr(x, src))
         with m.If(self.o.ready):
             m.d.sync += o_valid.eq(0)
-        with m.If(busy & (t != 31)):
+        with m.If(busy & (t != 15)):
             m.d.sync += t.eq(t + 1)
 
-        # ---- flags --------------------------------------------------------------------
-        bad = Signal()  # a quaternion word outside [-2, 2) or not finite
-        nonfinite = Signal()
+        bad = Signal()  # a conversion left [4, 8): NaN, inf or |q_i| >= 2
         invalid = Signal()
         non_unit = Signal()
         g_up = Signal()
         g_down = Signal()
 
-        # ---- float32 adder phase ------------------------------------------------------
+        # ---- float32 adder: REF_ALT - h and the Q2.21 conversions ----------------------
         r = add.o.payload.r
+        magic = Const(MAGIC_BITS, 32)
         with m.If(busy):
             with m.Switch(t):
                 for cyc, (a, b, sub, _dst) in ADD_ISSUE.items():
                     with m.Case(cyc):
-                        special = {"<sum>": r, "magic": Const(MAGIC_BITS, 32)}
-                        av = special[a] if a in special else getattr(x, a)
-                        bv = special[b] if b in special else getattr(x, b)
-                        m.d.comb += [add.i.valid.eq(1), add.i.payload.a.eq(av),
-                                     add.i.payload.b.eq(bv), add.i.payload.sub.eq(sub)]
-        kregs = {n: Signal(signed(23), name=n, reset_less=True)
-                 for n in ("k0", "k1", "k2", "k3", "k1n", "k2n")}
-        exp_r = r[23:31]
+                        m.d.comb += [
+                            add.i.valid.eq(1),
+                            add.i.payload.a.eq(magic if a == "magic" else getattr(x, a)),
+                            add.i.payload.b.eq(magic if b == "magic" else getattr(x, b)),
+                            add.i.payload.sub.eq(sub),
+                        ]
+        kregs = {n: Signal(signed(23), name=n, reset_less=True) for n in ("k0", "k3", "kx", "ky")}
         with m.If(busy):
             with m.Switch(t):
                 for cyc, (_a, _b, _sub, dst) in ADD_ISSUE.items():
-                    if dst is None:
-                        continue
                     with m.Case(cyc + Fp32Add.LATENCY):
-                        if dst.startswith("k"):
-                            m.d.sync += kregs[dst].eq(r[0:23] ^ (1 << 22))
-                            with m.If(exp_r != MAGIC_EXP):
-                                m.d.sync += bad.eq(1)
+                        if dst == "pos_d":
+                            m.d.sync += pos_d.eq(r)
                         else:
-                            m.d.sync += getattr(out, dst).eq(r)
-                            with m.If(exp_r == 0xFF):
-                                m.d.sync += nonfinite.eq(1)
+                            m.d.sync += kregs[dst].eq(r[0:23] ^ (1 << 22))
+                            with m.If(r[23:31] != MAGIC_EXP):
+                                m.d.sync += bad.eq(1)
 
-        # ---- CORDIC phase -------------------------------------------------------------
+        # ---- CORDIC: (k0 + kx, k3 + ky) twice, then the two magnitudes ------------------
         cv = Signal(2)  # vectorings issued
         cr = Signal(2)  # vectorings received
         t_plus = Signal(signed(ANGLE_BITS), reset_less=True)
         t_minus = Signal(signed(ANGLE_BITS), reset_less=True)
-        alpha = Signal(signed(ANGLE_BITS), reset_less=True)
         s_plus = Signal(unsigned(WIDTH - 1), reset_less=True)
         s_minus = Signal(unsigned(WIDTH - 1), reset_less=True)
-        k = kregs
-        second = cv[0]
-        # pair 1: (k0 + k2n, k3 + k1); pair 2: (k0 + k2, k3 + k1n); then the magnitudes
-        px = k["k0"] + Mux(second, k["k2"], k["k2n"])
-        py = k["k3"] + Mux(second, k["k1n"], k["k1"])
         third = cv == 2
         m.d.comb += [
             cor.i.valid.eq(busy & (t >= K_READY) & ((cv < 2) | (third & (cr == 2)))),
-            cor.i.payload.x.eq(Mux(third, s_plus, px)),
-            cor.i.payload.y.eq(Mux(third, s_minus, py)),
+            cor.i.payload.x.eq(Mux(third, s_plus, kregs["k0"] + kregs["kx"])),
+            cor.i.payload.y.eq(Mux(third, s_minus, kregs["k3"] + kregs["ky"])),
         ]
         with m.If(cor.i.valid & cor.i.ready):
             m.d.sync += cv.eq(cv + 1)
         mag = cor.o.payload.magnitude
-        sat = Mux(mag > SAT, SAT, mag)
+        ang = cor.o.payload.angle
+        zero = mag == 0
         with m.If(cor.o.valid):
             m.d.sync += cr.eq(cr + 1)
             with m.Switch(cr):
                 with m.Case(0):
-                    m.d.sync += [t_plus.eq(cor.o.payload.angle), s_plus.eq(sat),
-                                 g_up.eq(mag == 0)]
+                    m.d.sync += [t_plus.eq(ang), g_up.eq(zero)]
+                    m.d.sync += s_plus.eq(Mux(mag > SAT, SAT, mag))
                 with m.Case(1):
-                    m.d.sync += [t_minus.eq(cor.o.payload.angle), s_minus.eq(sat),
-                                 g_down.eq(mag == 0)]
+                    # gimbal rule: t+ := t- (pitch +90 deg), t- := t+ (pitch -90 deg)
+                    with m.If(g_up):
+                        m.d.sync += t_plus.eq(ang)
+                    m.d.sync += [t_minus.eq(Mux(zero & ~g_up, t_plus, ang)), g_down.eq(zero)]
+                    m.d.sync += s_minus.eq(Mux(mag > SAT, SAT, mag))
                 with m.Case(2):
-                    ang = cor.o.payload.angle  # clamped to [0, 90 deg] here
-                    m.d.sync += alpha.eq(Mux(ang < 0, 0, Mux(ang > QUARTER, QUARTER, ang)))
+                    # pitch / 2 = clamp(alpha, 0, 90 deg) - 45 deg = t+ - t-
+                    with m.If(ang < 0):
+                        m.d.sync += t_plus.eq(0)
+                    with m.Elif(ang > QUARTER):
+                        m.d.sync += t_plus.eq(QUARTER)
+                    with m.Else():
+                        m.d.sync += t_plus.eq(ang)
                     m.d.sync += [
+                        t_minus.eq(HALF_QUARTER),
                         invalid.eq(bad | (mag < NORM_LO) | (mag > NORM_HI)),
                         non_unit.eq((mag < UNIT_LO) | (mag > UNIT_HI)),
                     ]
 
-        # ---- angles -> float32 radians ------------------------------------------------
-        ci = Signal(2)  # conversions issued: yaw, roll, pitch
+        # ---- angles -> float32 radians: yaw, roll after the second vectoring, pitch -----
+        ci = Signal(2)  # conversions issued
         mr = Signal(2)  # products received
-        # one shared adder: yaw = A + B, roll = (t+ - t-) or 0, pitch = 2 alpha - 90 deg
-        gim = g_up | g_down
-        is_pitch = ci == 2
-        is_roll = ci == 1
-        op_a = Mux(is_pitch, alpha << 1, Mux(~is_roll & g_up, t_minus, t_plus))
-        op_b = Mux(is_pitch, QUARTER, Mux(~is_roll & g_down, t_plus, t_minus))
-        sub = is_pitch | is_roll
-        # carry-in through a low bit: ((A << 1) | 1) + ((B ^ s) << 1 | s) = 2 (A + (B ^ s) + s) + 1
+        sub = ci != 0  # yaw = t+ + t-, roll = t+ - t-, pitch / 2 = t+ - t-
+        # one carry chain: ((t+ << 1) | 1) + ((t- ^ s) << 1 | s) = 2 (t+ + (t- ^ s) + s) + 1
         wide = Signal(ANGLE_BITS + 1)
-        m.d.comb += wide.eq(Cat(Const(1, 1), op_a[:ANGLE_BITS])
-                            + Cat(sub, (op_b ^ sub.replicate(ANGLE_BITS))[:ANGLE_BITS]))
-        conv_in = Signal(ANGLE_BITS)
-        m.d.comb += conv_in.eq(wide[1:] & ~(is_roll & gim).replicate(ANGLE_BITS))
+        m.d.comb += wide.eq(Cat(Const(1, 1), t_plus)
+                            + Cat(sub, t_minus ^ sub.replicate(ANGLE_BITS)))
         m.d.comb += [
-            tof.i.valid.eq(busy & (((ci < 2) & (cr >= 2)) | ((ci == 2) & (cr == 3)))),
-            tof.i.payload.x.eq(conv_in),
+            tof.i.valid.eq(busy & (((ci < 2) & (cr == 2)) | ((ci == 2) & (cr == 3)))),
+            tof.i.payload.x.eq(wide[1:]),
             mul.i.valid.eq(tof.o.valid),
             mul.i.payload.a.eq(tof.o.payload.r),
-            mul.i.payload.b.eq(PI_BITS),
+            mul.i.payload.b.eq(Mux(mr == 2, TWO_PI_BITS, PI_BITS)),
         ]
         with m.If(tof.i.valid):
             m.d.sync += ci.eq(ci + 1)
         prod = mul.o.payload.r
-        done = Signal()
-        m.d.comb += done.eq(mul.o.valid & (mr == 2))
+        nonfinite = Signal()
+        fin = [getattr(x, w)[23:31] == 0xFF for w in PASS_THROUGH.values()]
+        m.d.comb += nonfinite.eq(Cat(*fin, pos_d[23:31] == 0xFF).any())
         with m.If(mul.o.valid):
             m.d.sync += mr.eq(mr + 1)
             with m.Switch(mr):
                 with m.Case(0):
-                    m.d.sync += out.yaw.eq(prod)
+                    m.d.sync += yaw.eq(prod)
                 with m.Case(1):
-                    m.d.sync += out.roll.eq(prod)
+                    m.d.sync += roll.eq(prod)
                 with m.Case(2):
-                    m.d.sync += out.pitch.eq(Mux(invalid, QNAN, prod))
-        with m.If(done):
-            m.d.sync += [
-                busy.eq(0), o_valid.eq(1),
-                out.flags.eq(Cat(invalid, non_unit & ~invalid, (g_up | g_down) & ~invalid,
-                                 nonfinite)),
-            ]
-            with m.If(invalid):
-                m.d.sync += [out.yaw.eq(QNAN), out.roll.eq(QNAN)]
+                    m.d.sync += [pitch.eq(prod), busy.eq(0), o_valid.eq(1)]
+                    m.d.sync += flags.eq(Cat(invalid, non_unit & ~invalid,
+                                             (g_up | g_down) & ~invalid, nonfinite))
+                    with m.If(invalid):
+                        m.d.sync += [yaw.eq(QNAN), roll.eq(QNAN), pitch.eq(QNAN)]
 
         with m.If(accept):
             m.d.sync += [x.eq(self.i.payload), busy.eq(1), t.eq(0), cv.eq(0), cr.eq(0),
-                         ci.eq(0), mr.eq(0), bad.eq(0), nonfinite.eq(0)]
+                         ci.eq(0), mr.eq(0), bad.eq(0)]
         return m
