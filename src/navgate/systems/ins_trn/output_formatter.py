@@ -64,9 +64,9 @@ Bit-true datapath (every step is what the gateware does):
 7. validity from m3 = K^2 sqrt(2) |q| 2^21 (+ rounding): |q| outside [0.5, 1.5] (zero
    included) or step 2 invalid -> roll, pitch, yaw are the canonical NaN and
    :data:`FLAG_INVALID` is set; |q| outside [1 - 2^-12, 1 + 2^-12] sets
-   :data:`FLAG_NON_UNIT` (angles of q/|q|); a gimbal-rule result sets :data:`FLAG_GIMBAL`; a
-   non-finite POS/VEL/QUAT word (input word or POS_D) sets :data:`FLAG_NONFINITE`. A NaN never leaves the block
-   without a flag.
+   :data:`FLAG_NON_UNIT` (angles of q/|q|); a gimbal-rule result sets :data:`FLAG_GIMBAL`;
+   a non-finite POS/VEL/QUAT word (an input word or POS_D) sets :data:`FLAG_NONFINITE`.
+   A NaN never leaves the block without a flag.
 
 The error bound of step 4-6 against the float64 reference is derived in
 :func:`euler_error_bound` (per angle, from the sample's M+ and M-) and
