@@ -244,6 +244,21 @@ def test_flags_agree_with_reference_away_from_thresholds():
     assert set(np.unique(bt["flags"] & mask)) == {0, F.FLAG_INVALID, F.FLAG_NON_UNIT}
 
 
+def test_cordic_magnitude_is_zero_only_for_the_zero_pair():
+    """The gimbal rule keys on m == 0; that must mean the pair was (0, 0) (the vectoring's x
+    register never decreases), for the smallest pairs and random ones."""
+    from navgate.numerics.cordic import cordic_vectoring
+
+    r = np.arange(-6, 7)
+    x, y = (a.ravel() for a in np.meshgrid(r, r))
+    rng = np.random.default_rng(17)
+    x = np.concatenate([x, rng.integers(-(1 << 23), 1 << 23, 5000)])
+    y = np.concatenate([y, rng.integers(-(1 << 23), 1 << 23, 5000)])
+    mag, _ = cordic_vectoring(x, y, F.WIDTH, F.ITERATIONS, F.ANGLE_BITS, F.GUARD)
+    assert np.array_equal(mag == 0, (x == 0) & (y == 0))
+    assert np.all(mag[(x != 0) | (y != 0)] >= np.maximum(np.abs(x), np.abs(y))[(x != 0) | (y != 0)])
+
+
 # --- gateware ----------------------------------------------------------------------------
 def gateware_vectors(n, seed):
     """Directed cases, then random: unit quaternions, near
