@@ -276,8 +276,10 @@ _MAG_TRUNC = sum(math.sqrt(2.0) * math.prod(math.sqrt(1 + 4.0**-j)
 #: float32 output: fp32_from_fixed rounding (2^-24 relative), the product's rounding
 #: (2^-24), pi's own rounding (|PI_F32 - pi| / pi), times |angle| <= pi
 OUTPUT_ERR = math.pi * (2 * 2.0**-24 + abs(PI_F32 - math.pi) / math.pi) * (1 + 2.0**-20)
-#: float64 reference: asin near +-1 loses half the digits (sqrt(2 * 4 eps))
-REFERENCE_ERR = 4e-8
+#: float64 reference: asin near +-1 turns an argument error e into sqrt(2 e); with
+#: e <= 8 eps (the roundings of c31 after normalisation) that is sqrt(16 * 2^-52) = 6e-8;
+#: its gimbal branch (cos(pitch) < 2^-26) moves the rotation by at most 2 cos(pitch) < 3e-8
+REFERENCE_ERR = 6e-8
 
 
 def _cordic_angle_bound(mag):
