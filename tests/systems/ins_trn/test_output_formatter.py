@@ -259,6 +259,44 @@ def test_cordic_magnitude_is_zero_only_for_the_zero_pair():
     assert np.all(mag[(x != 0) | (y != 0)] >= np.maximum(np.abs(x), np.abs(y))[(x != 0) | (y != 0)])
 
 
+def test_on_the_fp32_engine_states_of_a_flight():
+    """Real state words: a 60 s INS/TRN flight with the float32 engine, the state recorded
+    after every propagate call. The Kahan compensation words change no float32 readout by
+    more than one ulp (the reason they are not inputs), the formatter raises no flag, and its
+    angles are within the bound of the reference on the same words."""
+    from navgate.systems.ins_trn import flight
+    from navgate.systems.ins_trn.fp32_engine import Fp32Engine
+    from navgate.systems.ins_trn.navigation import flight_stream
+    from navgate.systems.ins_trn.navigator import Navigator, engine_setup
+    from navgate.trn.dem import Dem
+
+    comp = ("cN", "cE", "cD", "cvN", "cvE", "cvD", "cq0", "cq1", "cq2", "cq3")
+    rec = []
+
+    class Recording(Fp32Engine):
+        def propagate(self, gyro_words, accel_words):
+            super().propagate(gyro_words, accel_words)
+            rec.append([self.m.get(n) for n in F.STATE_WORDS + comp])
+
+    dem = Dem.default()
+    cfg = flight.FlightConfig(duration_s=60.0, seed=1)
+    data = flight.simulate_sensors(flight.plan_route(dem, cfg), dem, cfg)
+    stream = flight_stream(data, dem, cfg, flight.initial_estimate(data, cfg))
+    eng = Recording(engine_setup(stream.header, cfg))
+    Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=True).run(stream)
+    r = np.array(rec)
+    assert len(r) >= 1000
+    x = r[:, :10].astype(np.float32)
+    compensated = (r[:, :10] - r[:, 10:]).astype(np.float32)  # one rounding of x - c
+    ulps = np.abs(compensated.view(np.int32).astype(np.int64) - x.view(np.int32))
+    assert ulps.max() <= 1 and np.mean(ulps == 0) > 0.999
+    words = {name: f32_to_bits(x[:, i]) for i, name in enumerate(F.STATE_WORDS)}
+    words["ref_alt"] = np.zeros(len(r), dtype=np.uint32)
+    bt, ref, _, _ = check_against_reference(words)
+    assert np.all(bt["flags"] == 0)
+    assert np.array_equal(bits_to_f32(bt["pos_d"]), -x[:, 2])
+
+
 # --- gateware ----------------------------------------------------------------------------
 def gateware_vectors(n, seed):
     """Directed cases, then random: unit quaternions, near
