@@ -50,6 +50,8 @@ BLOCKS: dict[str, tuple[str, str]] = {
                         "seed 000 IMU calibration: int16 -> float32 SI, bias/scale/misalignment"),
     "sensor_subsystem": ("navgate.systems.ins_trn.sensors.sensor_subsystem:SensorSubsystem",
                          "seed 000 sensor subsystem: three interfaces, calibration, compensation"),
+    "nav_output_formatter": ("navgate.systems.ins_trn.output_formatter:NavOutputFormatter",
+                             "seed 000 nav_output_formatter: state words -> POS/VEL/QUAT/Euler"),
     "attitude_top": ("navgate.systems.attitude.top:AttitudeTop",
                      "seed 003 attitude-solving circuit (INS_top, shared float32 units)"),
     "attitude_acc": ("navgate.systems.attitude.top:attitude_acc",
