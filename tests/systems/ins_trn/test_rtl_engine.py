@@ -16,7 +16,11 @@ from navgate.systems.ins_trn.engine import make_engine
 from navgate.systems.ins_trn.fp32_program import STATE_REGS
 from navgate.systems.ins_trn.navigation import flight_stream
 from navgate.systems.ins_trn.navigator import Navigator, engine_setup
+from navgate.systems.ins_trn.rtl_engine import RtlEngine
 from navgate.trn.dem import Dem
+
+#: cycles per IMU sample (propagate + start), asserted in test_engines.py
+PER_SAMPLE = 627
 
 
 def _same_registers(engs):
@@ -27,7 +31,7 @@ def _same_registers(engs):
     assert not diff, diff[:8]
 
 
-def _fly_both(duration):
+def _fly_both(duration, backend="native"):
     dem = Dem.default()
     cfg = flight.FlightConfig(duration_s=duration, seed=1)
     route = flight.plan_route(dem, cfg)
@@ -36,6 +40,9 @@ def _fly_both(duration):
     runs, engs = {}, {}
     for name in ("fp32", "rtl"):
         eng = make_engine(name, engine_setup(stream.header, cfg))
+        if name == "rtl" and backend != "native":
+            eng.close()
+            eng = RtlEngine(engine_setup(stream.header, cfg), backend=backend)
         nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=True)
         runs[name], engs[name] = nav.run(stream), eng
     a, b = runs["fp32"], runs["rtl"]
@@ -65,12 +72,24 @@ def _fly_both(duration):
     return a, link
 
 
-def test_rtl_engine_equals_fp32_short_flight():
-    run, link = _fly_both(0.25)
+@pytest.mark.slow
+def test_rtl_engine_cocotb_backend_equals_fp32_short_flight():
+    """The cocotb server path (the verification harness's VPI model) on a short flight."""
+    run, link = _fly_both(0.25, backend="cocotb")
     assert sum(run.accepted.values()) > 0  # altitude updates ran in the gateware
-    assert link.cycles_run > 100 * 558
+    assert link.cycles_run >= 100 * PER_SAMPLE
+
+
+def test_rtl_engine_equals_fp32_60s_flight():
+    """Issue 10's target: 60 s of the default mission with the gateware in the loop (native
+    Verilator model), every logged state, P, the fix decisions and every register equal to
+    the fp32 engine's, TRN fixes included."""
+    run, link = _fly_both(60.0)
+    assert sum(run.accepted.values()) > 10
+    assert link.cycles_run >= 24_000 * PER_SAMPLE
 
 
 @pytest.mark.slow
-def test_rtl_engine_equals_fp32_5s_flight():
-    _fly_both(5.0)
+def test_rtl_engine_equals_fp32_whole_default_flight():
+    """The whole 10-minute default flight (240,000 IMU samples) through the gateware."""
+    _fly_both(600.0)

@@ -1,7 +1,8 @@
 """The ``rtl`` engine: seed 000's PL engines as gateware (``ins_engines``, the scheduled
 float32 datapath of :mod:`navgate.systems.ins_trn.engines`) running in Verilator, driven call
-by call through the verification harness's cached model and a persistent cocotb server
-(:mod:`navgate.systems.ins_trn.rtl_server`).
+by call through a persistent native model (:mod:`navgate.gateware.native_stream`, the
+default) or the verification harness's cocotb model and server
+(:mod:`navgate.systems.ins_trn.rtl_server`, ``backend="cocotb"``).
 
 The PS side is the ``fp32`` engine's (:class:`navgate.systems.ins_trn.fp32_engine.Fp32Engine`):
 its register writes (configuration, initial state) are computed as there and loaded into the
@@ -32,7 +33,7 @@ from navgate.systems.ins_trn.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.fp32_exec import float_to_bits, to_f32
 from navgate.systems.ins_trn.fp32_program import CONFIG_REGS, STATE_REGS
 
-__all__ = ["RtlEngine", "RtlLink", "RtlError"]
+__all__ = ["RtlEngine", "RtlLink", "NativeLink", "RtlError"]
 
 
 class RtlError(RuntimeError):
@@ -43,8 +44,35 @@ def _f(bits: int) -> float:
     return float(np.uint32(bits).view(np.float32))
 
 
+class NativeLink:
+    """A running native Verilator model of a :class:`ScheduledMachineStream`
+    (:class:`navgate.gateware.native_stream.NativeStreamServer`: no VPI, optimised model);
+    the same ``batch``/``close`` as :class:`RtlLink`. The response of every command is taken
+    when the wrapper offers it; ``waits`` are checked through the run commands' ``cycles``."""
+
+    def __init__(self, image):
+        from navgate.gateware.native_stream import NativeStreamServer
+
+        self.server = NativeStreamServer(ScheduledMachineStream(image))
+        self.cycles_run = 0
+
+    def batch(self, rows, waits) -> dict:
+        from navgate.gateware.native_stream import NativeStreamError
+
+        arr = np.array(rows, dtype=np.int64).reshape(-1, 4)
+        try:
+            return self.server.batch({"cmd": arr[:, 0], "addr": arr[:, 1], "data": arr[:, 2],
+                                      "prog": arr[:, 3]})
+        except NativeStreamError as exc:
+            raise RtlError(str(exc)) from None
+
+    def close(self):
+        self.server.close()
+
+
 class RtlLink:
-    """A running Verilator model of a :class:`ScheduledMachineStream` with a command pipe."""
+    """A running Verilator model of a :class:`ScheduledMachineStream` with a command pipe
+    (cocotb server, :mod:`navgate.systems.ins_trn.rtl_server`)."""
 
     def __init__(self, image, start_timeout: float = 600.0):
         comp = ScheduledMachineStream(image)
@@ -198,10 +226,13 @@ class RtlEngine(Fp32Engine):
 
     name = "rtl"
 
-    def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
+    def __init__(self, setup: EngineSetup, *, check_pd: bool = False,
+                 backend: str = "native"):
         super().__init__(setup, check_pd=check_pd)
         image = engine_image("ins_engines")
-        self.link = RtlLink(image)
+        if backend not in ("native", "cocotb"):
+            raise ValueError(f"unknown RTL backend {backend!r} (native or cocotb)")
+        self.link = NativeLink(image) if backend == "native" else RtlLink(image)
         self._finalizer = weakref.finalize(self, self.link.close)
         self.m = _RtlMachine(self.m, image, self.link)
         self.m.load()

@@ -1,0 +1,214 @@
+"""A persistent native Verilator process serving command batches to a stream component.
+
+The cocotb harness (:mod:`navgate.gateware.verify`) builds Verilator models with VPI and every
+signal public, which keeps Verilator from optimising the model; for seed 000's engines it
+simulates about 13,000 cycles/s. This module compiles the emitted Verilog with a small C++
+main (no VPI, no cocotb) that reads batches of input payloads on stdin, one line per batch
+(space-separated hex words, packed as :func:`navgate.gateware.verify.pack` does), drives them
+through the component's ``i`` stream under the harness's stream rules (offer the next payload
+while ``i.valid``, take every output with ``o.ready = 1``) and answers one line per batch: the
+output payloads (hex), one per input, space-separated, or ``!reason``. ``quit`` ends it.
+
+Verilator names a port ``i__valid`` ``i___05Fvalid`` in C++. Compiled models are cached under
+:func:`navgate.gateware.verify.verilator_cache_dir` (keyed by the Verilog and the driver).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import shutil
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+from navgate.gateware import verify as V
+
+__all__ = ["NativeStreamServer", "NativeStreamError"]
+
+
+class NativeStreamError(RuntimeError):
+    """The native model failed to build, or answered unexpectedly."""
+
+
+_MAIN = r"""
+#include <cstdio>
+#include <cstdint>
+#include <cstdlib>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+#include "V%(top)s.h"
+#include "verilated.h"
+
+static const int IN_WORDS = %(in_words)d;
+
+static void set_words(uint32_t* dst, const std::string& hex) {
+    for (int k = 0; k < IN_WORDS; k++) dst[k] = 0;
+    int n = hex.size();
+    for (int i = 0; i < n && i / 8 < IN_WORDS; i++) {
+        char c = hex[n - 1 - i];
+        uint32_t v = (c <= '9') ? c - '0' : (c | 0x20) - 'a' + 10;
+        dst[i / 8] |= v << (4 * (i %% 8));
+    }
+}
+
+int main(int argc, char** argv) {
+    long limit = argc > 1 ? atol(argv[1]) : 100000;
+    std::ios::sync_with_stdio(false);
+    V%(top)s* top = new V%(top)s;
+    uint32_t in[IN_WORDS + 1];
+    char hexbuf[64];
+    top->clk = 0; top->rst = 1; top->i___05Fvalid = 0; top->o___05Fready = 1;
+    for (int i = 0; i < 2; i++) { top->clk = 0; top->eval(); top->clk = 1; top->eval(); }
+    top->rst = 0;
+    long total = 0;
+    std::string line;
+    while (std::getline(std::cin, line)) {
+        if (line == "quit") break;
+        std::vector<std::string> toks;
+        std::istringstream ss(line);
+        std::string t;
+        while (ss >> t) toks.push_back(t);
+        size_t n = toks.size(), k = 0, outs = 0;
+        long idle = 0;
+        std::string resp;
+        bool failed = false;
+        if (n > 0) { set_words(in, toks[0]); top->i___05Fvalid = 1; }
+        while (outs < n) {
+%(set_payload)s
+            top->clk = 0; top->eval();
+            bool fire_in = top->i___05Fvalid && top->i___05Fready;
+            if (top->o___05Fvalid) {
+%(get_payload)s
+                if (outs) resp += ' ';
+                resp += hexbuf;
+                outs++; idle = 0;
+            }
+            top->clk = 1; top->eval();
+            total++; idle++;
+            if (fire_in) {
+                k++;
+                if (k < n) set_words(in, toks[k]); else top->i___05Fvalid = 0;
+            }
+            if (idle > limit) { failed = true; break; }
+        }
+        if (failed) {
+            top->i___05Fvalid = 0;
+            std::cout << "!no output for " << limit << " cycles after " << outs
+                      << " of " << n << " commands\n" << std::flush;
+            continue;
+        }
+        std::cout << resp << '\n' << std::flush;
+    }
+    std::cerr << "cycles " << total << "\n";
+    delete top;
+    return 0;
+}
+"""
+
+
+def _payload_code(width: int, port: str, write: bool) -> str:
+    words = (width + 31) // 32
+    if width <= 32:
+        return (f"            top->{port} = in[0];" if write else
+                f'                snprintf(hexbuf, sizeof hexbuf, "%x", '
+                f"(uint32_t)top->{port});")
+    if width <= 64:
+        return (f"            top->{port} = ((uint64_t)in[1] << 32) | in[0];" if write else
+                f'                snprintf(hexbuf, sizeof hexbuf, "%lx", '
+                f"(unsigned long)top->{port});")
+    if write:
+        return "\n".join(f"            top->{port}[{i}] = in[{i}];" for i in range(words))
+    if words > 7:
+        raise NativeStreamError("output payload wider than 224 bits")
+    fmt = "%x" + "%08x" * (words - 1)
+    args = ", ".join(f"(uint32_t)top->{port}[{i}]" for i in reversed(range(words)))
+    return f'                snprintf(hexbuf, sizeof hexbuf, "{fmt}", {args});'
+
+
+def build_native(verilog_text: str, top: str, in_width: int, out_width: int) -> Path:
+    """Compile (or find in the cache) the native server of ``top``; the executable."""
+    src = _MAIN % {"top": top, "in_words": (in_width + 31) // 32,
+                   "set_payload": _payload_code(in_width, "i___05Fpayload", True),
+                   "get_payload": _payload_code(out_width, "o___05Fpayload", False)}
+    key = hashlib.sha256("\0".join([verilog_text, src, top]).encode()).hexdigest()[:24]
+    root = V.verilator_cache_dir()
+    root.mkdir(parents=True, exist_ok=True)
+    out = root / f"server-{top}-{key}"
+    exe = out / f"V{top}"
+    if exe.exists():
+        return exe
+    with open(root / f"server-{top}-{key}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if exe.exists():
+            return exe
+        tmp = Path(tempfile.mkdtemp(prefix=f"server-{top}-", dir=root))
+        (tmp / f"{top}.v").write_text(verilog_text)
+        (tmp / "main.cpp").write_text(src)
+        cmd = ["verilator", "--cc", "--exe", "--build", "-j", "2", "-Wno-fatal", "-Wno-lint",
+               "-Wno-style", "--top-module", top, "-Mdir", str(tmp / "obj"), f"{top}.v",
+               "main.cpp", "-o", f"V{top}"]
+        env = V._env_with_verilator()
+        env["MAKEFLAGS"] = "OPT_FAST=-O1 OPT_SLOW=-O0 OPT_GLOBAL=-O1 CFG_CXXFLAGS_PCH_I=-include"
+        r = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
+        if r.returncode != 0:
+            raise NativeStreamError(f"native Verilator build of {top} failed:\n"
+                                    f"{(r.stdout + r.stderr)[-4000:]}")
+        out.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(tmp / "obj" / f"V{top}", exe)
+        shutil.rmtree(tmp, ignore_errors=True)
+    return exe
+
+
+class NativeStreamServer:
+    """A running native model of a stream ``component``: :meth:`batch` sends packed input
+    payloads and returns the packed outputs (one per input)."""
+
+    def __init__(self, component, top: str = "dut", idle_limit: int = 100_000):
+        self.in_fmt = V.stream_format(V._port_shape(component.i))
+        self.out_fmt = V.stream_format(V._port_shape(component.o))
+        t0 = time.perf_counter()
+        self.exe = build_native(V.emit_verilog(component, top), top, self.in_fmt.width,
+                                self.out_fmt.width)
+        self.build_seconds = time.perf_counter() - t0
+        self.proc = subprocess.Popen([str(self.exe), str(idle_limit)], stdin=subprocess.PIPE,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                     text=True, bufsize=1)
+
+    def batch(self, fields: dict) -> dict:
+        """Per-field input arrays in, per-field output arrays out (as ``verify.simulate``)."""
+        packed = V.pack(self.in_fmt, fields)
+        if not len(packed):
+            return V.unpack(self.out_fmt, [])
+        try:
+            self.proc.stdin.write(" ".join(format(v, "x") for v in packed) + "\n")
+            self.proc.stdin.flush()
+            line = self.proc.stdout.readline()
+        except (BrokenPipeError, OSError) as exc:
+            raise NativeStreamError(f"native model exited: {exc}") from None
+        if not line:
+            err = self.proc.stderr.read() if self.proc.poll() is not None else ""
+            raise NativeStreamError(f"native model exited: {err[-2000:]}")
+        if line.startswith("!"):
+            raise NativeStreamError(f"native model: {line[1:].strip()}")
+        outs = [int(t, 16) for t in line.split()]
+        if len(outs) != len(packed):
+            raise NativeStreamError(f"native model answered {len(outs)} of {len(packed)}")
+        return V.unpack(self.out_fmt, outs)
+
+    def close(self):
+        if self.proc.poll() is None:
+            try:
+                self.proc.stdin.write("quit\n")
+                self.proc.stdin.close()
+                self.proc.wait(timeout=30)
+            except (OSError, subprocess.TimeoutExpired):
+                self.proc.kill()
+        for f in (self.proc.stdout, self.proc.stderr):
+            try:
+                f.close()
+            except OSError:
+                pass
