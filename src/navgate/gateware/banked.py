@@ -18,8 +18,10 @@ Machine
 * Issue slots: ``mul`` instances, ``add`` instances (add/sub) and one ``misc`` slot shared by
   div, sqrt, compare, int->float conversion and the commit copy ``mov``; each slot issues at
   most one op per cycle and has two operand ports.
-* Banks: one per issue slot (``mul0..``, ``add0..``, ``misc``). Each bank: one write port whose
-  data comes from any unit's result (a multiplexer set by the microcode), ``read_ports``
+* Banks: one per issue slot (``mul0..``, ``add0..``, and ``misc`` unless ``misc_bank`` is
+  off). Each bank: one write port whose data comes from any mul/add unit's result or the
+  misc cores' shared result bus (at most one misc result per cycle, a scheduling
+  constraint; a multiplexer set by the microcode), ``read_ports``
   read ports; every operand port selects one bank read port (a ``banks x read_ports``
   multiplexer set by the microcode). Persistent registers (state, configuration, inputs,
   constants) are spread over the banks; every temporary is placed by the scheduler in a bank
@@ -88,6 +90,9 @@ class BankedUnits:
     #: add operands swapped by the scheduler where that avoids a conflict); otherwise any
     #: operand reads any port (banks x read_ports : 1 multiplexers)
     port_per_operand: bool = False
+    #: the misc slot has a bank of its own; otherwise its results go to the other banks
+    #: (fewer operand multiplexer inputs: 16 instead of 18 with 4 + 4 slots)
+    misc_bank: bool = True
 
     def slots(self) -> list:
         return ([("mul", k) for k in range(self.mul)] + [("add", k) for k in range(self.add)]
@@ -102,7 +107,7 @@ class BankedUnits:
 
     @property
     def banks(self) -> int:
-        return self.mul + self.add + 1
+        return self.mul + self.add + int(self.misc_bank)
 
 
 def _slot_unit(unit: str) -> str:
@@ -210,6 +215,8 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                 w = c + OPERAND_STAGES + UNIT_LATENCY[s.unit]
                 dead = not users[s.dst] and s.dst not in needed
                 own = units.slot_of(su, inst)
+                if own >= nb:  # misc slot without a bank: the least loaded bank
+                    own = min(range(nb), key=lambda b: (load[b], b))
                 target = None
                 if not dead:
                     prefs = []
@@ -230,12 +237,16 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                     s.srcs = s.srcs[::-1]  # commutative: a + b == b + a bit for bit
                     names = names[::-1]
                     fits = True
-                if not fits or (not dead and target is None):
+                # the misc cores share one result bus into the banks: one result per cycle
+                misc_busy = su == "misc" and (w, "misc") in writes
+                if not fits or misc_busy or (not dead and target is None):
                     skipped.append((h, i))
                     continue
                 take_reads(c, names)
                 s.issue, s.inst = c, (inst if su != "misc" else 0)
-                issued.add((c, own))
+                issued.add((c, units.slot_of(su, inst)))
+                if su == "misc":
+                    writes.add((w, "misc"))
                 if not dead:
                     writes.add((w, target))
                     bank[s.dst] = target
@@ -275,10 +286,12 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
         c = max(early, last_read.get(reg, -1) - OPERAND_STAGES - lat_mov)
         while ((c, misc_slot) in issued
                or (c + OPERAND_STAGES + lat_mov, bank_of[reg]) in writes
+               or (c + OPERAND_STAGES + lat_mov, "misc") in writes
                or not reads_fit(c, [tmp])):
             c += 1
         issued.add((c, misc_slot))
         writes.add((c + OPERAND_STAGES + lat_mov, bank_of[reg]))
+        writes.add((c + OPERAND_STAGES + lat_mov, "misc"))
         take_reads(c, [tmp])
         s = BSOp(len(ops), reg, "mov", ((tmp, False),), "mov", 0, c)
         s.bank = bank_of[reg]
@@ -429,7 +442,7 @@ class BankedImage:
         used = {s.unit for sp in sched.values() for s in sp.ops}
         misc_kinds = tuple(k for k in MISC_KINDS if k in used)
         sources = ([("mul", k) for k in range(units.mul)]
-                   + [("add", k) for k in range(units.add)] + [(k, 0) for k in misc_kinds])
+                   + [("add", k) for k in range(units.add)] + [("misc", 0)])
         layout = allocate_banked(sched, names, bank_of, units)
         f = _BankedFields(units, layout.local_bits, len(sources), misc_kinds)
         lb = layout.local_bits
@@ -475,7 +488,7 @@ class BankedImage:
                 dst = layout.fixed[s.dst] if s.kind == "mov" else addr.get(s.dst)
                 if dst is not None:
                     b = dst >> lb
-                    src = sources.index((s.unit, s.inst) if su != "misc" else (s.unit, 0))
+                    src = sources.index((s.unit, s.inst) if su != "misc" else ("misc", 0))
                     put(s.write, ("we", b), 1)
                     put(s.write, ("wa", b), dst & ((1 << lb) - 1))
                     put(s.write, ("wsrc", b), src)
@@ -491,6 +504,13 @@ class BankedImage:
 
     def machine(self, init: dict | None = None):
         return BankedMachine(self, init)
+
+
+def _or_all(terms):
+    out = terms[0]
+    for t in terms[1:]:
+        out = out | t
+    return out
 
 
 class BankedMachine(wiring.Component):
@@ -626,6 +646,7 @@ class BankedMachine(wiring.Component):
                 src_res[("add", k)] = core.o.payload.r
             else:
                 kind = late(late(fld("kind"), "misc_kind_a"), "misc_kind")
+                misc_terms = []
                 for ki, name in enumerate(img.misc_kinds):
                     v = Signal(name=f"{name}_valid")
                     m.d.comb += v.eq(iss & (kind == ki))
@@ -633,6 +654,7 @@ class BankedMachine(wiring.Component):
                         core = _Mov()
                         m.d.comb += [core.a.eq(a), core.valid_i.eq(v)]
                         res = core.r
+                        res_valid = core.valid_o
                     else:
                         core = {"div": Fp32Div, "sqrt": Fp32Sqrt, "cmp": Fp32Compare,
                                 "cvt": lambda: Fp32FromInt(32)}[name]()
@@ -649,8 +671,12 @@ class BankedMachine(wiring.Component):
                             m.d.comb += res.eq(Mux(o.lt | (fld("wmod") & o.equal), ONE_BITS, 0))
                         else:
                             res = core.o.payload.r
+                        res_valid = core.o.valid
                     m.submodules[name] = core
-                    src_res[(name, 0)] = res
+                    misc_terms.append(Mux(res_valid, res, 0))
+                misc_res = Signal(32, name="misc_res")
+                m.d.comb += misc_res.eq(_or_all(misc_terms))
+                src_res[("misc", 0)] = misc_res
         for b in range(nb):
             wp = wports[b]
             data = Signal(32, name=f"wdata{b}")

@@ -31,8 +31,10 @@ __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePr
            "ENGINE_UNITS", "PROGRAM_SETS", "fixed_names", "engine_image", "IMU_WORDS",
            "simulate_program", "simulate_calls", "random_registers"]
 
-#: issue slots and banks of the engines (counts chosen against the 2-D update's cycle target)
-ENGINE_UNITS = BankedUnits(mul=4, add=4, read_ports=2)
+#: issue slots and banks of the engines (counts chosen against the 2-D update's cycle
+#: target); the misc slot (div, sqrt, compare, convert, mov) writes into the eight mul/add
+#: banks, so that every operand multiplexer has 16 inputs (docs/seed000-engines.md)
+ENGINE_UNITS = BankedUnits(mul=4, add=4, read_ports=2, misc_bank=False)
 #: the programs each block runs
 PROGRAM_SETS = {
     "ins_engines": ("propagate", "alt_gate", "alt_apply", "trn_gate", "trn_apply"),
