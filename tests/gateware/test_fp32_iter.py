@@ -6,7 +6,9 @@ next to a rounding tie; an exact tie cannot occur for a quotient or root of 24-b
 significands), the special-value table and 3,000 biased random vectors (the generators of
 ``navgate.gateware.verify_fp32``) in Amaranth's simulator, the full special-value cross
 table plus 3,000 random vectors through the emitted Verilog in Verilator, and (``-m slow``)
-1,000,000 random vectors through a native Verilator model. The fixed schedule the banked
+1,000,000 random vectors through a native Verilator model. The ``steps_per_cycle = 2``
+option runs the same Amaranth and schedule tests in the default suite, its Verilator run
+and synthesis under ``-m slow``. The fixed schedule the banked
 datapath relies on is asserted cycle by cycle: an input offered every ``INTERVAL`` cycles is
 always accepted, ``i.ready`` is low in between, each result is valid exactly ``LATENCY``
 cycles after its input, and a stalled output is held while the core waits.
@@ -110,6 +112,23 @@ CORES = {
     "sqrt": (Fp32SqrtIter, "fp32_sqrt_iter", CASES["fp32_sqrt"], _sqrt_directed,
              [c[1] for c in SQRT_CASES]),
 }
+# (core, steps_per_cycle): the registered default and the two-steps-per-cycle option
+VARIANTS = [("div", 1), ("div", 2), ("sqrt", 1), ("sqrt", 2)]
+IDS = [f"{c}-s{s}" for c, s in VARIANTS]
+
+
+def _make(core, steps):
+    return CORES[core][0](steps_per_cycle=steps)
+
+
+def _top(core, steps):
+    return CORES[core][1] + ("" if steps == 1 else f"_s{steps}")
+
+
+def _slow_unless_default(variants):
+    """The default variant (one step per cycle) in the default run, the others under slow."""
+    return [pytest.param(c, s, id=f"{c}-s{s}", marks=() if s == 1 else pytest.mark.slow)
+            for c, s in variants]
 
 
 def _check(res):
@@ -130,6 +149,18 @@ def test_timing_constants_and_registry():
     assert (Fp32SqrtIter.LATENCY, Fp32SqrtIter.INTERVAL) == (27, 26)
     assert Fp32DivIter.THROUGHPUT == Fraction(1, 27)
     assert Fp32SqrtIter.THROUGHPUT == Fraction(1, 26)
+    two = {core: _make(core, 2) for core in CORES}
+    for dut in two.values():
+        Fragment.get(dut, None)
+    assert (two["div"].LATENCY, two["div"].INTERVAL, two["div"].THROUGHPUT) == \
+        (16, 15, Fraction(1, 15))
+    assert (two["sqrt"].LATENCY, two["sqrt"].INTERVAL, two["sqrt"].THROUGHPUT) == \
+        (15, 14, Fraction(1, 14))
+    for bad in (0, 3, 1.0, None):
+        with pytest.raises(ValueError, match="steps_per_cycle"):
+            Fp32DivIter(steps_per_cycle=bad)
+        with pytest.raises(ValueError, match="steps_per_cycle"):
+            Fp32SqrtIter(steps_per_cycle=bad)
     for cls, block, case, *_ in CORES.values():
         dut = get_block(block).factory()
         assert type(dut) is cls
@@ -151,11 +182,11 @@ def test_sqrt_model_matches_hand_derived(a, expected, why):
 # ----------------------------------------------------------------------- Amaranth
 
 
-@pytest.mark.parametrize("core", list(CORES))
-def test_directed_amaranth(core):
-    cls, _, case, directed, expected = CORES[core]
+@pytest.mark.parametrize("core,steps", VARIANTS, ids=IDS)
+def test_directed_amaranth(core, steps):
+    _, _, case, directed, expected = CORES[core]
     ins = directed()
-    out, run = simulate(cls(), ins)
+    out, run = simulate(_make(core, steps), ins)
     bad = [(i, hex(int(g)), hex(int(e))) for i, (g, e) in enumerate(zip(out["r"], expected,
                                                                        strict=True))
            if int(g) != int(e)]
@@ -172,22 +203,23 @@ def test_directed_amaranth(core):
         sa, so = np.meshgrid(SPECIALS, others, indexing="ij")
         table = _concat({"a": a[pick], "b": b[pick]}, {"a": sa.ravel(), "b": so.ravel()},
                         {"a": so.ravel(), "b": sa.ravel()})
-    res = verify(cls(), case.model, table, formatters=case.formatters, name=core)
+    dut = _make(core, steps)
+    res = verify(dut, case.model, table, formatters=case.formatters, name=core)
     _check(res)
     # No stalls, inputs always waiting: one accepted every INTERVAL cycles, exactly.
-    assert res.latency == cls.LATENCY
-    assert res.cycles == (res.n_vectors - 1) * cls.INTERVAL + cls.LATENCY + 1
+    assert res.latency == dut.LATENCY
+    assert res.cycles == (res.n_vectors - 1) * dut.INTERVAL + dut.LATENCY + 1
 
 
 @pytest.mark.parametrize("chunk,n,handshake", [(0, 1500, {}),
                                                (1, 1500, {"valid_prob": 0.6, "ready_prob": 0.5})],
                          ids=["free", "backpressure"])
-@pytest.mark.parametrize("core", list(CORES))
-def test_random_amaranth(core, chunk, n, handshake):
-    cls, _, case, _, _ = CORES[core]
+@pytest.mark.parametrize("core,steps", VARIANTS, ids=IDS)
+def test_random_amaranth(core, steps, chunk, n, handshake):
+    case = CORES[core][2]
     ins = case.random(n, seed=4000 + chunk)
-    res = verify(cls(), case.model, ins, formatters=case.formatters, name=core, seed=chunk,
-                 **handshake)
+    res = verify(_make(core, steps), case.model, ins, formatters=case.formatters, name=core,
+                 seed=chunk, **handshake)
     _check(res)
     assert res.n_vectors == n
 
@@ -229,7 +261,7 @@ def _run_schedule(dut, payloads, offer, ready, cycles):
 
 
 def _payloads(core, n, seed):
-    cls, _, case, _, _ = CORES[core]
+    case = CORES[core][2]
     ins = case.random(n, seed=seed)
     packed = [int(v) for v in ins["a"]] if core == "sqrt" else \
         [int(a) | (int(b) << 32) for a, b in zip(ins["a"], ins["b"], strict=True)]
@@ -237,13 +269,13 @@ def _payloads(core, n, seed):
     return packed, expected
 
 
-@pytest.mark.parametrize("core", list(CORES))
-def test_fixed_schedule(core):
+@pytest.mark.parametrize("core,steps", VARIANTS, ids=IDS)
+def test_fixed_schedule(core, steps):
     """As the banked datapath issues: valid exactly every INTERVAL cycles, o.ready held 1."""
-    cls = CORES[core][0]
-    n, interval, latency = 6, cls.INTERVAL, cls.LATENCY
+    dut = _make(core, steps)
+    n, interval, latency = 6, dut.INTERVAL, dut.LATENCY
     payloads, expected = _payloads(core, n, seed=5)
-    records, accepted = _run_schedule(cls(), payloads, lambda c, k: c == k * interval,
+    records, accepted = _run_schedule(dut, payloads, lambda c, k: c == k * interval,
                                       lambda c: 1, (n - 1) * interval + latency + 4)
     assert accepted == [k * interval for k in range(n)]
     # i.ready is low in every busy cycle except the finishing one, which accepts the next.
@@ -255,19 +287,19 @@ def test_fixed_schedule(core):
     assert [records[c][3] for c in valid_cycles] == expected
 
 
-@pytest.mark.parametrize("core", list(CORES))
-def test_back_to_back_and_stall(core):
+@pytest.mark.parametrize("core,steps", VARIANTS, ids=IDS)
+def test_back_to_back_and_stall(core, steps):
     """Inputs always offered: accepted exactly INTERVAL apart. Then an output stall: the
     result is held unchanged, the core waits in its finishing cycle with i.ready low, and
     resumes in the cycle the output is taken."""
-    cls = CORES[core][0]
-    interval, latency = cls.INTERVAL, cls.LATENCY
+    dut = _make(core, steps)
+    interval, latency = dut.INTERVAL, dut.LATENCY
     payloads, expected = _payloads(core, 4, seed=6)
     # o.ready low from just before result 0 until cycle 3 * interval: result 0 is taken at
     # 3 * interval; result 1 (finished at 2 * interval) is blocked until then.
     stall_end = 3 * interval
     records, accepted = _run_schedule(
-        cls(), payloads, lambda c, k: True, lambda c: not (latency - 1 <= c < stall_end),
+        dut, payloads, lambda c, k: True, lambda c: not (latency - 1 <= c < stall_end),
         stall_end + 2 * interval + latency + 2)
     assert accepted == [0, interval, stall_end, stall_end + interval]
     assert not any(r[1] for r in records[interval + 1:stall_end])  # i.ready low while blocked
@@ -283,26 +315,26 @@ def test_back_to_back_and_stall(core):
 # ----------------------------------------------------------------------- Verilator
 
 
-@pytest.mark.parametrize("core", list(CORES))
-def test_verilator(core, tmp_path):
-    cls, block, case, directed, _ = CORES[core]
+@pytest.mark.parametrize("core,steps", _slow_unless_default(VARIANTS))
+def test_verilator(core, steps, tmp_path):
+    _, _, case, directed, _ = CORES[core]
     table = _concat(case.directed(), directed())  # div: the whole 62 x 62 special table
     ins = _concat(table, case.random(3000, seed=5000))
-    dut = cls()
+    dut = _make(core, steps)
     res = verify(dut, case.model, ins, backend="verilator", formatters=case.formatters,
-                 name=block, seed=7, valid_prob=0.95, ready_prob=0.9, work_dir=tmp_path,
-                 top=block)
+                 name=_top(core, steps), seed=7, valid_prob=0.95, ready_prob=0.9,
+                 work_dir=tmp_path, top=_top(core, steps))
     _check(res)
     assert res.n_vectors == len(ins["a"]) >= 3000 + len(SPECIALS)
-    assert res.latency == cls.LATENCY
+    assert res.latency == dut.LATENCY
 
 
-@pytest.mark.parametrize("core", list(CORES))
-def test_verilator_lint_clean(core, tmp_path):
-    cls, block, *_ = CORES[core]
-    path = tmp_path / f"{block}.v"
-    path.write_text(emit_verilog(cls(), block))
-    assert lint_verilog(path, top=block) == []
+@pytest.mark.parametrize("core,steps", VARIANTS, ids=IDS)
+def test_verilator_lint_clean(core, steps, tmp_path):
+    top = _top(core, steps)
+    path = tmp_path / f"{top}.v"
+    path.write_text(emit_verilog(_make(core, steps), top))
+    assert lint_verilog(path, top=top) == []
 
 
 # ----------------------------------------------------------------------- resources
@@ -312,32 +344,36 @@ def test_verilator_lint_clean(core, tmp_path):
 # shows up here and must be re-measured. Target: well under 400 LUTs each (INV cells, which
 # become LUT1s or vanish in place and route, counted with them), xc7 logic-only path <= 5 ns.
 ITER_CELLS = {
-    "div": {"CARRY4": 26, "FDRE": 118, "FDSE": 9, "INV": 17,
-            "LUT2": 45, "LUT3": 19, "LUT4": 23, "LUT5": 19, "LUT6": 33},
-    "sqrt": {"CARRY4": 22, "FDRE": 119, "FDSE": 9, "INV": 11,
-             "LUT2": 37, "LUT3": 13, "LUT4": 15, "LUT5": 17, "LUT6": 54},
+    ("div", 1): {"CARRY4": 26, "FDRE": 118, "FDSE": 9, "INV": 17,
+                 "LUT2": 45, "LUT3": 19, "LUT4": 23, "LUT5": 19, "LUT6": 33},
+    ("div", 2): {"CARRY4": 32, "FDRE": 118, "FDSE": 9, "INV": 20,
+                 "LUT2": 75, "LUT3": 69, "LUT4": 37, "LUT5": 20, "LUT6": 31},
+    ("sqrt", 1): {"CARRY4": 22, "FDRE": 119, "FDSE": 9, "INV": 11,
+                  "LUT2": 37, "LUT3": 13, "LUT4": 15, "LUT5": 17, "LUT6": 54},
+    ("sqrt", 2): {"CARRY4": 30, "FDRE": 120, "FDSE": 9, "INV": 13,
+                  "LUT2": 45, "LUT3": 35, "LUT4": 37, "LUT5": 17, "LUT6": 51},
 }
 
 
-@pytest.mark.parametrize("core", list(CORES))
-def test_resources_and_xc7_timing(core, tmp_path):
-    cls, block, *_ = CORES[core]
-    r = synthesize(emit_verilog(cls(), block), block, "xc7z020", tmp_path)
+@pytest.mark.parametrize("core,steps", _slow_unless_default(VARIANTS))
+def test_resources_and_xc7_timing(core, steps, tmp_path):
+    top = _top(core, steps)
+    r = synthesize(emit_verilog(_make(core, steps), top), top, "xc7z020", tmp_path)
     cells = dict(r["cells"])
-    assert r["lut"] + cells.get("INV", 0) < 200 and r["dsp"] == 0, cells
+    assert r["lut"] + cells.get("INV", 0) < (200 if steps == 1 else 300) and r["dsp"] == 0
     assert not any(k.startswith("SRL") or k.startswith("RAM") for k in cells), cells
-    assert cells == ITER_CELLS[core], cells
-    path = timing_xc7(block, tmp_path)
+    assert cells == ITER_CELLS[core, steps], cells
+    path = timing_xc7(top, tmp_path)
     assert path["path_ns"] <= 5.0, path
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("core", list(CORES))
-def test_native_verilator_million(core):
+@pytest.mark.parametrize("core,steps", VARIANTS, ids=IDS)
+def test_native_verilator_million(core, steps):
     from navgate.gateware.native_stream import NativeStreamServer
 
-    cls, block, case, _, _ = CORES[core]
-    server = NativeStreamServer(cls(), top=block)
+    case = CORES[core][2]
+    server = NativeStreamServer(_make(core, steps), top=_top(core, steps))
     try:
         bad = 0
         for chunk in range(20):

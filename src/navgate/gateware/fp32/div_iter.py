@@ -19,11 +19,14 @@ discarded tail is (the sticky bit).
 Timing (see :mod:`._iterative`): 1 load + 1 pre-normalise + 25 recurrence + 1 round/pack
 register stages in sequence: ``LATENCY = 28``; the round/pack cycle also accepts the next
 input, so ``INTERVAL = 27`` cycles between accepted inputs and ``THROUGHPUT = 1/27``.
+``Fp32DivIter(steps_per_cycle=2)`` chains two steps per cycle (26 quotient bits in 13
+cycles, the pre-normalisation using the first of the two): ``LATENCY = 16``,
+``INTERVAL = 15``.
 """
 
 from fractions import Fraction
 
-from amaranth.hdl import Cat, Module, Signal, signed, unsigned
+from amaranth.hdl import Cat, Module, Mux, Signal, signed, unsigned
 from amaranth.lib import data
 
 from ._common import unpack
@@ -35,8 +38,8 @@ __all__ = ["Fp32DivIter"]
 class Fp32DivIter(IterativeRecurrence):
     """Float32 divide ``r = a / b``, iterative (one quotient bit per cycle, 1/27 per cycle)."""
 
-    QUOTIENT_BITS = 25
-    WORK_CYCLES = QUOTIENT_BITS + 1  # pre-normalisation + 25 quotient bits
+    SETUP_CYCLES = 1  # pre-normalisation
+    WORK_CYCLES = SETUP_CYCLES + 25  # + 25 quotient bits
     LATENCY = WORK_CYCLES + 2     # 28
     INTERVAL = WORK_CYCLES + 1    # 27
     THROUGHPUT = Fraction(1, INTERVAL)
@@ -44,9 +47,10 @@ class Fp32DivIter(IterativeRecurrence):
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
 
     def datapath(self, m: Module, accept, work, count):
+        nb = self.bits
         r = Signal(25, name="r", reset_less=True)       # partial remainder, r < 2 * d
         d = Signal(24, name="d", reset_less=True)       # divisor significand
-        q = Signal(25, name="q", reset_less=True)       # quotient bits, shifted in at bit 0
+        q = Signal(nb, name="q", reset_less=True)       # quotient bits, shifted in at bit 0
         e = Signal(signed(10), name="e", reset_less=True)
         sign = Signal(name="sign", reset_less=True)
         kind = Signal(3, name="kind", reset_less=True)  # nan, inf, zero
@@ -54,14 +58,20 @@ class Fp32DivIter(IterativeRecurrence):
         a = unpack(m, self.i.payload.a, "a")
         b = unpack(m, self.i.payload.b, "b")
 
-        diff = Signal(26, name="diff")
-        m.d.comb += diff.eq(r - d)
-        bit = ~diff[25]  # r >= d
-        r_next = Signal(25, name="r_next")
-        with m.If(bit):
-            m.d.comb += r_next.eq(diff[0:24] << 1)
-        with m.Else():
-            m.d.comb += r_next.eq(r[0:24] << 1)
+        # steps_per_cycle chained steps: rs[j] -> rs[j + 1], quotient bits bits[j]
+        rs = [r]
+        bits = []
+        for j in range(self.steps_per_cycle):
+            diff = Signal(26, name=f"diff{j}")
+            m.d.comb += diff.eq(rs[j] - d)
+            bit = ~diff[25]  # r >= d
+            r_next = Signal(25, name=f"r_next{j}")
+            with m.If(bit):
+                m.d.comb += r_next.eq(diff[0:24] << 1)
+            with m.Else():
+                m.d.comb += r_next.eq(rs[j][0:24] << 1)
+            rs.append(r_next)
+            bits.append(bit)
         prenorm = count == 0
 
         with m.If(accept):
@@ -75,12 +85,15 @@ class Fp32DivIter(IterativeRecurrence):
                             a.zero | b.inf)),
             ]
         with m.Elif(work):
-            # q also shifts in the pre-normalisation cycle; that bit leaves the 25-bit
-            # register by the end.
-            m.d.sync += q.eq(Cat(bit, q[:-1]))
-            with m.If(~(prenorm & bit)):
-                m.d.sync += r.eq(r_next)
-            with m.If(prenorm & ~bit):
+            # q also shifts in the pre-normalisation cycle; those bits leave the register
+            # by the end.
+            m.d.sync += q.eq(Cat(*reversed(bits), q[:nb - len(bits)]))
+            # Pre-normalisation: the first step's test r >= d is ma >= mb; keep r, or take
+            # the first step's 2 * r.
+            r_load = rs[1] if len(bits) == 1 else Mux(prenorm, rs[1], rs[-1])
+            with m.If(~(prenorm & bits[0])):
+                m.d.sync += r.eq(r_load)
+            with m.If(prenorm & ~bits[0]):
                 m.d.sync += e.eq(e - 1)
 
-        return sign, e, q[1:25], q[0], r != 0, kind
+        return (sign, e, *self.split_result(q, r), kind)

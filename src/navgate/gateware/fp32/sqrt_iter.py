@@ -18,6 +18,8 @@ fire (they stay for the shared code path).
 Timing (see :mod:`._iterative`): 1 load + 25 recurrence + 1 round/pack register stages in
 sequence: ``LATENCY = 27``; the round/pack cycle also accepts the next input, so
 ``INTERVAL = 26`` cycles between accepted inputs and ``THROUGHPUT = 1/26``.
+``Fp32SqrtIter(steps_per_cycle=2)`` chains two steps per cycle (26 root bits in 13 cycles):
+``LATENCY = 15``, ``INTERVAL = 14``.
 """
 
 from fractions import Fraction
@@ -34,8 +36,8 @@ __all__ = ["Fp32SqrtIter"]
 class Fp32SqrtIter(IterativeRecurrence):
     """Float32 square root ``r = sqrt(a)``, iterative (one root bit per cycle, 1/26 per cycle)."""
 
-    ROOT_BITS = 25
-    WORK_CYCLES = ROOT_BITS
+    SETUP_CYCLES = 0
+    WORK_CYCLES = 25  # one per root bit
     LATENCY = WORK_CYCLES + 2     # 27
     INTERVAL = WORK_CYCLES + 1    # 26
     THROUGHPUT = Fraction(1, INTERVAL)
@@ -43,32 +45,38 @@ class Fp32SqrtIter(IterativeRecurrence):
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
 
     def datapath(self, m: Module, accept, work, count):
+        nb = self.bits
         # Radicand N = v * 2**48 = m_adj * 2**25 with m_adj = mant << odd (25 bits); with one
         # zero padded below, its 13 bit pairs are rest[24:26], rest[22:24], ..., then zeros.
         rest = Signal(26, name="rest", reset_less=True)
-        rem = Signal(26, name="rem", reset_less=True)    # rem <= 2 * root after every step
-        root = Signal(25, name="root", reset_less=True)  # root bits, shifted in at bit 0
+        rem = Signal(nb + 1, name="rem", reset_less=True)  # rem <= 2 * root after each step
+        root = Signal(nb, name="root", reset_less=True)    # root bits, shifted in at bit 0
         e = Signal(signed(10), name="e", reset_less=True)
         sign = Signal(name="sign", reset_less=True)
-        kind = Signal(3, name="kind", reset_less=True)   # nan, inf, zero
+        kind = Signal(3, name="kind", reset_less=True)     # nan, inf, zero
 
         a = unpack(m, self.i.payload.a, "a")
         odd = ~a.exp[0]  # unbiased exponent a.exp - 127 is odd when a.exp is even
         e_unb = Signal(signed(10), name="e_unb")
         m.d.comb += e_unb.eq(a.exp - 127)
 
-        # Before each step root < 2**24 and rem <= 2 * root < 2**25, so 4 * rem + pair fits
-        # 27 bits and 4 * root + 1 26 bits.
-        rem4 = Cat(rest[24:26], rem[0:25])
-        trial = Cat(C(1, 2), root[0:24])
-        diff = Signal(28, name="diff")
-        m.d.comb += diff.eq(rem4 - trial)
-        bit = ~diff[27]
-        rem_next = Signal(26, name="rem_next")
-        with m.If(bit):
-            m.d.comb += rem_next.eq(diff)
-        with m.Else():
-            m.d.comb += rem_next.eq(rem4)
+        # Before each step root < 2**(nb - 1) and rem <= 2 * root < 2**nb, so 4 * rem + pair
+        # fits nb + 2 bits and 4 * root + 1 nb + 1 bits.
+        rems, roots = [rem], [root]
+        for j in range(self.steps_per_cycle):
+            pair = rest[24 - 2 * j:26 - 2 * j]
+            rem4 = Cat(pair, rems[j][0:nb])
+            trial = Cat(C(1, 2), roots[j][0:nb - 1])
+            diff = Signal(nb + 3, name=f"diff{j}")
+            m.d.comb += diff.eq(rem4 - trial)
+            bit = ~diff[nb + 2]
+            rem_next = Signal(nb + 1, name=f"rem_next{j}")
+            with m.If(bit):
+                m.d.comb += rem_next.eq(diff)
+            with m.Else():
+                m.d.comb += rem_next.eq(rem4)
+            rems.append(rem_next)
+            roots.append(Cat(bit, roots[j][0:nb - 1]))
 
         with m.If(accept):
             m.d.sync += [
@@ -81,9 +89,9 @@ class Fp32SqrtIter(IterativeRecurrence):
             ]
         with m.Elif(work):
             m.d.sync += [
-                rest.eq(rest << 2),
-                rem.eq(rem_next),
-                root.eq(Cat(bit, root[:-1])),
+                rest.eq(rest << (2 * self.steps_per_cycle)),
+                rem.eq(rems[-1]),
+                root.eq(roots[-1]),
             ]
 
-        return sign, e, root[1:25], root[0], rem != 0, kind
+        return (sign, e, *self.split_result(root, rem), kind)
