@@ -11,7 +11,8 @@ harness (the input is accepted in cycle 0, i.e. by clock edge ``E0`` at the end 
 cycle; a result "valid in cycle L" was registered by edge ``E(L-1)``):
 
 * ``E0`` loads the unpacked operands, the special-case class and the exponent;
-* ``E1 .. E{WORK_CYCLES}`` are the recurrence edges (``count = 0 .. WORK_CYCLES - 1``);
+* ``E1 .. E{WORK_CYCLES}`` are the work edges (``count = 0 .. WORK_CYCLES - 1``): the
+  divider's pre-normalisation, then the recurrence steps;
 * in cycle ``WORK_CYCLES + 1`` (``count = WORK_CYCLES``, the *finish* cycle) the tail rounds
   (sticky bit, round-to-nearest-even, range check: :func:`~._common.round_pack`) and
   selects the special result (:func:`~._common.select_special`); edge
