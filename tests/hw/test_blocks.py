@@ -10,7 +10,7 @@ from amaranth.hdl import Fragment
 from navgate.hw.blocks import REGISTRY, all_blocks, get_block
 
 OWN = {"cordic_atan2", "cordic_atan2_iter", "cordic_sincos", "goldschmidt_div",
-       "goldschmidt_recip", "fixed_mul"}
+       "goldschmidt_recip", "fixed_mul", "fp32_div_iter", "fp32_sqrt_iter"}
 
 
 def test_registry_names_and_fp32_merge():

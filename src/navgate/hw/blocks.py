@@ -48,6 +48,14 @@ REGISTRY: dict[str, tuple[str, str]] = {
         "navgate.gateware.goldschmidt:GoldschmidtReciprocal",
         "Goldschmidt fixed-point reciprocal (seed 004), pipelined",
     ),
+    "fp32_div_iter": (
+        "navgate.gateware.fp32:Fp32DivIter",
+        "float32 divide, iterative radix-2 (bit-exact to fp32_div; LATENCY 28, one per 27 cycles)",
+    ),
+    "fp32_sqrt_iter": (
+        "navgate.gateware.fp32:Fp32SqrtIter",
+        "float32 square root, iterative radix-2 (bit-exact to fp32_sqrt; LATENCY 27, 1/26)",
+    ),
     "fixed_mul": (
         "navgate.gateware.fixed:FixedMul",
         "signed Q-format multiplier: full product, truncated/saturated result, overflow flag",
