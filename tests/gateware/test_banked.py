@@ -57,6 +57,17 @@ def test_read_port_limit_delays_issue():
     assert sorted(s.issue for s in sp.ops) == [0, 0]
 
 
+def test_iterative_core_interval_respected():
+    # three independent divisions on the iterative divider: issued INTERVAL cycles apart
+    u = BankedUnits(mul=1, add=1, iterative=True)
+    ops = [Op(f"t{i}", "div", ("a", "b")) for i in range(3)]
+    p = Prog("d", ops, outputs={f"o{i}": f"t{i}" for i in range(3)})
+    sp = schedule_banked(p, u, {"a": 0, "b": 1})
+    iv = u.interval("div")
+    assert iv > 1 and sorted(s.issue for s in sp.ops) == [0, iv, 2 * iv]
+    assert sp.cycles == 2 * iv + 2 + u.latency("div") + 1
+
+
 def test_unknown_operand_rejected():
     u = BankedUnits()
     with pytest.raises(ScheduleError):
@@ -89,7 +100,7 @@ def _check_ports(img):
         assert max(writes.values()) == 1
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
 def test_random_program_bit_exact_amaranth(seed):
     rng = np.random.default_rng(seed)
     prog, regs = _random_program(rng, n_ops=160)
@@ -100,7 +111,8 @@ def test_random_program_bit_exact_amaranth(seed):
         else:
             words[r] = int(np.float32(rng.normal() * 2.0 ** rng.integers(-20, 20))
                            .view(np.uint32))
-    units = BankedUnits(mul=2, add=2, read_ports=2 + seed % 2, port_per_operand=seed == 2)
+    units = BankedUnits(mul=2, add=2, read_ports=2 + seed % 2, port_per_operand=seed == 2,
+                        misc_bank=seed != 3, iterative=seed == 3)
     img = BankedImage.build({"rand": prog}, units, regs)
     _check_ports(img)
     init = {img.layout.fixed[r]: w for r, w in words.items()}

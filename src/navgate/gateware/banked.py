@@ -54,7 +54,16 @@ from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32Div, Fp32FromInt, Fp32Mul, Fp32Sqrt
+from navgate.gateware.fp32 import (
+    Fp32Add,
+    Fp32Compare,
+    Fp32Div,
+    Fp32DivIter,
+    Fp32FromInt,
+    Fp32Mul,
+    Fp32Sqrt,
+    Fp32SqrtIter,
+)
 from navgate.gateware.scheduled import (
     ONE_BITS,
     UNIT_LATENCY,
@@ -75,6 +84,8 @@ MISC_KINDS = ("div", "sqrt", "cmp", "cvt", "mov")
 OPERAND_STAGES = 2
 #: issue -> readable: operand stages + latency + write-before-read (not transparent, 1)
 OVERHEAD = OPERAND_STAGES + 1
+#: the iterative cores used with ``BankedUnits(iterative=True)``
+ITERATIVE = {"div": Fp32DivIter, "sqrt": Fp32SqrtIter}
 #: a temporary read by at least this many ops goes to the least-read bank
 SPREAD_FANOUT = 2
 
@@ -93,6 +104,20 @@ class BankedUnits:
     #: the misc slot has a bank of its own; otherwise its results go to the other banks
     #: (fewer operand multiplexer inputs: 16 instead of 18 with 4 + 4 slots)
     misc_bank: bool = True
+    #: the divider and square root are the iterative cores (Fp32DivIter, Fp32SqrtIter: one
+    #: recurrence step reused, ~140 LUT each, a new op every INTERVAL cycles) instead of the
+    #: pipelined ones (1,290 and 738 LUT, one op per cycle)
+    iterative: bool = False
+
+    def latency(self, unit: str) -> int:
+        if self.iterative and unit in ITERATIVE:
+            return ITERATIVE[unit].LATENCY
+        return UNIT_LATENCY[unit]
+
+    def interval(self, unit: str) -> int:
+        if self.iterative and unit in ITERATIVE:
+            return ITERATIVE[unit].INTERVAL
+        return 1
 
     def slots(self) -> list:
         return ([("mul", k) for k in range(self.mul)] + [("add", k) for k in range(self.add)]
@@ -119,10 +144,11 @@ class BSOp(SOp):
     after issue, in bank ``bank``)."""
 
     bank = None
+    lat = None  #: the unit's latency (set by the scheduler)
 
     @property
     def write(self) -> int:
-        return self.issue + OPERAND_STAGES + UNIT_LATENCY[self.unit]
+        return self.issue + OPERAND_STAGES + self.lat
 
     @property
     def ready(self) -> int:
@@ -130,7 +156,7 @@ class BSOp(SOp):
 
 
 def _ready(s: SOp) -> int:
-    return s.issue + UNIT_LATENCY[s.unit] + OVERHEAD
+    return s.issue + s.lat + OVERHEAD
 
 
 def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram:
@@ -154,7 +180,8 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                 users[name].append(s)
     needed = set(prog.commit.values()) | set(prog.outputs.values())
     for s in reversed(ops):
-        lat = UNIT_LATENCY[s.unit] + OVERHEAD
+        s.lat = units.latency(s.unit)
+        lat = s.lat + OVERHEAD
         s.height = lat + max((u.height for u in users[s.dst]), default=0)
     commit_to = {}
     for reg, tmp in prog.commit.items():
@@ -172,6 +199,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
     nslots = {"mul": units.mul, "add": units.add, "misc": 1}
     nb = units.banks
     load = [0] * nb  # reads of the temporaries placed in each bank
+    core_free: dict = {}  # iterative core -> first cycle it accepts a new op
 
     def bank_of_name(name):
         return bank[name] if name in bank else bank_of[name]
@@ -212,7 +240,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                 h, i = heapq.heappop(q)
                 s = ops[i]
                 names = [n for n, _ in s.srcs]
-                w = c + OPERAND_STAGES + UNIT_LATENCY[s.unit]
+                w = c + OPERAND_STAGES + s.lat
                 dead = not users[s.dst] and s.dst not in needed
                 own = units.slot_of(su, inst)
                 if own >= nb:  # misc slot without a bank: the least loaded bank
@@ -238,7 +266,8 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                     names = names[::-1]
                     fits = True
                 # the misc cores share one result bus into the banks: one result per cycle
-                misc_busy = su == "misc" and (w, "misc") in writes
+                misc_busy = su == "misc" and ((w, "misc") in writes
+                                              or c < core_free.get(s.unit, 0))
                 if not fits or misc_busy or (not dead and target is None):
                     skipped.append((h, i))
                     continue
@@ -247,6 +276,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                 issued.add((c, units.slot_of(su, inst)))
                 if su == "misc":
                     writes.add((w, "misc"))
+                    core_free[s.unit] = c + units.interval(s.unit)
                 if not dead:
                     writes.add((w, target))
                     bank[s.dst] = target
@@ -280,7 +310,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
             direct[tmp] = reg
         else:
             movs.append((_ready(p), reg, tmp))
-    lat_mov = UNIT_LATENCY["mov"]
+    lat_mov = units.latency("mov")
     misc_slot = units.slot_of("misc", 0)
     for early, reg, tmp in sorted(movs):
         c = max(early, last_read.get(reg, -1) - OPERAND_STAGES - lat_mov)
@@ -294,6 +324,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
         writes.add((c + OPERAND_STAGES + lat_mov, "misc"))
         take_reads(c, [tmp])
         s = BSOp(len(ops), reg, "mov", ((tmp, False),), "mov", 0, c)
+        s.lat = lat_mov
         s.bank = bank_of[reg]
         ops.append(s)
     order = {"mul": 0, "add": 1}
@@ -656,7 +687,9 @@ class BankedMachine(wiring.Component):
                         res = core.r
                         res_valid = core.valid_o
                     else:
-                        core = {"div": Fp32Div, "sqrt": Fp32Sqrt, "cmp": Fp32Compare,
+                        div, sqrt = ((Fp32DivIter, Fp32SqrtIter) if u.iterative
+                                     else (Fp32Div, Fp32Sqrt))
+                        core = {"div": div, "sqrt": sqrt, "cmp": Fp32Compare,
                                 "cvt": lambda: Fp32FromInt(32)}[name]()
                         m.d.comb += [core.i.valid.eq(v), core.o.ready.eq(1)]
                         if name == "cvt":

@@ -20,7 +20,7 @@ from navgate.systems.ins_trn.rtl_engine import RtlEngine
 from navgate.trn.dem import Dem
 
 #: cycles per IMU sample (propagate + start), asserted in test_engines.py
-PER_SAMPLE = 636
+PER_SAMPLE = 669
 
 
 def _same_registers(engs):

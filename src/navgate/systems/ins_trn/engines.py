@@ -33,8 +33,9 @@ __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePr
 
 #: issue slots and banks of the engines (counts chosen against the 2-D update's cycle
 #: target); the misc slot (div, sqrt, compare, convert, mov) writes into the eight mul/add
-#: banks, so that every operand multiplexer has 16 inputs (docs/seed000-engines.md)
-ENGINE_UNITS = BankedUnits(mul=4, add=4, read_ports=2, misc_bank=False)
+#: banks, so that every operand multiplexer has 16 inputs; iterative divider and square root
+#: (docs/seed000-engines.md)
+ENGINE_UNITS = BankedUnits(mul=4, add=4, read_ports=2, misc_bank=False, iterative=True)
 #: the programs each block runs
 PROGRAM_SETS = {
     "ins_engines": ("propagate", "alt_gate", "alt_apply", "trn_gate", "trn_apply"),
