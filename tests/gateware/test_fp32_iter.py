@@ -214,7 +214,7 @@ def test_directed_amaranth(core, steps):
 @pytest.mark.parametrize("chunk,n,handshake", [(0, 1500, {}),
                                                (1, 1500, {"valid_prob": 0.6, "ready_prob": 0.5})],
                          ids=["free", "backpressure"])
-@pytest.mark.parametrize("core,steps", VARIANTS, ids=IDS)
+@pytest.mark.parametrize("core,steps", _slow_unless_default(VARIANTS))
 def test_random_amaranth(core, steps, chunk, n, handshake):
     case = CORES[core][2]
     ins = case.random(n, seed=4000 + chunk)
