@@ -1,9 +1,12 @@
 """The banked scheduled float32 datapath (navgate.gateware.banked): exact cycle counts of
-small programs, the port constraints of every schedule (one write and ``read_ports`` distinct
-reads per bank per cycle, one issue per slot), and bit-exact execution of random programs
-with special values in Amaranth simulation against navgate.numerics.fp32."""
+small programs, rejected programs, the port constraints of every schedule (one write and
+``read_ports`` distinct reads per bank per cycle, one issue per slot, the iterative cores'
+interval), and bit-exact execution of random programs with special values in Amaranth
+simulation against navgate.numerics.fp32."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
@@ -16,8 +19,71 @@ from navgate.gateware.banked import (
     schedule_banked,
 )
 from navgate.gateware.scheduled import UNIT_LATENCY, ScheduleError
+from navgate.numerics import fp32 as F
 
-from .test_scheduled import SPECIALS, Op, Prog, _random_program, _reference
+
+@dataclass(frozen=True)
+class Op:
+    dst: str
+    kind: str
+    srcs: tuple
+    module: str = "m"
+
+
+@dataclass
+class Prog:
+    name: str
+    ops: list
+    inputs: tuple = ()
+    commit: dict = field(default_factory=dict)
+    outputs: dict = field(default_factory=dict)
+
+
+def _reference(prog, regs):
+    vals = dict(regs)
+    for op in prog.ops:
+        get = [np.uint32(int(s[2:], 16)) if s.startswith("c:") else np.uint32(vals[s])
+               for s in op.srcs]
+        k = op.kind
+        if k == "neg":
+            r = F.fp32_neg(get[0])
+        elif k == "sqrt":
+            r = F.fp32_sqrt(get[0])
+        elif k in ("le", "lt"):
+            c = F.fp32_compare(get[0], get[1])
+            flag = c["lt"] | c["eq"] if k == "le" else c["lt"]
+            r = 0x3F800000 if flag else 0
+        else:
+            r = {"add": F.fp32_add, "sub": F.fp32_sub, "mul": F.fp32_mul,
+                 "div": F.fp32_div}[k](get[0], get[1])
+        vals[op.dst] = int(r)
+    new = dict(regs)
+    for reg, t in prog.commit.items():
+        new[reg] = vals[t]
+    return new, {k: vals[t] for k, t in prog.outputs.items()}
+
+
+SPECIALS = [0x00000000, 0x80000000, 0x7F800000, 0xFF800000, 0x7FC00000, 0x00000001,
+            0x807FFFFF, 0x7F7FFFFF, 0xFF7FFFFF, 0x00800000, 0x3F800000, 0xBF800000]
+
+
+def _random_program(rng, n_regs=12, n_ops=120):
+    regs = [f"r{i}" for i in range(n_regs)]
+    avail = list(regs) + ["c:3f800000", "c:c0490fdb"]
+    ops = []
+    for i in range(n_ops):
+        kind = rng.choice(["add", "sub", "mul", "mul", "div", "sqrt", "le", "lt", "neg"])
+        a, b = rng.choice(avail), rng.choice(avail)
+        srcs = (a,) if kind in ("sqrt", "neg") else (a, b)
+        dst = f"t{i + 1}"
+        ops.append(Op(dst, kind, srcs))
+        avail.append(dst)
+    producers = [o.dst for o in ops if o.kind != "neg"]
+    commit = {r: producers[-1 - i] for i, r in enumerate(regs[:6])}
+    outputs = {"o0": producers[-8], "o1": producers[len(producers) // 2]}
+    return Prog("rand", ops, commit=commit, outputs=outputs), regs
+
+
 
 
 def _banks(names, units):
@@ -72,6 +138,9 @@ def test_unknown_operand_rejected():
     u = BankedUnits()
     with pytest.raises(ScheduleError):
         schedule_banked(Prog("u", [Op("t1", "mul", ("x", "q"))]), u, {"x": 0})
+    p = Prog("n", [Op("t1", "neg", ("x",))], commit={"x": "t1"})
+    with pytest.raises(ScheduleError):  # a neg result committed (not an arithmetic use)
+        schedule_banked(p, u, {"x": 0})
     with pytest.raises(ScheduleError):  # x * y with both in one single-ported bank
         schedule_banked(Prog("p", [Op("t1", "mul", ("x", "y"))], outputs={"o": "t1"}),
                         BankedUnits(read_ports=1), {"x": 0, "y": 0})

@@ -5,10 +5,10 @@ Amaranth machine that executes the schedule.
 Reference: resource-constrained list scheduling with register-bank (port) constraints, as in
 clustered VLIW compilers and high-level synthesis with multi-bank memories (Gajski et al.,
 "High-Level Synthesis", 1992, ch. 7 and 8; Lapinskii, Jacome and de Veciana, "Cluster
-assignment for high-performance embedded VLIW processors", ACM TODAES 7(3), 2002). The
-unbanked machine (:class:`navgate.gateware.scheduled.ScheduledMachine`) gives every unit its
-own read and write ports on one register file; on a 7-series part that becomes flip-flops and
-wide multiplexers (151,653 LUT for seed 000's mechanization). Here every bank has **one
+assignment for high-performance embedded VLIW processors", ACM TODAES 7(3), 2002). An
+earlier machine gave every unit its own read and write ports on one register file; on a
+7-series part that became flip-flops and wide multiplexers (151,653 LUT for seed 000's
+mechanization) and it was removed. Here every bank has **one
 write port** and ``read_ports`` read ports (synchronous, not transparent), which is what a
 block RAM (one simple-dual-port RAMB18 per read port) or LUT RAM provides, and the scheduler
 keeps every cycle within those ports. docs/seed000-engines.md describes it.
@@ -545,10 +545,12 @@ def _or_all(terms):
 
 
 class BankedMachine(wiring.Component):
-    """Executes the programs of a :class:`BankedImage`; same ports and timing contract as
-    :class:`navgate.gateware.scheduled.ScheduledMachine` (``start``/``prog``/``busy``/``done``,
-    host write and read while idle, ``done`` exactly ``cycles(prog) + 1`` cycles after
-    ``start``); host addresses are the layout's flat addresses."""
+    """Executes the programs of a :class:`BankedImage`. ``start`` with ``prog`` (program
+    number, in the image's order) while not ``busy`` starts a program; ``done`` is high for
+    one cycle exactly ``cycles(prog) + 1`` cycles after ``start``. Host access while idle:
+    ``host_we``/``host_waddr``/``host_wdata`` write a register, ``host_raddr`` ->
+    ``host_rdata`` (one cycle later) reads one; host addresses are the layout's flat
+    addresses."""
 
     def __init__(self, image: BankedImage, init: dict | None = None):
         self.image = image
