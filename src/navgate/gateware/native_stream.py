@@ -25,7 +25,7 @@ from pathlib import Path
 
 from navgate.gateware import verify as V
 
-__all__ = ["NativeStreamServer", "NativeStreamError"]
+__all__ = ["NativeStreamServer", "NativeStreamError", "compile_native", "build_native"]
 
 
 class NativeStreamError(RuntimeError):
@@ -129,25 +129,23 @@ def _payload_code(width: int, port: str, write: bool) -> str:
     return f'                snprintf(hexbuf, sizeof hexbuf, "{fmt}", {args});'
 
 
-def build_native(verilog_text: str, top: str, in_width: int, out_width: int) -> Path:
-    """Compile (or find in the cache) the native server of ``top``; the executable."""
-    src = _MAIN % {"top": top, "in_words": (in_width + 31) // 32,
-                   "set_payload": _payload_code(in_width, "i___05Fpayload", True),
-                   "get_payload": _payload_code(out_width, "o___05Fpayload", False)}
-    key = hashlib.sha256("\0".join([verilog_text, src, top]).encode()).hexdigest()[:24]
+def compile_native(verilog_text: str, main_src: str, top: str, kind: str = "server") -> Path:
+    """Compile ``verilog_text`` with the C++ ``main_src`` by Verilator (no VPI, ``-O1``), or
+    find it in the cache (keyed by both texts); the executable ``V<top>``."""
+    key = hashlib.sha256("\0".join([verilog_text, main_src, top]).encode()).hexdigest()[:24]
     root = V.verilator_cache_dir()
     root.mkdir(parents=True, exist_ok=True)
-    out = root / f"server-{top}-{key}"
+    out = root / f"{kind}-{top}-{key}"
     exe = out / f"V{top}"
     if exe.exists():
         return exe
-    with open(root / f"server-{top}-{key}.lock", "w") as lock:
+    with open(root / f"{kind}-{top}-{key}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         if exe.exists():
             return exe
-        tmp = Path(tempfile.mkdtemp(prefix=f"server-{top}-", dir=root))
+        tmp = Path(tempfile.mkdtemp(prefix=f"{kind}-{top}-", dir=root))
         (tmp / f"{top}.v").write_text(verilog_text)
-        (tmp / "main.cpp").write_text(src)
+        (tmp / "main.cpp").write_text(main_src)
         cmd = ["verilator", "--cc", "--exe", "--build", "-j", "2", "-Wno-fatal", "-Wno-lint",
                "-Wno-style", "--top-module", top, "-Mdir", str(tmp / "obj"), f"{top}.v",
                "main.cpp", "-o", f"V{top}"]
@@ -161,6 +159,14 @@ def build_native(verilog_text: str, top: str, in_width: int, out_width: int) -> 
         shutil.copy2(tmp / "obj" / f"V{top}", exe)
         shutil.rmtree(tmp, ignore_errors=True)
     return exe
+
+
+def build_native(verilog_text: str, top: str, in_width: int, out_width: int) -> Path:
+    """Compile (or find in the cache) the native server of ``top``; the executable."""
+    src = _MAIN % {"top": top, "in_words": (in_width + 31) // 32,
+                   "set_payload": _payload_code(in_width, "i___05Fpayload", True),
+                   "get_payload": _payload_code(out_width, "o___05Fpayload", False)}
+    return compile_native(verilog_text, src, top, "server")
 
 
 class NativeStreamServer:

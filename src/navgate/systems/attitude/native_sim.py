@@ -14,15 +14,13 @@ Compiled models are cached under :func:`navgate.gateware.verify.verilator_cache_
 
 from __future__ import annotations
 
-import fcntl
-import hashlib
-import shutil
 import subprocess
 import tempfile
 import time
 from pathlib import Path
 
 from navgate.gateware import verify as V
+from navgate.gateware.native_stream import compile_native
 
 __all__ = ["simulate_native", "NativeRun"]
 
@@ -114,33 +112,8 @@ def _build(verilog_text: str, top: str, in_w: int, out_w: int) -> tuple[Path, fl
     src_tb = _TB % {"top": top, "in_words": (in_w + 31) // 32,
                     "set_payload": _payload_code(in_w, "i___05Fpayload", True),
                     "get_payload": _payload_code(out_w, "o___05Fpayload", False)}
-    key = hashlib.sha256("\0".join([verilog_text, src_tb, top]).encode()).hexdigest()[:24]
-    root = V.verilator_cache_dir()
-    root.mkdir(parents=True, exist_ok=True)
-    out = root / f"native-{top}-{key}"
-    exe = out / f"V{top}"
-    if exe.exists():
-        return exe, 0.0
     t0 = time.perf_counter()
-    with open(root / f"native-{top}-{key}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
-        if exe.exists():
-            return exe, 0.0
-        tmp = Path(tempfile.mkdtemp(prefix=f"native-{top}-", dir=root))
-        (tmp / f"{top}.v").write_text(verilog_text)
-        (tmp / "tb.cpp").write_text(src_tb)
-        cmd = ["verilator", "--cc", "--exe", "--build", "-j", "1", "-Wno-fatal", "-Wno-lint",
-               "-Wno-style", "--top-module", top, "-Mdir", str(tmp / "obj"), f"{top}.v",
-               "tb.cpp", "-o", f"V{top}"]
-        env = V._env_with_verilator()
-        env["MAKEFLAGS"] = "OPT_FAST=-O1 OPT_SLOW=-O0 OPT_GLOBAL=-O1 CFG_CXXFLAGS_PCH_I=-include"
-        r = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
-        if r.returncode != 0:
-            raise V.VerifyError(f"native Verilator build of {top} failed:\n"
-                                f"{(r.stdout + r.stderr)[-4000:]}")
-        out.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(tmp / "obj" / f"V{top}", exe)
-        shutil.rmtree(tmp, ignore_errors=True)
+    exe = compile_native(verilog_text, src_tb, top, "native")
     return exe, time.perf_counter() - t0
 
 
