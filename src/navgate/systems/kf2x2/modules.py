@@ -37,19 +37,9 @@ from amaranth.hdl import Value
 
 from navgate.systems.kf2x2.model import KfParams
 from navgate.systems.kf2x2.schedule import DIV_MUL_UNIT, Schedule, Scheduled
-from navgate.systems.kf2x2.units import (
-    ALU_ABSDIFF,
-    ALU_ADD,
-    ALU_SUB,
-    Control,
-    GoldschmidtSerial,
-    q_alu,
-    q_mul,
-)
+from navgate.systems.kf2x2.units import Control, GoldschmidtSerial, alu_results, q_mul
 
 __all__ = ["Control", "Datapath", "ModulePlan", "build_datapath", "MODULE_CLASS_NAMES"]
-
-_ALU_CODE = {"add": ALU_ADD, "sub": ALU_SUB, "absdiff": ALU_ABSDIFF}
 
 #: seed file name of each module (for docs and reports)
 MODULE_CLASS_NAMES = {
@@ -105,15 +95,20 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
         mul_a[k], mul_b[k], mul_r[k], mul_f[k] = a, b, rs, f
         if wide:
             mul_p_wide = p
-    alu_a, alu_b, alu_op, alu_r, alu_f = {}, {}, {}, {}, {}
+    # an adder/subtractor computes every kind scheduled on it, each saturated on its own;
+    # a forwarded result is (unit, kind), selected by the consumer's operand select
+    alu_a, alu_b, alu_r = {}, {}, {}
     for k in alu_ids:
         a = Signal(signed(n), name=f"{prefix}alu{k}_a", reset_less=True)
         b = Signal(signed(n), name=f"{prefix}alu{k}_b", reset_less=True)
-        op = Signal(2, name=f"{prefix}alu{k}_op", reset_less=True)
-        r, f = q_alu(m, a, b, op, n, f"{prefix}alu{k}")
-        rs = Signal(signed(n), name=f"{prefix}alu{k}_r")
-        m.d.comb += rs.eq(r)
-        alu_a[k], alu_b[k], alu_op[k], alu_r[k], alu_f[k] = a, b, op, rs, f
+        kinds = sorted({s.op.kind for s in ops if s.unit == "alu" and s.index == k})
+        results = alu_results(m, a, b, kinds, n, f"{prefix}alu{k}")
+        alu_r[k] = {}
+        for kind, (r, f) in results.items():
+            rs = Signal(signed(n), name=f"{prefix}alu{k}_{kind}")
+            m.d.comb += rs.eq(r)
+            alu_r[k][kind] = (rs, f)
+        alu_a[k], alu_b[k] = a, b
     div = None
     if has_div:
         div = GoldschmidtSerial(params.n, params.frac, params.div_iterations,
@@ -123,29 +118,41 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
 
     # --- results: forwarded in the ready cycle, then in a value register ---------------
     forwarded: dict[str, Value] = {}
+    producer: dict[str, tuple] = {}  # name -> the hardware that forwards it
     values: dict[str, Value] = {}
     for s in ops:
         name = s.op.name
         if s.unit == "div":
             forwarded[name] = div.q_next
+            producer[name] = ("div",)
             values[name] = div.q
             continue
-        forwarded[name] = mul_r[s.index] if s.unit == "mul" else alu_r[s.index]
+        if s.unit == "mul":
+            forwarded[name] = mul_r[s.index]
+            producer[name] = ("mul", s.index)
+        else:
+            forwarded[name] = alu_r[s.index][s.op.kind][0]
+            producer[name] = ("alu", s.index, s.op.kind)
         reg = Signal(signed(n), name=f"{prefix}v_{name}", reset_less=True)
         with m.If(ctl.at({ready[name]})):
             m.d.sync += reg.eq(forwarded[name])
         values[name] = reg
 
     def source(src, cycle: int) -> tuple[tuple, Value]:
+        """(key, value) of an operand: equal keys are the same bits, so their selects merge
+        into one control word (a unit's forwarded result of one kind is one term however
+        many operations it delivers)."""
         name, shift = (src, 0) if isinstance(src, str) else (src[1], src[2])
         if name in ready:
             if cycle < ready[name]:
                 raise ValueError(f"{name} used in cycle {cycle} before it is ready")
-            where = "fwd" if cycle == ready[name] else "reg"
-            value = forwarded[name] if where == "fwd" else values[name]
+            if cycle == ready[name]:
+                key, value = ("fwd", *producer[name], shift), forwarded[name]
+            else:
+                key, value = ("reg", name, shift), values[name]
         else:
-            where, value = "env", env[name]
-        return (where, name, shift), (value >> shift if shift else value)
+            key, value = ("env", name, shift), env[name]
+        return key, (value >> shift if shift else value)
 
     # --- operand multiplexers: AND-OR under registered one-hot selects -----------------
     regs: dict[str, Signal] = {}
@@ -167,9 +174,6 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
             load(alu_a[s.index], *srcs[0], c)
             if len(srcs) > 1:
                 load(alu_b[s.index], *srcs[1], c)
-            code = _ALU_CODE[s.op.kind]
-            if code:
-                load(alu_op[s.index], ("code", code, 0), code, c)
         else:
             div_start = c
             key, value = srcs[0]
@@ -191,14 +195,21 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
 
     # --- flags: registered per unit, enabled in the cycles of scheduled results ---------
     flags: list[Signal] = []
-    for unit, ids, flag in (("mul", mul_ids, mul_f), ("alu", alu_ids, alu_f)):
-        for k in ids:
-            cycles = {ready[s.op.name] for s in ops if s.unit == unit and s.index == k}
-            if not cycles:
-                continue
-            reg = Signal(name=f"{prefix}{unit}{k}_ovf")
-            m.d.sync += reg.eq(flag[k] & ctl.at(cycles))
+    for k in mul_ids:
+        cycles = {ready[s.op.name] for s in ops if s.unit == "mul" and s.index == k}
+        if cycles:
+            reg = Signal(name=f"{prefix}mul{k}_ovf")
+            m.d.sync += reg.eq(mul_f[k] & ctl.at(cycles))
             flags.append(reg)
+    for k in alu_ids:
+        acc = 0
+        for kind, (_, flag) in alu_r[k].items():
+            cycles = {ready[s.op.name] for s in ops
+                      if s.unit == "alu" and s.index == k and s.op.kind == kind}
+            acc = acc | (flag & ctl.at(cycles))
+        reg = Signal(name=f"{prefix}alu{k}_ovf")
+        m.d.sync += reg.eq(acc)
+        flags.append(reg)
     return Datapath(values, forwarded, ready, flags, div, max(ready.values()) + 1)
 
 
