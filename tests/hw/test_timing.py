@@ -140,7 +140,8 @@ def test_nexus_wrapper_serialises_every_port():
     n_in = sum(w for p, d, w in ports if d == "input" and p != "clk")
     n_out = sum(w for p, d, w in ports if d == "output")
     assert f"reg [{n_in - 1}:0] sin;" in wrapper and f"reg [{n_out - 1}:0] sout;" in wrapper
-    assert "module fm_nexus(din, load, dout);" in wrapper and "OSCA" in wrapper
+    # clocked from a pad (a primary clock input), not from the on-chip oscillator
+    assert "module fm_nexus(clk, din, load, dout);" in wrapper and "OSCA" not in wrapper
     for port, _direction, _width in ports:
         assert f".{port}(" in wrapper
 
@@ -235,9 +236,11 @@ def test_build_block_keep_work(tmp_path):
         build_block("mul_24x17", tmp_path, timing=True, models=("vivado",))
 
 
-def test_nexus_retries_the_next_seed_when_routing_fails(tmp_path, monkeypatch):
-    """A 'Failed to route' from nextpnr-nexus moves to the next placer seed (reported);
-    any other failure, or the last seed failing, is an error."""
+def test_nexus_seeds_mean_and_unrouted_seeds(tmp_path, monkeypatch):
+    """One nextpnr-nexus run per requested seed, the clock on its pad and ``--freq`` set; a
+    seed that fails to route is reported (``None``, ``unrouted_seeds``) and the mean is over
+    the routed ones; further seeds are tried only when no requested seed routed; any other
+    failure, or no seed routing at all, is an error."""
     from navgate.hw import synth
 
     def fake_yosys(script, cwd, log_name="yosys.log"):
@@ -245,25 +248,42 @@ def test_nexus_retries_the_next_seed_when_routing_fails(tmp_path, monkeypatch):
         (cwd / f"{wrapper}.json").write_text(json.dumps({"modules": {wrapper: {"cells": {}}}}))
 
     seeds = []
+    fails = {1}
+    fmax = {2: 123.456, 3: 100.0, 4: 90.0}
 
     def fake_tool(module, function, argv, cwd, log):
         seed = int(argv[argv.index("--seed") + 1])
+        assert argv[argv.index("--freq") + 1] == str(synth.NEXUS_FREQ_MHZ)
         seeds.append(seed)
-        if seed == 1:
+        if seed in fails:
             raise synth.SynthesisError("nextpnr-nexus failed (exit 125): ERROR: Failed to "
                                        "route arc 0.0 of net 'clk'")
-        (cwd / "nextpnr_nexus_report.json").write_text(
-            json.dumps({"fmax": {"clk$glb_clk": {"achieved": 123.456}}}))
+        report = argv[argv.index("--report") + 1]
+        (cwd / report).write_text(
+            json.dumps({"fmax": {"clk$glb_clk": {"achieved": fmax[seed]}}}))
 
     monkeypatch.setattr(synth, "run_yosys", fake_yosys)
     monkeypatch.setattr(synth, "_run_tool", fake_tool)
     text = emit_verilog(FixedMul(width=8, frac=4), "fm")
-    timing = timing_nexus(text, "fm", tmp_path)
-    assert seeds == [1, 2] and timing["fmax_mhz"] == 123.46 and "seed 2" in timing["proxy"]
+    timing = timing_nexus(text, "fm", tmp_path, seeds=(1, 2, 3))
+    pdc = (tmp_path / "pins.pdc").read_text()
+    assert "[get_ports clk]" in pdc and synth.NEXUS_PINS["clk"] in pdc
+    assert seeds == [1, 2, 3]
+    assert timing["fmax_by_seed"] == {"1": None, "2": 123.46, "3": 100.0}
+    assert timing["unrouted_seeds"] == [1] and timing["fmax_mhz"] == 111.73
+    assert "seeds 2, 3, mean; seed 1 did not route" in timing["proxy"]
 
-    def always_fails(module, function, argv, cwd, log):
-        raise synth.SynthesisError("nextpnr-nexus failed (exit 125): ERROR: Failed to route")
+    seeds.clear()  # the only requested seed fails: the next seeds are tried, until one routes
+    timing = timing_nexus(text, "fm", tmp_path / "a", seeds=(1,))
+    assert seeds == [1, 2] and timing["fmax_mhz"] == 123.46 and "seed 2;" in timing["proxy"]
 
-    monkeypatch.setattr(synth, "_run_tool", always_fails)
-    with pytest.raises(synth.SynthesisError, match="Failed to route"):
+    fails.update({2, 3, 4})
+    with pytest.raises(synth.SynthesisError, match="no placer seed routed"):
         timing_nexus(text, "fm", tmp_path / "b")
+
+    def other_failure(module, function, argv, cwd, log):
+        raise synth.SynthesisError("nextpnr-nexus failed (exit 1): ERROR: bad netlist")
+
+    monkeypatch.setattr(synth, "_run_tool", other_failure)
+    with pytest.raises(synth.SynthesisError, match="bad netlist"):
+        timing_nexus(text, "fm", tmp_path / "c")

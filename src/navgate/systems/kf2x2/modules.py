@@ -50,6 +50,11 @@ MODULE_CLASS_NAMES = {
 }
 
 
+def _alu_result(kind: str) -> str:
+    """Which result of an adder/subtractor unit an operation kind uses."""
+    return "absdiff" if kind == "absdiff" else "addsub"
+
+
 @dataclass
 class Datapath:
     """What :func:`build_datapath` built: value registers, forwarded results, flags."""
@@ -95,19 +100,24 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
         mul_a[k], mul_b[k], mul_r[k], mul_f[k] = a, b, rs, f
         if wide:
             mul_p_wide = p
-    # an adder/subtractor computes every kind scheduled on it, each saturated on its own;
-    # a forwarded result is (unit, kind), selected by the consumer's operand select
+    # an adder/subtractor adds and subtracts on one chain (a + b + cin: a subtraction loads
+    # the complemented subtrahend and sets cin, a registered control word high in its
+    # compute cycle) and takes |a - b| on its own chains; a forwarded result is (unit,
+    # "addsub" or "absdiff"), selected by the consumer's operand select
     alu_a, alu_b, alu_r = {}, {}, {}
     for k in alu_ids:
         a = Signal(signed(n), name=f"{prefix}alu{k}_a", reset_less=True)
         b = Signal(signed(n), name=f"{prefix}alu{k}_b", reset_less=True)
-        kinds = sorted({s.op.kind for s in ops if s.unit == "alu" and s.index == k})
-        results = alu_results(m, a, b, kinds, n, f"{prefix}alu{k}")
+        mine = [s for s in ops if s.unit == "alu" and s.index == k]
+        sub_cycles = {s.cycle - base + 1 for s in mine if s.op.kind == "sub"}
+        cin = ctl.at(sub_cycles) if sub_cycles else 0
+        kinds = sorted({s.op.kind for s in mine})
+        results = alu_results(m, a, b, cin, kinds, n, f"{prefix}alu{k}")
         alu_r[k] = {}
-        for kind, (r, f) in results.items():
-            rs = Signal(signed(n), name=f"{prefix}alu{k}_{kind}")
+        for result, (r, f) in results.items():
+            rs = Signal(signed(n), name=f"{prefix}alu{k}_{result}")
             m.d.comb += rs.eq(r)
-            alu_r[k][kind] = (rs, f)
+            alu_r[k][result] = (rs, f)
         alu_a[k], alu_b[k] = a, b
     div = None
     if has_div:
@@ -131,8 +141,9 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
             forwarded[name] = mul_r[s.index]
             producer[name] = ("mul", s.index)
         else:
-            forwarded[name] = alu_r[s.index][s.op.kind][0]
-            producer[name] = ("alu", s.index, s.op.kind)
+            result = _alu_result(s.op.kind)
+            forwarded[name] = alu_r[s.index][result][0]
+            producer[name] = ("alu", s.index, result)
         reg = Signal(signed(n), name=f"{prefix}v_{name}", reset_less=True)
         with m.If(ctl.at({ready[name]})):
             m.d.sync += reg.eq(forwarded[name])
@@ -173,7 +184,10 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
         elif s.unit == "alu":
             load(alu_a[s.index], *srcs[0], c)
             if len(srcs) > 1:
-                load(alu_b[s.index], *srcs[1], c)
+                key, value = srcs[1]
+                if s.op.kind == "sub":  # a - b = a + ~b + 1 (cin)
+                    key, value = (*key, "complement"), ~value
+                load(alu_b[s.index], key, value, c)
         else:
             div_start = c
             key, value = srcs[0]
@@ -203,9 +217,9 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
             flags.append(reg)
     for k in alu_ids:
         acc = 0
-        for kind, (_, flag) in alu_r[k].items():
+        for result, (_, flag) in alu_r[k].items():
             cycles = {ready[s.op.name] for s in ops
-                      if s.unit == "alu" and s.index == k and s.op.kind == kind}
+                      if s.unit == "alu" and s.index == k and _alu_result(s.op.kind) == result}
             acc = acc | (flag & ctl.at(cycles))
         reg = Signal(name=f"{prefix}alu{k}_ovf")
         m.d.sync += reg.eq(acc)

@@ -7,10 +7,10 @@ multiplier) a raw product register (issue 15 re-timing).
 
 * :func:`q_mul`: ``sat((a * b) >> FRAC)`` and its overflow flag, bit-true to
   ``fixed_mul_trunc(a, b, fmt, mode="saturate")`` (:mod:`navgate.numerics.fixed`).
-* :func:`alu_results`: add, subtract and absolute difference, each computed by its own carry
-  chain from the operand registers and saturated separately (``fixed_add``, ``fixed_sub``,
-  ``fixed_abs(fixed_sub_full(...))``): the consumer selects the kind with its operand
-  select (the schedule is static), so no op code is decoded behind the adder.
+* :func:`alu_results`: add and subtract on one carry chain (the subtrahend is loaded
+  complemented, the carry-in is a registered control word), absolute difference on its
+  own pair of chains, each result saturated (``fixed_add``, ``fixed_sub``,
+  ``fixed_abs(fixed_sub_full(...))``); no op code is decoded behind the adder.
 * :func:`saturate_bits`: the saturation as bit tests (sign and the bits above the target
   width), no comparator.
 * :class:`GoldschmidtSerial`: :func:`navgate.numerics.goldschmidt.goldschmidt_reciprocal`
@@ -61,32 +61,34 @@ def q_mul(product, n: int, frac: int):
     return saturate_bits(product >> frac, n)
 
 
-def alu_results(m: Module, a, b, kinds, n: int, name: str) -> dict:
-    """Saturating ``add`` / ``sub`` / ``absdiff`` of signed n-bit a, b, for each kind in
-    ``kinds``: ``{kind: (result, overflow)}``.
+def alu_results(m: Module, a, b, cin, kinds, n: int, name: str) -> dict:
+    """Saturating results of an adder/subtractor unit with operand registers ``a``, ``b``.
 
-    Each kind has its own carry chain from the operand registers (``absdiff`` computes
-    ``a - b`` and ``b - a`` side by side and keeps the non-negative one, instead of negating
-    the difference behind the subtraction) and its own saturation; nothing depends on an op
-    code. ``|a - b| <= 2**n - 1`` fits n + 1 bits, and it overflows exactly when bit n - 1 is
-    set."""
-    out = {}
+    ``kinds``: the operation kinds scheduled on the unit. Returns ``{"addsub": (result,
+    overflow)}`` if it adds or subtracts, and ``{"absdiff": ...}`` if it takes |a - b|.
+
+    * add and subtract share one carry chain, ``a + b + cin``: for a subtraction the operand
+      register ``b`` was loaded with the one's complement of the subtrahend and ``cin`` (a
+      registered control word) is 1, so the sum is ``a - b``; no op code is decoded behind
+      the adder. The (n + 1)-bit sum overflows n bits exactly when its top two bits differ.
+    * ``absdiff`` computes ``a - b`` and ``b - a`` side by side and keeps the non-negative
+      one (instead of negating the difference behind the subtraction): ``|a - b| <= 2**n - 1``
+      fits n bits unsigned and overflows exactly when bit n - 1 is set.
+
+    Bit-true to ``fixed_add``, ``fixed_sub`` and ``fixed_abs(fixed_sub_full(...))`` of
+    :mod:`navgate.numerics.fixed` (saturating)."""
     for kind in kinds:
         if kind not in ALU_KINDS:
             raise ValueError(f"unknown ALU kind {kind!r}")
-    d = None
-    if "sub" in kinds or "absdiff" in kinds:
-        d = Signal(signed(n + 1), name=f"{name}_dif")
-        m.d.comb += d.eq(a - b)
-    if "add" in kinds:
+    out = {}
+    if "add" in kinds or "sub" in kinds:
         s = Signal(signed(n + 1), name=f"{name}_sum")
-        m.d.comb += s.eq(a + b)
-        out["add"] = saturate_bits(s, n)
-    if "sub" in kinds:
-        out["sub"] = saturate_bits(d, n)
+        m.d.comb += s.eq(a + b + cin)
+        out["addsub"] = saturate_bits(s, n)
     if "absdiff" in kinds:
+        d = Signal(signed(n + 1), name=f"{name}_dif")
         e = Signal(signed(n + 1), name=f"{name}_rdif")
-        m.d.comb += e.eq(b - a)
+        m.d.comb += [d.eq(a - b), e.eq(b - a)]
         mag = Signal(unsigned(n), name=f"{name}_mag")  # |a - b| < 2**n
         m.d.comb += mag.eq(Mux(d[-1], e, d)[:n])
         overflow = mag[n - 1]
