@@ -236,50 +236,54 @@ def test_build_block_keep_work(tmp_path):
         build_block("mul_24x17", tmp_path, timing=True, models=("vivado",))
 
 
-def test_nexus_seeds_mean_and_unrouted_seeds(tmp_path, monkeypatch):
+def test_nexus_seeds_mean_and_router_fallback(tmp_path, monkeypatch):
     """One nextpnr-nexus run per requested seed, the clock on its pad and ``--freq`` set; a
-    seed that fails to route is reported (``None``, ``unrouted_seeds``) and the mean is over
-    the routed ones; further seeds are tried only when no requested seed routed; any other
-    failure, or no seed routing at all, is an error."""
+    seed that router2 fails to route ("Failed to route arc 0.0 of net 'clk'") is rerouted
+    with router1 (same seed, reported); a seed neither routes is ``None`` and listed, the
+    mean is over the others; any other failure, or no seed routing at all, is an error."""
     from navgate.hw import synth
 
     def fake_yosys(script, cwd, log_name="yosys.log"):
         wrapper = script.split("-top ")[1].split()[0]
         (cwd / f"{wrapper}.json").write_text(json.dumps({"modules": {wrapper: {"cells": {}}}}))
 
-    seeds = []
-    fails = {1}
-    fmax = {2: 123.456, 3: 100.0, 4: 90.0}
+    runs = []
+    fails = {(1, "router2")}
+    fmax = {(1, "router1"): 127.894, 2: 100.0, 3: 90.0}
 
     def fake_tool(module, function, argv, cwd, log):
         seed = int(argv[argv.index("--seed") + 1])
+        router = argv[argv.index("--router") + 1]
         assert argv[argv.index("--freq") + 1] == str(synth.NEXUS_FREQ_MHZ)
-        seeds.append(seed)
-        if seed in fails:
+        runs.append((seed, router))
+        if (seed, router) in fails or seed in fails:
             raise synth.SynthesisError("nextpnr-nexus failed (exit 125): ERROR: Failed to "
                                        "route arc 0.0 of net 'clk'")
         report = argv[argv.index("--report") + 1]
-        (cwd / report).write_text(
-            json.dumps({"fmax": {"clk$glb_clk": {"achieved": fmax[seed]}}}))
+        value = fmax.get((seed, router), fmax.get(seed))
+        (cwd / report).write_text(json.dumps({"fmax": {"clk$glb_clk": {"achieved": value}}}))
 
     monkeypatch.setattr(synth, "run_yosys", fake_yosys)
     monkeypatch.setattr(synth, "_run_tool", fake_tool)
     text = emit_verilog(FixedMul(width=8, frac=4), "fm")
-    timing = timing_nexus(text, "fm", tmp_path, seeds=(1, 2, 3))
+    timing = timing_nexus(text, "fm", tmp_path, seeds=(1, 2))
     pdc = (tmp_path / "pins.pdc").read_text()
-    assert "[get_ports clk]" in pdc and synth.NEXUS_PINS["clk"] in pdc
-    assert seeds == [1, 2, 3]
-    assert timing["fmax_by_seed"] == {"1": None, "2": 123.46, "3": 100.0}
-    assert timing["unrouted_seeds"] == [1] and timing["fmax_mhz"] == 111.73
-    assert "seeds 2, 3, mean; seed 1 did not route" in timing["proxy"]
+    assert f"-site {{{synth.NEXUS_PINS['clk']}}} [get_ports clk]" in pdc
+    assert runs == [(1, "router2"), (1, "router1"), (2, "router2")]
+    assert timing["fmax_by_seed"] == {"1": 127.89, "2": 100.0}
+    assert timing["router_by_seed"] == {"1": "router1", "2": "router2"}
+    assert timing["fmax_mhz"] == 113.94 and timing["unrouted_seeds"] == []
+    assert "seeds 1, 2, mean; seed 1 routed by router1" in timing["proxy"]
 
-    seeds.clear()  # the only requested seed fails: the next seeds are tried, until one routes
-    timing = timing_nexus(text, "fm", tmp_path / "a", seeds=(1,))
-    assert seeds == [1, 2] and timing["fmax_mhz"] == 123.46 and "seed 2;" in timing["proxy"]
+    fails.add(3)  # seed 3 routes with neither router: reported, the mean is over seed 2
+    runs.clear()
+    timing = timing_nexus(text, "fm", tmp_path / "a", seeds=(2, 3))
+    assert runs == [(2, "router2"), (3, "router2"), (3, "router1")]
+    assert timing["fmax_by_seed"] == {"2": 100.0, "3": None} and timing["fmax_mhz"] == 100.0
+    assert timing["unrouted_seeds"] == [3] and "seed 3 did not route" in timing["proxy"]
 
-    fails.update({2, 3, 4})
     with pytest.raises(synth.SynthesisError, match="no placer seed routed"):
-        timing_nexus(text, "fm", tmp_path / "b")
+        timing_nexus(text, "fm", tmp_path / "b", seeds=(3,))
 
     def other_failure(module, function, argv, cwd, log):
         raise synth.SynthesisError("nextpnr-nexus failed (exit 1): ERROR: bad netlist")

@@ -102,8 +102,8 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
 @click.option("--ecp5-seeds", default="1", show_default=True,
               help="nextpnr-ecp5 placer seeds for --timing (comma-separated; Fmax is the mean)")
 @click.option("--nexus-seeds", default="1", show_default=True,
-              help="nextpnr-nexus placer seeds for --timing (comma-separated; Fmax is the mean "
-              "of the seeds that routed)")
+              help="nextpnr-nexus placer seeds for --timing (comma-separated; Fmax is the mean; "
+              "a seed router2 cannot route is rerouted with router1)")
 @click.option("--keep-work", is_flag=True, help="keep the tool work files in OUT/work/BLOCK")
 @click.option("--list", "list_", is_flag=True, help="list the blocks and exit")
 def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: str,
@@ -154,12 +154,16 @@ def _timing_lines(timing: dict) -> list[str]:
     def fmt(value, unit, digits):
         return "-" if value is None else f"{value:.{digits}f} {unit}"
 
-    def seed_note(by_seed):
-        by_seed = by_seed or {}
+    def seed_note(by_seed, routers=None):
+        by_seed, routers = by_seed or {}, routers or {}
         routed = [seed for seed, value in by_seed.items() if value is not None]
         failed = [seed for seed, value in by_seed.items() if value is None]
         note = f" (mean of seeds {', '.join(routed)})" if len(routed) > 1 else ""
         note = f" (seed {routed[0]})" if len(routed) == 1 and failed else note
+        other = [seed for seed in routed if routers.get(seed) not in (None, "router2")]
+        if other:
+            note += (f", seed{'s' if len(other) > 1 else ''} {', '.join(other)} routed by "
+                     f"{routers[other[0]]}")
         if failed:
             note += f", seed{'s' if len(failed) > 1 else ''} {', '.join(failed)} did not route"
         return note
@@ -172,7 +176,7 @@ def _timing_lines(timing: dict) -> list[str]:
         f"  ECP5 routed proxy Fmax (nextpnr-ecp5): "
         f"{fmt(timing['ecp5_fmax_mhz'], 'MHz', 1)}{seed_note(timing.get('ecp5_fmax_by_seed'))}",
         f"  Nexus routed proxy Fmax (nextpnr-nexus): {fmt(timing['nexus_fmax_mhz'], 'MHz', 1)}"
-        f"{seed_note(timing.get('nexus_fmax_by_seed'))}",
+        f"{seed_note(timing.get('nexus_fmax_by_seed'), timing.get('nexus_router_by_seed'))}",
     ]
 
 

@@ -64,6 +64,7 @@ def timing_summary(name: str, xc7: dict[str, Any] | None, ecp5: dict[str, Any] |
         "ecp5_label": ("ECP5 routed proxy Fmax: " + ecp5["proxy"]) if ecp5 else None,
         "nexus_fmax_mhz": nexus["fmax_mhz"] if nexus else None,
         "nexus_fmax_by_seed": nexus["fmax_by_seed"] if nexus else None,
+        "nexus_router_by_seed": nexus["router_by_seed"] if nexus else None,
         "nexus_label": ("Nexus routed proxy Fmax: " + nexus["proxy"]) if nexus else None,
     }
 

