@@ -384,9 +384,13 @@ NEXUS_SEED = 1
 #: cannot route the clock source's arc to its global buffer (see :func:`timing_nexus`)
 NEXUS_ROUTER = "router2"
 NEXUS_FALLBACK_ROUTER = "router1"
-#: the wrapper's four pads on the LIFCL-40 BG400: the clock on a primary clock input
-#: (PCLKT0_0, dedicated route to a DCC global buffer), three general-purpose data pins
-NEXUS_PINS = {"clk": "E12", "din": "E13", "load": "F13", "dout": "D13"}
+#: the wrapper's four pads on the LIFCL-40 BG400: the clock on a primary clock input of the
+#: left bank (J2 = PCLKT7_2, which nextpnr connects to the global buffer DCC_L0), the data on
+#: three pins of the top and right banks. (The top bank's PCLKT0_0, E12, feeds DCC_T6; with
+#: it router2 failed to route the pad -> DCC arc on placer seeds 1 and 5 of kf2x2, with J2 on
+#: none of seeds 1-5.)
+NEXUS_PINS = {"clk": "J2", "din": "E13", "load": "F13", "dout": "D13"}
+NEXUS_CLOCK_PIN_NAME = "PCLKT7_2"
 #: the clock constraint (``--freq``): above every block's Fmax, so the timing-driven placer
 #: always works on the critical paths and the achieved Fmax is what is reported
 NEXUS_FREQ_MHZ = 250
@@ -576,7 +580,8 @@ def timing_nexus(verilog_text: str, top: str, workdir: Path,
         "unrouted_seeds": unrouted,
         "constant_carry_inputs_detached": detached,
         "proxy": f"Nexus {NEXUS_DEVICE} (synth_nexus + nextpnr-nexus {NEXUS_ROUTER}, routed; "
-        f"block between serial I/O registers, clock from pad {NEXUS_PINS['clk']} (PCLKT0_0), "
+        f"block between serial I/O registers, clock from pad {NEXUS_PINS['clk']} "
+        f"({NEXUS_CLOCK_PIN_NAME}), "
         f"--freq {NEXUS_FREQ_MHZ}; seed{'s' if many else ''} {', '.join(routed)}"
         f"{', mean' if many else ''}{notes})",
     }
