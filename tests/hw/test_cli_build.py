@@ -67,6 +67,11 @@ def test_bad_ecp5_seeds(tmp_path):
                                   "--out", str(tmp_path)), "--ecp5-seeds")
 
 
+def test_bad_nexus_seeds(tmp_path):
+    assert_one_line_error(navgate("build", "fixed_mul", "--timing", "--nexus-seeds", "2,y",
+                                  "--out", str(tmp_path)), "--nexus-seeds")
+
+
 def test_list_names_the_yardsticks():
     proc = navgate("build", "--list")
     names = [line.split()[0] for line in proc.stdout.splitlines()]

@@ -140,7 +140,8 @@ def test_nexus_wrapper_serialises_every_port():
     n_in = sum(w for p, d, w in ports if d == "input" and p != "clk")
     n_out = sum(w for p, d, w in ports if d == "output")
     assert f"reg [{n_in - 1}:0] sin;" in wrapper and f"reg [{n_out - 1}:0] sout;" in wrapper
-    assert "module fm_nexus(din, load, dout);" in wrapper and "OSCA" in wrapper
+    # clocked from a pad (a primary clock input), not from the on-chip oscillator
+    assert "module fm_nexus(clk, din, load, dout);" in wrapper and "OSCA" not in wrapper
     for port, _direction, _width in ports:
         assert f".{port}(" in wrapper
 
@@ -235,35 +236,58 @@ def test_build_block_keep_work(tmp_path):
         build_block("mul_24x17", tmp_path, timing=True, models=("vivado",))
 
 
-def test_nexus_retries_the_next_seed_when_routing_fails(tmp_path, monkeypatch):
-    """A 'Failed to route' from nextpnr-nexus moves to the next placer seed (reported);
-    any other failure, or the last seed failing, is an error."""
+def test_nexus_seeds_mean_and_router_fallback(tmp_path, monkeypatch):
+    """One nextpnr-nexus run per requested seed, the clock on its pad and ``--freq`` set; a
+    seed that router2 fails to route ("Failed to route arc 0.0 of net 'clk'") is rerouted
+    with router1 (same seed, reported); a seed neither routes is ``None`` and listed, the
+    mean is over the others; any other failure, or no seed routing at all, is an error."""
     from navgate.hw import synth
 
     def fake_yosys(script, cwd, log_name="yosys.log"):
         wrapper = script.split("-top ")[1].split()[0]
         (cwd / f"{wrapper}.json").write_text(json.dumps({"modules": {wrapper: {"cells": {}}}}))
 
-    seeds = []
+    runs = []
+    fails = {(1, "router2")}
+    fmax = {(1, "router1"): 127.894, 2: 100.0, 3: 90.0}
 
     def fake_tool(module, function, argv, cwd, log):
         seed = int(argv[argv.index("--seed") + 1])
-        seeds.append(seed)
-        if seed == 1:
+        router = argv[argv.index("--router") + 1]
+        assert argv[argv.index("--freq") + 1] == str(synth.NEXUS_FREQ_MHZ)
+        runs.append((seed, router))
+        if (seed, router) in fails or seed in fails:
             raise synth.SynthesisError("nextpnr-nexus failed (exit 125): ERROR: Failed to "
                                        "route arc 0.0 of net 'clk'")
-        (cwd / "nextpnr_nexus_report.json").write_text(
-            json.dumps({"fmax": {"clk$glb_clk": {"achieved": 123.456}}}))
+        report = argv[argv.index("--report") + 1]
+        value = fmax.get((seed, router), fmax.get(seed))
+        (cwd / report).write_text(json.dumps({"fmax": {"clk$glb_clk": {"achieved": value}}}))
 
     monkeypatch.setattr(synth, "run_yosys", fake_yosys)
     monkeypatch.setattr(synth, "_run_tool", fake_tool)
     text = emit_verilog(FixedMul(width=8, frac=4), "fm")
-    timing = timing_nexus(text, "fm", tmp_path)
-    assert seeds == [1, 2] and timing["fmax_mhz"] == 123.46 and "seed 2" in timing["proxy"]
+    timing = timing_nexus(text, "fm", tmp_path, seeds=(1, 2))
+    pdc = (tmp_path / "pins.pdc").read_text()
+    assert f"-site {{{synth.NEXUS_PINS['clk']}}} [get_ports clk]" in pdc
+    assert runs == [(1, "router2"), (1, "router1"), (2, "router2")]
+    assert timing["fmax_by_seed"] == {"1": 127.89, "2": 100.0}
+    assert timing["router_by_seed"] == {"1": "router1", "2": "router2"}
+    assert timing["fmax_mhz"] == 113.94 and timing["unrouted_seeds"] == []
+    assert "seeds 1, 2, mean; seed 1 routed by router1" in timing["proxy"]
 
-    def always_fails(module, function, argv, cwd, log):
-        raise synth.SynthesisError("nextpnr-nexus failed (exit 125): ERROR: Failed to route")
+    fails.add(3)  # seed 3 routes with neither router: reported, the mean is over seed 2
+    runs.clear()
+    timing = timing_nexus(text, "fm", tmp_path / "a", seeds=(2, 3))
+    assert runs == [(2, "router2"), (3, "router2"), (3, "router1")]
+    assert timing["fmax_by_seed"] == {"2": 100.0, "3": None} and timing["fmax_mhz"] == 100.0
+    assert timing["unrouted_seeds"] == [3] and "seed 3 did not route" in timing["proxy"]
 
-    monkeypatch.setattr(synth, "_run_tool", always_fails)
-    with pytest.raises(synth.SynthesisError, match="Failed to route"):
-        timing_nexus(text, "fm", tmp_path / "b")
+    with pytest.raises(synth.SynthesisError, match="no placer seed routed"):
+        timing_nexus(text, "fm", tmp_path / "b", seeds=(3,))
+
+    def other_failure(module, function, argv, cwd, log):
+        raise synth.SynthesisError("nextpnr-nexus failed (exit 1): ERROR: bad netlist")
+
+    monkeypatch.setattr(synth, "_run_tool", other_failure)
+    with pytest.raises(synth.SynthesisError, match="bad netlist"):
+        timing_nexus(text, "fm", tmp_path / "c")

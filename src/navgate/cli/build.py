@@ -63,18 +63,19 @@ def _progress(console: Console) -> Progress:
     )
 
 
-def _parse_seeds(text: str) -> tuple[int, ...]:
+def _parse_seeds(text: str, option: str = "--ecp5-seeds") -> tuple[int, ...]:
     try:
         seeds = tuple(int(part) for part in text.split(",") if part.strip())
     except ValueError:
-        raise CliError(f"--ecp5-seeds must be comma-separated integers, got {text!r}") from None
+        raise CliError(f"{option} must be comma-separated integers, got {text!r}") from None
     if not seeds or any(seed < 0 for seed in seeds):
-        raise CliError(f"--ecp5-seeds must name at least one non-negative seed, got {text!r}")
+        raise CliError(f"{option} must name at least one non-negative seed, got {text!r}")
     return seeds
 
 
 def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Progress, task,
-               keep_work: bool = False, ecp5_seeds: tuple[int, ...] = (1,)):
+               keep_work: bool = False, ecp5_seeds: tuple[int, ...] = (1,),
+               nexus_seeds: tuple[int, ...] = (1,)):
     from navgate.hw.flow import build_block
     from navgate.hw.synth import SynthesisError
 
@@ -83,7 +84,8 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
 
     try:
         return build_block(name, out_dir, target=target, timing=timing, progress=say,
-                           keep_work=keep_work, ecp5_seeds=ecp5_seeds)
+                           keep_work=keep_work, ecp5_seeds=ecp5_seeds,
+                           nexus_seeds=nexus_seeds)
     except SynthesisError as error:
         raise CliError(str(error)) from None
     except OSError as error:
@@ -99,10 +101,13 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
               help="also time it: xc7 logic-only path (yosys sta), ECP5 and Nexus routed proxies")
 @click.option("--ecp5-seeds", default="1", show_default=True,
               help="nextpnr-ecp5 placer seeds for --timing (comma-separated; Fmax is the mean)")
+@click.option("--nexus-seeds", default="1", show_default=True,
+              help="nextpnr-nexus placer seeds for --timing (comma-separated; Fmax is the mean; "
+              "a seed router2 cannot route is rerouted with router1)")
 @click.option("--keep-work", is_flag=True, help="keep the tool work files in OUT/work/BLOCK")
 @click.option("--list", "list_", is_flag=True, help="list the blocks and exit")
 def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: str,
-          keep_work: bool, list_: bool) -> None:
+          nexus_seeds: str, keep_work: bool, list_: bool) -> None:
     """Emit Verilog for BLOCK, describe it and synthesise it for resource figures."""
     from navgate.hw.blocks import all_blocks
 
@@ -118,13 +123,15 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
         raise CliError(f"unknown block {block!r}; known blocks: {', '.join(blocks)}")
     _check_target(target)
     seeds = _parse_seeds(ecp5_seeds)
+    nx_seeds = _parse_seeds(nexus_seeds, "--nexus-seeds")
     out_dir = Path(out)
     console = Console(stderr=True, soft_wrap=True)
     with atomic_output_dir(out_dir) as stage, _progress(console) as progress:
         if _yowasp_note(timing):
             console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
         task = progress.add_task(block, total=1)
-        built = _run_build(block, stage, target, timing, progress, task, keep_work, seeds)
+        built = _run_build(block, stage, target, timing, progress, task, keep_work, seeds,
+                           nx_seeds)
         progress.advance(task)
     use = built["utilization"]
     click.echo(
@@ -147,16 +154,29 @@ def _timing_lines(timing: dict) -> list[str]:
     def fmt(value, unit, digits):
         return "-" if value is None else f"{value:.{digits}f} {unit}"
 
-    seeds = timing.get("ecp5_fmax_by_seed") or {}
-    seed_note = f" (mean of seeds {', '.join(seeds)})" if len(seeds) > 1 else ""
+    def seed_note(by_seed, routers=None):
+        by_seed, routers = by_seed or {}, routers or {}
+        routed = [seed for seed, value in by_seed.items() if value is not None]
+        failed = [seed for seed, value in by_seed.items() if value is None]
+        note = f" (mean of seeds {', '.join(routed)})" if len(routed) > 1 else ""
+        note = f" (seed {routed[0]})" if len(routed) == 1 and failed else note
+        other = [seed for seed in routed if routers.get(seed) not in (None, "router2")]
+        if other:
+            note += (f", seed{'s' if len(other) > 1 else ''} {', '.join(other)} routed by "
+                     f"{routers[other[0]]}")
+        if failed:
+            note += f", seed{'s' if len(failed) > 1 else ''} {', '.join(failed)} did not route"
+        return note
+
     return [
         f"  xc7 logic-only critical path (yosys sta, no routing): "
         f"{fmt(timing['xc7_logic_path_ns'], 'ns', 3)}",
         f"    from {timing['xc7_logic_path_start']}",
         f"    to   {timing['xc7_logic_path_end']}",
         f"  ECP5 routed proxy Fmax (nextpnr-ecp5): "
-        f"{fmt(timing['ecp5_fmax_mhz'], 'MHz', 1)}{seed_note}",
-        f"  Nexus routed proxy Fmax (nextpnr-nexus): {fmt(timing['nexus_fmax_mhz'], 'MHz', 1)}",
+        f"{fmt(timing['ecp5_fmax_mhz'], 'MHz', 1)}{seed_note(timing.get('ecp5_fmax_by_seed'))}",
+        f"  Nexus routed proxy Fmax (nextpnr-nexus): {fmt(timing['nexus_fmax_mhz'], 'MHz', 1)}"
+        f"{seed_note(timing.get('nexus_fmax_by_seed'), timing.get('nexus_router_by_seed'))}",
     ]
 
 

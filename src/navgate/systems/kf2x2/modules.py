@@ -22,6 +22,11 @@ into hardware in which every arithmetic unit works from registers only:
 * **pipelined, sticky overflow flag**: each unit's saturation flag is registered (gated by
   the cycles in which the unit delivers a scheduled result), and the frame's sticky flag
   ORs those registers one cycle later.
+* **adders without an op code** (issue 15, Nexus): an adder/subtractor adds and subtracts
+  on one carry chain ``a + b + cin`` (a subtraction loads the complemented subtrahend, and
+  ``cin`` is a registered control word), ``|a - b|`` has its own chains; the operand
+  multiplexers merge the terms that are the same bits (one producing unit's result, one
+  register) under one select.
 
 A module (:class:`ModulePlan`) is the subset of the frame's operations that the seed assigns
 to it; :class:`~navgate.systems.kf2x2.top.ModuleHarness` builds one module alone with
@@ -37,19 +42,9 @@ from amaranth.hdl import Value
 
 from navgate.systems.kf2x2.model import KfParams
 from navgate.systems.kf2x2.schedule import DIV_MUL_UNIT, Schedule, Scheduled
-from navgate.systems.kf2x2.units import (
-    ALU_ABSDIFF,
-    ALU_ADD,
-    ALU_SUB,
-    Control,
-    GoldschmidtSerial,
-    q_alu,
-    q_mul,
-)
+from navgate.systems.kf2x2.units import Control, GoldschmidtSerial, alu_results, q_mul
 
 __all__ = ["Control", "Datapath", "ModulePlan", "build_datapath", "MODULE_CLASS_NAMES"]
-
-_ALU_CODE = {"add": ALU_ADD, "sub": ALU_SUB, "absdiff": ALU_ABSDIFF}
 
 #: seed file name of each module (for docs and reports)
 MODULE_CLASS_NAMES = {
@@ -58,6 +53,11 @@ MODULE_CLASS_NAMES = {
     "post_state": "post_state_serial", "post_cov": "post_cov_semipar",
     "q_update": "q_serial", "r_update": "r_serial (subsystem_eq1 x 2)",
 }
+
+
+def _alu_result(kind: str) -> str:
+    """Which result of an adder/subtractor unit an operation kind uses."""
+    return "absdiff" if kind == "absdiff" else "addsub"
 
 
 @dataclass
@@ -105,15 +105,25 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
         mul_a[k], mul_b[k], mul_r[k], mul_f[k] = a, b, rs, f
         if wide:
             mul_p_wide = p
-    alu_a, alu_b, alu_op, alu_r, alu_f = {}, {}, {}, {}, {}
+    # an adder/subtractor adds and subtracts on one chain (a + b + cin: a subtraction loads
+    # the complemented subtrahend and sets cin, a registered control word high in its
+    # compute cycle) and takes |a - b| on its own chains; a forwarded result is (unit,
+    # "addsub" or "absdiff"), selected by the consumer's operand select
+    alu_a, alu_b, alu_r = {}, {}, {}
     for k in alu_ids:
         a = Signal(signed(n), name=f"{prefix}alu{k}_a", reset_less=True)
         b = Signal(signed(n), name=f"{prefix}alu{k}_b", reset_less=True)
-        op = Signal(2, name=f"{prefix}alu{k}_op", reset_less=True)
-        r, f = q_alu(m, a, b, op, n, f"{prefix}alu{k}")
-        rs = Signal(signed(n), name=f"{prefix}alu{k}_r")
-        m.d.comb += rs.eq(r)
-        alu_a[k], alu_b[k], alu_op[k], alu_r[k], alu_f[k] = a, b, op, rs, f
+        mine = [s for s in ops if s.unit == "alu" and s.index == k]
+        sub_cycles = {s.cycle - base + 1 for s in mine if s.op.kind == "sub"}
+        cin = ctl.at(sub_cycles) if sub_cycles else 0
+        kinds = sorted({s.op.kind for s in mine})
+        results = alu_results(m, a, b, cin, kinds, n, f"{prefix}alu{k}")
+        alu_r[k] = {}
+        for result, (r, f) in results.items():
+            rs = Signal(signed(n), name=f"{prefix}alu{k}_{result}")
+            m.d.comb += rs.eq(r)
+            alu_r[k][result] = (rs, f)
+        alu_a[k], alu_b[k] = a, b
     div = None
     if has_div:
         div = GoldschmidtSerial(params.n, params.frac, params.div_iterations,
@@ -123,29 +133,42 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
 
     # --- results: forwarded in the ready cycle, then in a value register ---------------
     forwarded: dict[str, Value] = {}
+    producer: dict[str, tuple] = {}  # name -> the hardware that forwards it
     values: dict[str, Value] = {}
     for s in ops:
         name = s.op.name
         if s.unit == "div":
             forwarded[name] = div.q_next
+            producer[name] = ("div",)
             values[name] = div.q
             continue
-        forwarded[name] = mul_r[s.index] if s.unit == "mul" else alu_r[s.index]
+        if s.unit == "mul":
+            forwarded[name] = mul_r[s.index]
+            producer[name] = ("mul", s.index)
+        else:
+            result = _alu_result(s.op.kind)
+            forwarded[name] = alu_r[s.index][result][0]
+            producer[name] = ("alu", s.index, result)
         reg = Signal(signed(n), name=f"{prefix}v_{name}", reset_less=True)
         with m.If(ctl.at({ready[name]})):
             m.d.sync += reg.eq(forwarded[name])
         values[name] = reg
 
     def source(src, cycle: int) -> tuple[tuple, Value]:
+        """(key, value) of an operand: equal keys are the same bits, so their selects merge
+        into one control word (a unit's forwarded result of one kind is one term however
+        many operations it delivers)."""
         name, shift = (src, 0) if isinstance(src, str) else (src[1], src[2])
         if name in ready:
             if cycle < ready[name]:
                 raise ValueError(f"{name} used in cycle {cycle} before it is ready")
-            where = "fwd" if cycle == ready[name] else "reg"
-            value = forwarded[name] if where == "fwd" else values[name]
+            if cycle == ready[name]:
+                key, value = ("fwd", *producer[name], shift), forwarded[name]
+            else:
+                key, value = ("reg", name, shift), values[name]
         else:
-            where, value = "env", env[name]
-        return (where, name, shift), (value >> shift if shift else value)
+            key, value = ("env", name, shift), env[name]
+        return key, (value >> shift if shift else value)
 
     # --- operand multiplexers: AND-OR under registered one-hot selects -----------------
     regs: dict[str, Signal] = {}
@@ -166,10 +189,10 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
         elif s.unit == "alu":
             load(alu_a[s.index], *srcs[0], c)
             if len(srcs) > 1:
-                load(alu_b[s.index], *srcs[1], c)
-            code = _ALU_CODE[s.op.kind]
-            if code:
-                load(alu_op[s.index], ("code", code, 0), code, c)
+                key, value = srcs[1]
+                if s.op.kind == "sub":  # a - b = a + ~b + 1 (cin)
+                    key, value = (*key, "complement"), ~value
+                load(alu_b[s.index], key, value, c)
         else:
             div_start = c
             key, value = srcs[0]
@@ -191,14 +214,21 @@ def build_datapath(m: Module, ops: list[Scheduled], params: KfParams, ctl: Contr
 
     # --- flags: registered per unit, enabled in the cycles of scheduled results ---------
     flags: list[Signal] = []
-    for unit, ids, flag in (("mul", mul_ids, mul_f), ("alu", alu_ids, alu_f)):
-        for k in ids:
-            cycles = {ready[s.op.name] for s in ops if s.unit == unit and s.index == k}
-            if not cycles:
-                continue
-            reg = Signal(name=f"{prefix}{unit}{k}_ovf")
-            m.d.sync += reg.eq(flag[k] & ctl.at(cycles))
+    for k in mul_ids:
+        cycles = {ready[s.op.name] for s in ops if s.unit == "mul" and s.index == k}
+        if cycles:
+            reg = Signal(name=f"{prefix}mul{k}_ovf")
+            m.d.sync += reg.eq(mul_f[k] & ctl.at(cycles))
             flags.append(reg)
+    for k in alu_ids:
+        acc = 0
+        for result, (_, flag) in alu_r[k].items():
+            cycles = {ready[s.op.name] for s in ops
+                      if s.unit == "alu" and s.index == k and _alu_result(s.op.kind) == result}
+            acc = acc | (flag & ctl.at(cycles))
+        reg = Signal(name=f"{prefix}alu{k}_ovf")
+        m.d.sync += reg.eq(acc)
+        flags.append(reg)
     return Datapath(values, forwarded, ready, flags, div, max(ready.values()) + 1)
 
 

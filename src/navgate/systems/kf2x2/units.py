@@ -7,8 +7,12 @@ multiplier) a raw product register (issue 15 re-timing).
 
 * :func:`q_mul`: ``sat((a * b) >> FRAC)`` and its overflow flag, bit-true to
   ``fixed_mul_trunc(a, b, fmt, mode="saturate")`` (:mod:`navgate.numerics.fixed`).
-* :func:`q_alu`: add, subtract, absolute difference, saturating (``fixed_add``,
-  ``fixed_sub``, ``fixed_abs(fixed_sub_full(...))``).
+* :func:`alu_results`: add and subtract on one carry chain (the subtrahend is loaded
+  complemented, the carry-in is a registered control word), absolute difference on its
+  own pair of chains, each result saturated (``fixed_add``, ``fixed_sub``,
+  ``fixed_abs(fixed_sub_full(...))``); no op code is decoded behind the adder.
+* :func:`saturate_bits`: the saturation as bit tests (sign and the bits above the target
+  width), no comparator.
 * :class:`GoldschmidtSerial`: :func:`navgate.numerics.goldschmidt.goldschmidt_reciprocal`
   (table seed, F = N, rounding to nearest) sequenced over :func:`divider_plan` cycles, its
   ``2k`` multiplies issued on a shared, pipelined multiplier (multiplier 3 of the pool)
@@ -25,30 +29,71 @@ from amaranth import Array, Const, Module, Mux, Signal, signed, unsigned
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from navgate.gateware.fixed import saturate_value
 from navgate.gateware.goldschmidt import leading_one
 from navgate.numerics.goldschmidt import goldschmidt_seed_table
 
-__all__ = ["q_mul", "q_alu", "ALU_ADD", "ALU_SUB", "ALU_ABSDIFF", "Control", "GoldschmidtSerial",
-           "divider_plan"]
+__all__ = ["q_mul", "alu_results", "saturate_bits", "ALU_KINDS", "Control",
+           "GoldschmidtSerial", "divider_plan"]
 
-ALU_ADD, ALU_SUB, ALU_ABSDIFF = 0, 1, 2
+#: the operation kinds an adder/subtractor unit computes
+ALU_KINDS = ("add", "sub", "absdiff")
+
+
+def saturate_bits(value, width: int):
+    """``(clamped, overflow)`` of signed ``value`` clamped to ``signed(width)``.
+
+    The same function as :func:`navgate.gateware.fixed.saturate_value`, written as bit tests:
+    the value fits when every bit from ``width - 1`` up equals the sign; otherwise it is
+    clamped to the limit of its sign. (A comparison with a constant can be mapped to a carry
+    chain; these are a few LUT levels.)"""
+    if len(value) <= width:
+        return value.as_signed(), Const(0, 1)
+    top = value[width - 1:]
+    sign = value[-1]
+    overflow = ~(top.all() | ~top.any())
+    lo, hi = -(1 << (width - 1)), (1 << (width - 1)) - 1
+    result = Mux(overflow, Mux(sign, lo, hi), value[:width].as_signed())
+    return result[:width].as_signed(), overflow
 
 
 def q_mul(product, n: int, frac: int):
     """``(result, overflow)`` of the truncated, saturated Q(n, frac) product."""
-    return saturate_value(product >> frac, n)
+    return saturate_bits(product >> frac, n)
 
 
-def q_alu(m: Module, a, b, op, n: int, name: str):
-    """Saturating add / sub / |a - b| of signed n-bit a, b -> ``(result, overflow)``."""
-    s = Signal(signed(n + 1), name=f"{name}_sum")
-    d = Signal(signed(n + 1), name=f"{name}_dif")
-    m.d.comb += [s.eq(a + b), d.eq(a - b)]
-    ad = Mux(d[-1], -d, d)
-    full = Signal(signed(n + 2), name=f"{name}_full")
-    m.d.comb += full.eq(Mux(op == ALU_ADD, s, Mux(op == ALU_SUB, d, ad)))
-    return saturate_value(full, n)
+def alu_results(m: Module, a, b, cin, kinds, n: int, name: str) -> dict:
+    """Saturating results of an adder/subtractor unit with operand registers ``a``, ``b``.
+
+    ``kinds``: the operation kinds scheduled on the unit. Returns ``{"addsub": (result,
+    overflow)}`` if it adds or subtracts, and ``{"absdiff": ...}`` if it takes |a - b|.
+
+    * add and subtract share one carry chain, ``a + b + cin``: for a subtraction the operand
+      register ``b`` was loaded with the one's complement of the subtrahend and ``cin`` (a
+      registered control word) is 1, so the sum is ``a - b``; no op code is decoded behind
+      the adder. The (n + 1)-bit sum overflows n bits exactly when its top two bits differ.
+    * ``absdiff`` computes ``a - b`` and ``b - a`` side by side and keeps the non-negative
+      one (instead of negating the difference behind the subtraction): ``|a - b| <= 2**n - 1``
+      fits n bits unsigned and overflows exactly when bit n - 1 is set.
+
+    Bit-true to ``fixed_add``, ``fixed_sub`` and ``fixed_abs(fixed_sub_full(...))`` of
+    :mod:`navgate.numerics.fixed` (saturating)."""
+    for kind in kinds:
+        if kind not in ALU_KINDS:
+            raise ValueError(f"unknown ALU kind {kind!r}")
+    out = {}
+    if "add" in kinds or "sub" in kinds:
+        s = Signal(signed(n + 1), name=f"{name}_sum")
+        m.d.comb += s.eq(a + b + cin)
+        out["addsub"] = saturate_bits(s, n)
+    if "absdiff" in kinds:
+        d = Signal(signed(n + 1), name=f"{name}_dif")
+        e = Signal(signed(n + 1), name=f"{name}_rdif")
+        m.d.comb += [d.eq(a - b), e.eq(b - a)]
+        mag = Signal(unsigned(n), name=f"{name}_mag")  # |a - b| < 2**n
+        m.d.comb += mag.eq(Mux(d[-1], e, d)[:n])
+        overflow = mag[n - 1]
+        out["absdiff"] = (Mux(overflow, (1 << (n - 1)) - 1, mag)[:n].as_signed(), overflow)
+    return out
 
 
 class Control:
