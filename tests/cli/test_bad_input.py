@@ -217,6 +217,48 @@ def test_real_sigint_during_a_flight(tmp_path):
     assert_untouched(out, old)
 
 
+def test_interrupt_wrapped_or_swallowed_is_still_an_interrupt(tmp_path, capsys, monkeypatch):
+    """A KeyboardInterrupt raised inside a numba function surfaces as ``SystemError: ...
+    returned a result with an exception set`` (seen with a real SIGINT during ``fly``), and a
+    library may swallow one: both still end as an interrupt (exit 130, one line) and nothing
+    is committed."""
+    out = tmp_path / "hw"
+    names = ["fixed_mul.v", "fixed_mul.json", "fixed_mul.utilization.json"]
+    old = plant_previous(out, names)
+    import navgate.hw.flow as flow
+
+    def wrapped(*a):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)  # the CLI's handler raises KeyboardInterrupt
+            time.sleep(1)
+        except KeyboardInterrupt as exc:
+            raise SystemError("CPUDispatcher returned a result with an exception set") from exc
+        raise AssertionError("no interrupt delivered")
+
+    monkeypatch.setattr(flow, "synthesize", wrapped)
+    code, _, err = run(["build", "fixed_mul", "--out", out], capsys)
+    assert_one_line(err, code, 130, "interrupted")
+    assert_untouched(out, old)
+
+    def swallowed(*a):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(1)
+        except KeyboardInterrupt:
+            pass  # lost: the run goes on as if nothing happened
+        return {"lut": 1, "ff": 1, "dsp": 0, "carry4": 0, "bram36": 0}
+
+    monkeypatch.setattr(flow, "synthesize", swallowed)
+    code, _, err = run(["build", "fixed_mul", "--out", out], capsys)
+    assert_one_line(err, code, 130, "interrupted")
+    assert_untouched(out, old)
+    # the next command is not affected
+    monkeypatch.setattr(flow, "synthesize", lambda *a: {"lut": 1, "ff": 1, "dsp": 0,
+                                                        "carry4": 0, "bram36": 0})
+    code, _, err = run(["build", "fixed_mul", "--out", out], capsys)
+    assert code == 0, err
+
+
 def test_never_overwrites_an_input(tmp_path, capsys):
     src = imu_csv(tmp_path / "gap.csv")
     before = src.read_bytes()

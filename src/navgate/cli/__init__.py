@@ -18,7 +18,14 @@ import sys
 import click
 
 from navgate import __version__
-from navgate.cli.common import CliError, os_error_message, warning_handler
+from navgate.cli.common import (
+    INTERRUPTED,
+    CliError,
+    interrupted_by,
+    os_error_message,
+    sigint_flagged,
+    warning_handler,
+)
 
 #: command name -> "module:attribute" of a click command
 COMMANDS: dict[str, str] = {
@@ -72,8 +79,10 @@ def main(argv: list[str] | None = None) -> None:
     command = args[0] if args and not args[0].startswith("-") else None
     prefix = f"navgate {command}" if command in COMMANDS else "navgate"
     try:
-        with warning_handler(prefix):
+        with sigint_flagged(), warning_handler(prefix):
             cli.main(args=args, prog_name="navgate", standalone_mode=False)
+            if INTERRUPTED.is_set():  # an interrupt that something swallowed: still one
+                raise KeyboardInterrupt
     except click.exceptions.Exit as exit_:
         sys.exit(exit_.exit_code)
     except click.exceptions.Abort:  # click's form of KeyboardInterrupt
@@ -96,6 +105,9 @@ def main(argv: list[str] | None = None) -> None:
         click.echo(f"{prefix}: error: out of memory", err=True)
         sys.exit(2)
     except Exception as error:  # noqa: BLE001 - the last line of defence against tracebacks
+        if interrupted_by(error):  # e.g. SystemError from a numba function interrupted
+            click.echo(f"{prefix}: interrupted (no partial results written)", err=True)
+            sys.exit(130)
         if os.environ.get("NAVGATE_DEBUG"):
             raise
         click.echo(f"{prefix}: internal error: {type(error).__name__}: "

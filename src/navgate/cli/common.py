@@ -108,14 +108,60 @@ def _regular_or_absent(path: Path) -> None:
         raise CliError(f"cannot write {path}: not a regular file")
 
 
+#: set by the command line's SIGINT handler (:func:`install_sigint_flag`): a run that was
+#: interrupted never commits its results, even where the KeyboardInterrupt itself was lost
+#: (raised inside a compiled numba function it surfaces as a SystemError, and a library may
+#: swallow it)
+INTERRUPTED = threading.Event()
+
+
+def _raise_interrupt(*_):
+    INTERRUPTED.set()
+    raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def sigint_flagged() -> Iterator[None]:
+    """For one command: :data:`INTERRUPTED` cleared, then SIGINT sets it and raises
+    KeyboardInterrupt (main thread only); the previous handler is restored afterwards."""
+    INTERRUPTED.clear()
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, _raise_interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def interrupted_by(error: BaseException | None) -> bool:
+    """True when ``error`` is, or was caused by, an interrupt (or one was flagged)."""
+    seen = set()
+    while error is not None and id(error) not in seen:
+        if isinstance(error, KeyboardInterrupt):
+            return True
+        seen.add(id(error))
+        error = error.__cause__ or error.__context__
+    return INTERRUPTED.is_set()
+
+
 @contextlib.contextmanager
 def _sigint_held() -> Iterator[None]:
-    """Defer SIGINT for the duration of the block (main thread only), then deliver it."""
+    """Defer SIGINT for the duration of the block (main thread only), then deliver it; an
+    interrupt flagged earlier (:data:`INTERRUPTED`) stops the block before it starts."""
+    if INTERRUPTED.is_set():
+        raise KeyboardInterrupt
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     caught = []
-    previous = signal.signal(signal.SIGINT, lambda *a: caught.append(a))
+
+    def hold(*a):
+        INTERRUPTED.set()
+        caught.append(a)
+
+    previous = signal.signal(signal.SIGINT, hold)
     try:
         yield
     finally:
