@@ -180,8 +180,8 @@ def test_random_program_bit_exact_amaranth(seed):
         else:
             words[r] = int(np.float32(rng.normal() * 2.0 ** rng.integers(-20, 20))
                            .view(np.uint32))
-    units = BankedUnits(mul=2, add=2, read_ports=2 + seed % 2, port_per_operand=seed == 2,
-                        misc_bank=seed != 3, iterative=seed == 3)
+    units = BankedUnits(mul=2, add=2, read_ports=2 + seed % 2, misc_bank=seed != 3,
+                        iterative=seed == 3)
     img = BankedImage.build({"rand": prog}, units, regs)
     _check_ports(img)
     init = {img.layout.fixed[r]: w for r, w in words.items()}

@@ -97,10 +97,6 @@ class BankedUnits:
     mul: int = 3
     add: int = 3
     read_ports: int = 2
-    #: operand j of every slot reads port j of a bank (banks:1 operand multiplexers; mul and
-    #: add operands swapped by the scheduler where that avoids a conflict); otherwise any
-    #: operand reads any port (banks x read_ports : 1 multiplexers)
-    port_per_operand: bool = False
     #: the misc slot has a bank of its own; otherwise its results go to the other banks
     #: (fewer operand multiplexer inputs: 16 instead of 18 with 4 + 4 slots)
     misc_bank: bool = True
@@ -205,12 +201,6 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
         return bank[name] if name in bank else bank_of[name]
 
     def reads_fit(c, names):
-        if units.port_per_operand:
-            for j, n in enumerate(names):
-                have = reads.get((c, bank_of_name(n), j), set())
-                if have and n not in have:
-                    return False
-            return True
         need: dict = {}
         for n in set(names):
             b = bank_of_name(n)
@@ -222,9 +212,8 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
         return True
 
     def take_reads(c, names):
-        for j, n in enumerate(names):
-            key = (c, bank_of_name(n), j) if units.port_per_operand else (c, bank_of_name(n))
-            reads.setdefault(key, set()).add(n)
+        for n in names:
+            reads.setdefault((c, bank_of_name(n)), set()).add(n)
 
     placed = 0
     c = 0
@@ -260,11 +249,6 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                             target = b
                             break
                 fits = reads_fit(c, names)
-                if (not fits and units.port_per_operand and s.kind in ("add", "mul")
-                        and reads_fit(c, names[::-1])):
-                    s.srcs = s.srcs[::-1]  # commutative: a + b == b + a bit for bit
-                    names = names[::-1]
-                    fits = True
                 # the misc cores share one result bus into the banks: one result per cycle
                 misc_busy = su == "misc" and ((w, "misc") in writes
                                               or c < core_free.get(s.unit, 0))
@@ -416,8 +400,7 @@ class _BankedFields:
         self.pos: dict = {}
         off = 0
         nb = units.banks
-        nsel = nb if units.port_per_operand else nb * units.read_ports
-        self.sel_bits = max(1, (nsel - 1).bit_length())
+        self.sel_bits = max(1, (nb * units.read_ports - 1).bit_length())
         self.src_bits = max(1, (n_sources - 1).bit_length())
         self.kind_bits = max(1, (len(misc_kinds) - 1).bit_length())
 
@@ -500,16 +483,12 @@ class BankedImage:
                     put(s.issue, ("kind",), misc_kinds.index(s.unit))
                 for j, (name, flip) in enumerate(s.srcs):
                     b, a = addr[name] >> lb, addr[name] & ((1 << lb) - 1)
-                    if units.port_per_operand:
-                        put(s.issue, ("ra", b, j), a)
-                        put(s.issue, ("sel", slot, j), b)
-                    else:
-                        used_ports = ports.setdefault((s.issue, b), {})
-                        if a not in used_ports:
-                            used_ports[a] = len(used_ports)
-                            assert used_ports[a] < units.read_ports
-                            put(s.issue, ("ra", b, used_ports[a]), a)
-                        put(s.issue, ("sel", slot, j), b * units.read_ports + used_ports[a])
+                    used_ports = ports.setdefault((s.issue, b), {})
+                    if a not in used_ports:
+                        used_ports[a] = len(used_ports)
+                        assert used_ports[a] < units.read_ports
+                        put(s.issue, ("ra", b, used_ports[a]), a)
+                    put(s.issue, ("sel", slot, j), b * units.read_ports + used_ports[a])
                     put(s.issue, ("flip", slot, j), int(flip))
                 if s.kind == "sub":
                     off, _ = f.pos[("mod", "add")]
@@ -649,9 +628,8 @@ class BankedMachine(wiring.Component):
             sel = late(fld("sel", slot, j), f"sel{slot}_{j}")
             flip = late(fld("flip", slot, j), f"flip{slot}_{j}")
             v = Signal(32, name=f"op{slot}_{j}")
-            sources = [rdata[b][j] for b in range(nb)] if u.port_per_operand else flat_ports
             with m.Switch(sel):
-                for k, d in enumerate(sources):
+                for k, d in enumerate(flat_ports):
                     with m.Case(k):
                         m.d.comb += v.eq(d)
             out = Signal(32, name=f"opr{slot}_{j}")

@@ -1,8 +1,8 @@
 """The ``rtl`` engine: seed 000's PL engines as gateware (``ins_engines``, the scheduled
 float32 datapath of :mod:`navgate.systems.ins_trn.engines`) running in Verilator, driven call
-by call through a persistent native model (:mod:`navgate.gateware.native_stream`, the
-default) or the verification harness's cocotb model and server
-(:mod:`navgate.systems.ins_trn.rtl_server`, ``backend="cocotb"``).
+by call through a persistent native model (:mod:`navgate.gateware.native_stream`; the
+verification harness's VPI model of the same Verilog is checked in
+tests/systems/ins_trn/test_engines.py).
 
 The PS side is the ``fp32`` engine's (:class:`navgate.systems.ins_trn.fp32_engine.Fp32Engine`):
 its register writes (configuration, initial state) are computed as there and loaded into the
@@ -15,17 +15,10 @@ the gateware into the PS's copy, from which the read calls answer. The result mu
 
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
-import threading
-import time
 import weakref
-from pathlib import Path
 
 import numpy as np
 
-from navgate.gateware import verify as V
 from navgate.gateware.scheduled import CMD_READ, CMD_START, CMD_WRITE, ScheduledMachineStream
 from navgate.systems.ins_trn.engine import EngineSetup
 from navgate.systems.ins_trn.engines import IMU_WORDS, engine_image
@@ -33,7 +26,7 @@ from navgate.systems.ins_trn.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.fp32_exec import float_to_bits, to_f32
 from navgate.systems.ins_trn.fp32_program import CONFIG_REGS, STATE_REGS
 
-__all__ = ["RtlEngine", "RtlLink", "NativeLink", "RtlError"]
+__all__ = ["RtlEngine", "NativeLink", "RtlError"]
 
 
 class RtlError(RuntimeError):
@@ -47,8 +40,9 @@ def _f(bits: int) -> float:
 class NativeLink:
     """A running native Verilator model of a :class:`ScheduledMachineStream`
     (:class:`navgate.gateware.native_stream.NativeStreamServer`: no VPI, optimised model);
-    the same ``batch``/``close`` as :class:`RtlLink`. The response of every command is taken
-    when the wrapper offers it; ``waits`` are checked through the run commands' ``cycles``."""
+    ``batch`` runs command rows and returns the response fields. The response of every
+    command is taken when the wrapper offers it; ``waits`` are checked through the run
+    commands' ``cycles``."""
 
     def __init__(self, image):
         from navgate.gateware.native_stream import NativeStreamServer
@@ -70,85 +64,11 @@ class NativeLink:
         self.server.close()
 
 
-class RtlLink:
-    """A running Verilator model of a :class:`ScheduledMachineStream` with a command pipe
-    (cocotb server, :mod:`navgate.systems.ins_trn.rtl_server`)."""
-
-    def __init__(self, image, start_timeout: float = 600.0):
-        comp = ScheduledMachineStream(image)
-        self.in_fmt = V.stream_format(V._port_shape(comp.i))
-        self.out_fmt = V.stream_format(V._port_shape(comp.o))
-        build_dir = V._build_model(V.emit_verilog(comp, "dut"), "dut")
-        self.work = Path(tempfile.mkdtemp(prefix="navgate-rtl-"))
-        cmd, rsp = self.work / "cmd", self.work / "rsp"
-        os.mkfifo(cmd)
-        os.mkfifo(rsp)
-        self.error: list = []
-
-        def run():
-            from cocotb_tools.runner import get_runner
-
-            try:
-                with V._verilator_path():
-                    get_runner("verilator").test(
-                        test_module="navgate.systems.ins_trn.rtl_server", hdl_toplevel="dut",
-                        hdl_toplevel_lang="verilog", build_dir=build_dir, test_dir=self.work,
-                        extra_env={"NAVGATE_RTL_CMD": str(cmd), "NAVGATE_RTL_RSP": str(rsp)},
-                        results_xml=str(self.work / "results.xml"),
-                        log_file=self.work / "sim.log")
-            except BaseException as exc:  # noqa: BLE001 - reported to the caller
-                self.error.append(repr(exc))
-
-        self.thread = threading.Thread(target=run, daemon=True)
-        self.thread.start()
-        deadline = time.monotonic() + start_timeout
-        fd = None
-        while fd is None:
-            try:
-                fd = os.open(cmd, os.O_WRONLY | os.O_NONBLOCK)
-            except OSError:
-                if not self.thread.is_alive() or time.monotonic() > deadline:
-                    raise RtlError(f"Verilator server did not start: {self.error}") from None
-                time.sleep(0.05)
-        os.set_blocking(fd, True)
-        self.cmd = os.fdopen(fd, "w")
-        self.rsp = open(rsp)
-        self.cycles_run = 0
-
-    def batch(self, rows, waits) -> dict:
-        """Run command rows ``(cmd, addr, data, prog)``, the response of each expected
-        ``waits`` cycles after it is accepted; returns the response fields."""
-        arr = np.array(rows, dtype=np.int64).reshape(-1, 4)
-        packed = V.pack(self.in_fmt, {"cmd": arr[:, 0], "addr": arr[:, 1],
-                                      "data": arr[:, 2], "prog": arr[:, 3]})
-        self.cmd.write(" ".join(f"{v:x}/{w}" for v, w in zip(packed, waits, strict=True))
-                       + "\n")
-        self.cmd.flush()
-        line = self.rsp.readline()
-        if line.startswith("!"):
-            raise RtlError(f"Verilator server: {line[1:].strip()}")
-        outs = [int(t, 16) for t in line.split()]
-        if len(outs) != len(packed):
-            raise RtlError(f"server answered {len(outs)} of {len(packed)} commands "
-                           f"({self.error})")
-        return V.unpack(self.out_fmt, outs)
-
-    def close(self):
-        try:
-            self.cmd.write("quit\n")
-            self.cmd.close()
-            self.rsp.close()
-        except OSError:
-            pass
-        self.thread.join(timeout=30)
-        shutil.rmtree(self.work, ignore_errors=True)
-
-
 class _RtlMachine:
     """The PS's view of the gateware register file, shaped like ``fp32_exec.Machine``
     (``run``, ``regs``, ``index``, ``get``): calls run in the gateware."""
 
-    def __init__(self, machine, image, link: RtlLink):
+    def __init__(self, machine, image, link: NativeLink):
         self._m = machine
         self.image = image
         self.link = link
@@ -226,13 +146,10 @@ class RtlEngine(Fp32Engine):
 
     name = "rtl"
 
-    def __init__(self, setup: EngineSetup, *, check_pd: bool = False,
-                 backend: str = "native"):
+    def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
         super().__init__(setup, check_pd=check_pd)
         image = engine_image("ins_engines")
-        if backend not in ("native", "cocotb"):
-            raise ValueError(f"unknown RTL backend {backend!r} (native or cocotb)")
-        self.link = NativeLink(image) if backend == "native" else RtlLink(image)
+        self.link = NativeLink(image)
         self._finalizer = weakref.finalize(self, self.link.close)
         self.m = _RtlMachine(self.m, image, self.link)
         self.m.load()
