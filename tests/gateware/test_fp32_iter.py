@@ -23,7 +23,7 @@ from amaranth.sim import Simulator
 
 from navgate.gateware.fp32 import Fp32DivIter, Fp32SqrtIter
 from navgate.gateware.verify import emit_verilog, lint_verilog, simulate, verify
-from navgate.gateware.verify_fp32 import CASES, SPECIALS, cross
+from navgate.gateware.verify_fp32 import CASES, DIV_DIRECTED, SPECIALS, SQRT_DIRECTED, cross
 from navgate.hw.blocks import get_block
 from navgate.hw.synth import synthesize, timing_xc7
 from navgate.numerics import fp32 as F
@@ -31,68 +31,8 @@ from navgate.numerics import fp32 as F
 QNAN, PINF, NINF = 0x7FC00000, 0x7F800000, 0xFF800000
 U32 = np.uint32
 
-# (a, b, expected, why)
-DIV_CASES = [
-    (0x3F800000, 0x40400000, 0x3EAAAAAB, "1/3 = 0.0101...b -> 0x3EAAAAAB (round up)"),
-    (0x40000000, 0x40400000, 0x3F2AAAAB, "2/3"),
-    (0x40C00000, 0x40400000, 0x40000000, "6/3 = 2 exactly"),
-    (0x41100000, 0x40400000, 0x40400000, "9/3 = 3 exactly (no pre-normalisation)"),
-    (0x3F800000, 0x3FC00000, 0x3F2AAAAB, "1/1.5: ma < mb, pre-normalised"),
-    (0x3FFFFFFF, 0x3FFFFFFF, 0x3F800000, "x/x = 1 with all-ones significands"),
-    (0x3F800000, 0x3F7FFFFF, 0x3F800001, "1/(1-2^-24) = 1+2^-24+2^-48+...: just above the tie"),
-    (0x3F800000, 0x3F800001, 0x3F7FFFFE, "1/(1+2^-23) = 1-2^-23+2^-46: just above a tie -> down"),
-    (0x3F7FFFFF, 0x3F800001, 0x3F7FFFFD, "(1-2^-24)/(1+2^-23): rounds to 1-3*2^-24"),
-    (0x3F800000, 0x7F7FFFFF, 0x00000000, "1/max ~ 2^-128 -> +0"),
-    (0x00800000, 0x3F800001, 0x00000000, "2^-126/(1+2^-23) rounds below 2^-126 -> 0"),
-    (0x00800000, 0x3F7FFFFF, 0x00800001, "2^-126/(1-2^-24) = 2^-126(1+2^-24+..) -> +1 ulp"),
-    (0x00800000, 0x3F800000, 0x00800000, "2^-126/1: smallest normal stays"),
-    (0x00800000, 0x40000000, 0x00000000, "2^-126/2 = 2^-127 -> +0 (flushed)"),
-    (0x80FFFFFF, 0x40000000, 0x80000000, "-(2^-125 - 2^-149)/2 = -2^-126(1-2^-24) exact -> -0"),
-    (0x7F7FFFFF, 0x3F000000, PINF, "max/0.5 overflows"),
-    (0x7F7FFFFF, 0x3F800000, 0x7F7FFFFF, "max/1 = max"),
-    (0x7F7FFFFF, 0xBF7FFFFF, NINF, "max/-(1-2^-24) = -max(1+2^-24..) -> -inf"),
-    (0x7F000000, 0x3F000000, PINF, "2^127/0.5 = 2^128 -> +inf"),
-    (0x3F800000, 0x00000000, PINF, "1/+0"),
-    (0x3F800000, 0x80000000, NINF, "1/-0"),
-    (0xBF800000, 0x00000001, NINF, "-1/subnormal: subnormal reads as +0"),
-    (0x00000000, 0x00000000, QNAN, "0/0"),
-    (0x00000001, 0x80000002, QNAN, "subnormal/subnormal = 0/0"),
-    (0x007FFFFF, 0x3F800000, 0x00000000, "subnormal/1 = +0"),
-    (PINF, NINF, QNAN, "inf/inf"),
-    (PINF, 0x00000000, PINF, "inf/0"),
-    (NINF, 0x40000000, NINF, "-inf/2"),
-    (0x00000000, PINF, 0x00000000, "0/inf"),
-    (0x3F800000, NINF, 0x80000000, "1/-inf = -0"),
-    (0x80000000, 0x3F800000, 0x80000000, "-0/1 = -0"),
-    (0x7FC00000, 0x00000000, QNAN, "NaN/0"),
-    (0x3F800000, 0xFF800001, QNAN, "1/-sNaN"),
-]
-
-# (a, expected, why)
-SQRT_CASES = [
-    (0x40800000, 0x40000000, "sqrt(4) = 2"),
-    (0x40000000, 0x3FB504F3, "sqrt(2) = 1.0110101000001001111001100110011...b -> 0x3FB504F3"),
-    (0x3F800000, 0x3F800000, "sqrt(1) = 1"),
-    (0x41100000, 0x40400000, "sqrt(9) = 3 (odd exponent path)"),
-    (0x3E800000, 0x3F000000, "sqrt(0.25) = 0.5"),
-    (0x00800000, 0x20000000, "sqrt(2^-126) = 2^-63"),
-    (0x01000000, 0x203504F3, "sqrt(2^-125) = 2^-63 sqrt(2)"),
-    (0x7F7FFFFF, 0x5F7FFFFF, "sqrt(max) = 2^64 sqrt(1-2^-24) -> 2^64(1-2^-24)"),
-    (0x7F000000, 0x5F3504F3, "sqrt(2^127) = 2^63 sqrt(2)"),
-    (0x3F7FFFFF, 0x3F7FFFFF, "sqrt(1-2^-24) = 1-2^-25-..: just below the tie -> 1-2^-24"),
-    (0x3F800001, 0x3F800000, "sqrt(1+2^-23) = 1+2^-24-..: just below the tie -> 1"),
-    (0x407FFFFF, 0x3FFFFFFF, "sqrt(4-2^-21) = 2-2^-23-..: rounds to 2-2^-23"),
-    (0x00000000, 0x00000000, "sqrt(+0) = +0"),
-    (0x80000000, 0x80000000, "sqrt(-0) = -0"),
-    (0x00000001, 0x00000000, "sqrt(subnormal) = +0"),
-    (0x80000001, 0x80000000, "sqrt(-subnormal) = sqrt(-0) = -0"),
-    (0xBF800000, QNAN, "sqrt(-1)"),
-    (0x80800000, QNAN, "sqrt(-2^-126)"),
-    (PINF, PINF, "sqrt(inf)"),
-    (NINF, QNAN, "sqrt(-inf)"),
-    (0x7F800001, QNAN, "sqrt(sNaN)"),
-    (0xFFC00000, QNAN, "sqrt(-qNaN)"),
-]
+DIV_CASES = DIV_DIRECTED
+SQRT_CASES = SQRT_DIRECTED
 
 
 def _div_directed():

@@ -31,7 +31,7 @@ from navgate.numerics import fp32 as F
 
 from .verify import f32_formatter
 
-__all__ = ["SPECIALS", "Fp32Case", "CASES", "f32", "cross"]
+__all__ = ["SPECIALS", "Fp32Case", "CASES", "f32", "cross", "DIV_DIRECTED", "SQRT_DIRECTED"]
 
 U32 = np.uint32
 
@@ -515,3 +515,71 @@ def conversion_cases(from_width, from_frac, to_width, to_frac) -> dict[str, Fp32
     """Cases for the fixed-point converters with other Q formats."""
     c = _make_cases(from_width, from_frac, to_width, to_frac)
     return {"fp32_from_fixed": c["fp32_from_fixed"], "fp32_to_fixed": c["fp32_to_fixed"]}
+
+
+_QNAN, _PINF, _NINF = 0x7FC00000, 0x7F800000, 0xFF800000
+
+#: hand-derived divide cases (a, b, expected, why), shared by the pipelined and the
+#: iterative divider's tests
+DIV_DIRECTED = [
+    (0x3F800000, 0x40400000, 0x3EAAAAAB, "1/3 = 0.0101...b -> 0x3EAAAAAB (round up)"),
+    (0x40000000, 0x40400000, 0x3F2AAAAB, "2/3"),
+    (0x40C00000, 0x40400000, 0x40000000, "6/3 = 2 exactly"),
+    (0x41100000, 0x40400000, 0x40400000, "9/3 = 3 exactly (no pre-normalisation)"),
+    (0x3F800000, 0x3FC00000, 0x3F2AAAAB, "1/1.5: ma < mb, pre-normalised"),
+    (0x3FFFFFFF, 0x3FFFFFFF, 0x3F800000, "x/x = 1 with all-ones significands"),
+    (0x3F800000, 0x3F7FFFFF, 0x3F800001, "1/(1-2^-24) = 1+2^-24+2^-48+...: just above the tie"),
+    (0x3F800000, 0x3F800001, 0x3F7FFFFE, "1/(1+2^-23) = 1-2^-23+2^-46: just above a tie -> down"),
+    (0x3F7FFFFF, 0x3F800001, 0x3F7FFFFD, "(1-2^-24)/(1+2^-23): rounds to 1-3*2^-24"),
+    (0x3F800000, 0x7F7FFFFF, 0x00000000, "1/max ~ 2^-128 -> +0"),
+    (0x00800000, 0x3F800001, 0x00000000, "2^-126/(1+2^-23) rounds below 2^-126 -> 0"),
+    (0x00800000, 0x3F7FFFFF, 0x00800001, "2^-126/(1-2^-24) = 2^-126(1+2^-24+..) -> +1 ulp"),
+    (0x00800000, 0x3F800000, 0x00800000, "2^-126/1: smallest normal stays"),
+    (0x00800000, 0x40000000, 0x00000000, "2^-126/2 = 2^-127 -> +0 (flushed)"),
+    (0x80FFFFFF, 0x40000000, 0x80000000, "-(2^-125 - 2^-149)/2 = -2^-126(1-2^-24) exact -> -0"),
+    (0x7F7FFFFF, 0x3F000000, _PINF, "max/0.5 overflows"),
+    (0x7F7FFFFF, 0x3F800000, 0x7F7FFFFF, "max/1 = max"),
+    (0x7F7FFFFF, 0xBF7FFFFF, _NINF, "max/-(1-2^-24) = -max(1+2^-24..) -> -inf"),
+    (0x7F000000, 0x3F000000, _PINF, "2^127/0.5 = 2^128 -> +inf"),
+    (0x3F800000, 0x00000000, _PINF, "1/+0"),
+    (0x3F800000, 0x80000000, _NINF, "1/-0"),
+    (0xBF800000, 0x00000001, _NINF, "-1/subnormal: subnormal reads as +0"),
+    (0x00000000, 0x00000000, _QNAN, "0/0"),
+    (0x00000001, 0x80000002, _QNAN, "subnormal/subnormal = 0/0"),
+    (0x007FFFFF, 0x3F800000, 0x00000000, "subnormal/1 = +0"),
+    (_PINF, _NINF, _QNAN, "inf/inf"),
+    (_PINF, 0x00000000, _PINF, "inf/0"),
+    (_NINF, 0x40000000, _NINF, "-inf/2"),
+    (0x00000000, _PINF, 0x00000000, "0/inf"),
+    (0x3F800000, _NINF, 0x80000000, "1/-inf = -0"),
+    (0x80000000, 0x3F800000, 0x80000000, "-0/1 = -0"),
+    (0x7FC00000, 0x00000000, _QNAN, "NaN/0"),
+    (0x3F800000, 0xFF800001, _QNAN, "1/-sNaN"),
+]
+
+#: hand-derived square-root cases (a, expected, why), shared by the pipelined and the
+#: iterative square root's tests
+SQRT_DIRECTED = [
+    (0x40800000, 0x40000000, "sqrt(4) = 2"),
+    (0x40000000, 0x3FB504F3, "sqrt(2) = 1.0110101000001001111001100110011...b -> 0x3FB504F3"),
+    (0x3F800000, 0x3F800000, "sqrt(1) = 1"),
+    (0x41100000, 0x40400000, "sqrt(9) = 3 (odd exponent path)"),
+    (0x3E800000, 0x3F000000, "sqrt(0.25) = 0.5"),
+    (0x00800000, 0x20000000, "sqrt(2^-126) = 2^-63"),
+    (0x01000000, 0x203504F3, "sqrt(2^-125) = 2^-63 sqrt(2)"),
+    (0x7F7FFFFF, 0x5F7FFFFF, "sqrt(max) = 2^64 sqrt(1-2^-24) -> 2^64(1-2^-24)"),
+    (0x7F000000, 0x5F3504F3, "sqrt(2^127) = 2^63 sqrt(2)"),
+    (0x3F7FFFFF, 0x3F7FFFFF, "sqrt(1-2^-24) = 1-2^-25-..: just below the tie -> 1-2^-24"),
+    (0x3F800001, 0x3F800000, "sqrt(1+2^-23) = 1+2^-24-..: just below the tie -> 1"),
+    (0x407FFFFF, 0x3FFFFFFF, "sqrt(4-2^-21) = 2-2^-23-..: rounds to 2-2^-23"),
+    (0x00000000, 0x00000000, "sqrt(+0) = +0"),
+    (0x80000000, 0x80000000, "sqrt(-0) = -0"),
+    (0x00000001, 0x00000000, "sqrt(subnormal) = +0"),
+    (0x80000001, 0x80000000, "sqrt(-subnormal) = sqrt(-0) = -0"),
+    (0xBF800000, _QNAN, "sqrt(-1)"),
+    (0x80800000, _QNAN, "sqrt(-2^-126)"),
+    (_PINF, _PINF, "sqrt(inf)"),
+    (_NINF, _QNAN, "sqrt(-inf)"),
+    (0x7F800001, _QNAN, "sqrt(sNaN)"),
+    (0xFFC00000, _QNAN, "sqrt(-qNaN)"),
+]
