@@ -1,0 +1,367 @@
+"""Seed 000 ``ins_trn_top``: the whole PL of the INS/TRN design on the Zynq-7020.
+
+Reference: seed 000 "Module Hierarchy" and "Data Flow". The blocks and how they are wired:
+
+    PS (AXI4-Lite GP0) -> ins_trn_regs (registers.rdl) -> control, configuration, status
+    ADIS16500 pins -> sensor_subsystem (spi_master_imu, DR-paced or timed; raw words) ->
+        nav_sequencer -> ins_engines (calibration, mechanization, covariance propagation,
+        altitude and TRN Kalman updates on the shared float32 units) -> shadow words ->
+        nav_output_formatter (POS/VEL/QUAT, Euler angles, NAV_FLAGS) -> registers
+    BMP390 pins -> spi_master_baro -> baro_compensation; TF-Luna RX -> uart_rx_lidar
+        (counters and error flags in the registers; docs/seed000-top.md says what the PS
+        does with the barometer and the ranger)
+    altitude_profile_manager (64 x 128-bit FIFO, DMA to DDR over an AXI4 write master)
+    interrupt_gen -> irq (IRQ_F2P); status LEDs
+
+One clock domain (``sync``, 100 MHz): the engines meet the seed's time budget at 100 MHz
+(708 cycles per IMU sample, 7.1 us of the 2.5 ms period). :class:`ZyboInsTrnTop` adds
+``clk_rst_gen`` (MMCME2_BASE 125 -> 100 MHz and the reset sequence) for the board;
+:class:`InsTrnTop` is the design a simulation or a block design clocks directly.
+
+Register fields that configure blocks whose ports differ from the map:
+
+- LIDAR_CFG.baud_div (clocks per bit, 868 for 115200 baud) -> the receiver's 16x oversampling
+  tick divider ``baud_div // 16 - 1`` (868 -> 53, the receiver's reset value; baud rates are
+  set to within one 16-clock step);
+- IMU_CFG.dr_sync selects data-ready pacing of the IMU bursts (the seed's timer otherwise);
+- COV_DIAG_k are the stored diagonal words of P (without their compensation words, which
+  are below the words' last bit); COV_POS/VEL/ATT are the square roots of P00 + P11,
+  P33 + P44 + P55 and P66 + P77 + P88 in float32, computed after every read-back.
+"""
+
+from __future__ import annotations
+
+from amaranth import Cat, Module, ResetInserter, Signal
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+from navgate.gateware.axi4 import axi4_write_signature
+from navgate.gateware.axi_lite import axi_lite_signature
+from navgate.systems.ins_trn.fp32_program import N_STATES, p_reg
+from navgate.systems.ins_trn.registers import register_map
+from navgate.systems.ins_trn.sequencer import SHADOW_WORDS, NavSequencer
+
+__all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "SigmaUnit"]
+
+#: the top's pin ports (board pins; docs/seed000-top.md)
+PIN_PORTS = ("imu_sclk", "imu_mosi", "imu_miso", "imu_cs_n", "imu_dr",
+             "baro_sclk", "baro_mosi", "baro_miso", "baro_cs_n", "lidar_rx", "lidar_tx")
+
+
+def _field(reg: str, name: str):
+    for r in register_map().registers:
+        if r.name == reg:
+            for f in r.fields:
+                if f.name == name:
+                    return f.lsb, f.width
+    raise KeyError(f"{reg}.{name}")
+
+
+def _bits(value, reg, name):
+    lsb, width = _field(reg, name)
+    return value[lsb:lsb + width]
+
+
+class SigmaUnit(wiring.Component):
+    """COV_POS/VEL/ATT: square roots of sums of P's diagonal words in float32 (one adder, one
+    iterative square root, sequential; started by ``start``, results held until the next
+    start). Sums in the order (a + b) + c."""
+
+    GROUPS = ((0, 1), (3, 4, 5), (6, 7, 8))
+
+    def __init__(self):
+        super().__init__({"start": In(1), "diag": In(32).array(N_STATES),
+                          "sigma": Out(32).array(3), "busy": Out(1)})
+        from navgate.gateware.fp32.add import Fp32Add
+        from navgate.gateware.fp32.sqrt_iter import Fp32SqrtIter
+
+        self.LATENCY = sum((len(g) - 1) * (Fp32Add.LATENCY + 1) + Fp32SqrtIter.LATENCY + 2
+                           for g in self.GROUPS)
+        self.THROUGHPUT = 1 / (self.LATENCY + 1)
+
+    def elaborate(self, platform):
+        from navgate.gateware.fp32.add import Fp32Add
+        from navgate.gateware.fp32.sqrt_iter import Fp32SqrtIter
+
+        m = Module()
+        m.submodules.add = add = Fp32Add()
+        m.submodules.sqrt = sq = Fp32SqrtIter()
+        m.d.comb += [add.o.ready.eq(1), sq.o.ready.eq(1)]
+        acc = Signal(32)
+        group = Signal(2)
+        term = Signal(2)
+        busy = Signal()
+        m.d.comb += self.busy.eq(busy)
+        steps = []  # (group, term) -> diag index added at that term
+        for gi, g in enumerate(self.GROUPS):
+            for ti, k in enumerate(g):
+                steps.append((gi, ti, k))
+        with m.FSM():
+            with m.State("IDLE"):
+                with m.If(self.start):
+                    m.d.sync += [group.eq(0), term.eq(1), acc.eq(self.diag[self.GROUPS[0][0]]),
+                                 busy.eq(1)]
+                    m.next = "ADD"
+            with m.State("ADD"):
+                m.d.comb += [add.i.valid.eq(1), add.i.payload.a.eq(acc)]
+                with m.Switch(Cat(term, group)):
+                    for gi, ti, k in steps:
+                        if ti:
+                            with m.Case(ti | gi << 2):
+                                m.d.comb += add.i.payload.b.eq(self.diag[k])
+                m.next = "ADD_WAIT"
+            with m.State("ADD_WAIT"):
+                with m.If(add.o.valid):
+                    m.d.sync += [acc.eq(add.o.payload), term.eq(term + 1)]
+                    last = Signal()
+                    with m.Switch(group):
+                        for gi, g in enumerate(self.GROUPS):
+                            with m.Case(gi):
+                                m.d.comb += last.eq(term == len(g) - 1)
+                    with m.If(last):
+                        m.next = "SQRT"
+                    with m.Else():
+                        m.next = "ADD"
+            with m.State("SQRT"):
+                m.d.comb += [sq.i.valid.eq(1), sq.i.payload.eq(acc)]
+                with m.If(sq.i.ready):
+                    m.next = "SQRT_WAIT"
+            with m.State("SQRT_WAIT"):
+                with m.If(sq.o.valid):
+                    with m.Switch(group):
+                        for gi in range(len(self.GROUPS)):
+                            with m.Case(gi):
+                                m.d.sync += self.sigma[gi].eq(sq.o.payload)
+                    with m.If(group == len(self.GROUPS) - 1):
+                        m.d.sync += busy.eq(0)
+                        m.next = "IDLE"
+                    with m.Else():
+                        m.d.sync += [group.eq(group + 1), term.eq(1)]
+                        with m.Switch(group):
+                            for gi, g in enumerate(self.GROUPS[1:]):
+                                with m.Case(gi):
+                                    m.d.sync += acc.eq(self.diag[g[0]])
+                        m.next = "ADD"
+        return m
+
+
+class InsTrnTop(wiring.Component):
+    """Seed 000's PL (module docstring): AXI4-Lite slave ``axi``, DMA master ``dma``,
+    interrupt ``irq``, sensor pins and four status LEDs, in the ``sync`` domain."""
+
+    def __init__(self, *, tick_cycles: int = 100):
+        from navgate.systems.ins_trn.engines import engine_image
+
+        self.tick_cycles = tick_cycles
+        self.image = engine_image("ins_engines")
+        regmap = register_map()
+        members = {
+            "axi": In(axi_lite_signature(regmap.address_width)),
+            "dma": Out(axi4_write_signature()),
+            "irq": Out(1),
+            "led": Out(4),
+            "imu_sclk": Out(1, init=1), "imu_mosi": Out(1), "imu_miso": In(1, init=1),
+            "imu_cs_n": Out(1, init=1), "imu_dr": In(1),
+            "baro_sclk": Out(1, init=1), "baro_mosi": Out(1), "baro_miso": In(1, init=1),
+            "baro_cs_n": Out(1, init=1),
+            "lidar_rx": In(1, init=1), "lidar_tx": Out(1, init=1),
+        }
+        super().__init__(members)
+        seq_cycles = NavSequencer(self.image).LATENCY
+        #: AXI read latency of the bank; an IMU sample's job (sequencer) in :attr:`IMU_CYCLES`
+        self.LATENCY = 2
+        self.IMU_CYCLES = seq_cycles
+        self.THROUGHPUT = 1 / seq_cycles
+
+    def elaborate(self, platform):
+        from navgate.gateware.axi_lite import AxiLiteRegisterBank
+        from navgate.systems.ins_trn.interrupts import InterruptGenerator
+        from navgate.systems.ins_trn.output_formatter import (
+            IN_FIELDS as FMT_IN,
+        )
+        from navgate.systems.ins_trn.output_formatter import (
+            OUT_WORDS,
+            REGISTER_OF,
+            NavOutputFormatter,
+        )
+        from navgate.systems.ins_trn.profile_manager import AltitudeProfileManager
+        from navgate.systems.ins_trn.sensors.sensor_subsystem import SensorSubsystem
+
+        m = Module()
+        regs = AxiLiteRegisterBank(register_map())
+        m.submodules.regs = regs
+        wiring.connect(m, wiring.flipped(self.axi), regs.axi)
+
+        ctrl = regs.o_CTRL
+        enable = _bits(ctrl, "CTRL", "enable")
+        engine_reset = _bits(ctrl, "CTRL", "reset")
+
+        # ------------------------------------------------------------ sensors
+        sensors = SensorSubsystem(self.tick_cycles, calibrate=False)
+        m.submodules.sensors = sensors
+        baud_div = _bits(regs.o_LIDAR_CFG, "LIDAR_CFG", "baud_div")
+        tick_div = Signal(8)
+        with m.If(baud_div[4:] > 256):
+            m.d.comb += tick_div.eq(255)
+        with m.Elif(baud_div[4:] != 0):
+            m.d.comb += tick_div.eq(baud_div[4:] - 1)
+        m.d.comb += [
+            self.imu_sclk.eq(sensors.imu_sclk), self.imu_mosi.eq(sensors.imu_mosi),
+            self.imu_cs_n.eq(sensors.imu_cs_n), sensors.imu_miso.eq(self.imu_miso),
+            sensors.imu_dr.eq(self.imu_dr),
+            self.baro_sclk.eq(sensors.baro_sclk), self.baro_mosi.eq(sensors.baro_mosi),
+            self.baro_cs_n.eq(sensors.baro_cs_n), sensors.baro_miso.eq(self.baro_miso),
+            sensors.lidar_rx.eq(self.lidar_rx), self.lidar_tx.eq(1),
+            sensors.imu_cfg.eq(regs.o_IMU_CFG[:10]),
+            sensors.baro_cfg.eq(regs.o_BARO_CFG[:9]),
+            sensors.lidar_cfg.eq(Cat(tick_div, _bits(regs.o_LIDAR_CFG, "LIDAR_CFG", "enable"))),
+            sensors.update_rate.eq(regs.o_UPDATE_RATE[:16]),
+            sensors.baro_rate.eq(regs.o_BARO_RATE[:16]),
+            sensors.baro.ready.eq(1), sensors.lidar.ready.eq(1),
+            regs.i_SAMPLE_COUNT.eq(sensors.imu_samples),
+            regs.i_ERROR_COUNT.eq(sensors.imu_errors + sensors.baro_errors
+                                  + sensors.lidar_errors),
+        ]
+
+        # ------------------------------------------------------------ engines
+        seq = ResetInserter(engine_reset)(NavSequencer(self.image))
+        m.submodules.sequencer = seq
+        raw = sensors.imu.payload
+        for f in ("gx", "gy", "gz", "ax", "ay", "az"):
+            m.d.comb += getattr(seq.imu.payload, f).eq(getattr(raw, f))
+        m.d.comb += [seq.imu.valid.eq(sensors.imu.valid), sensors.imu.ready.eq(seq.imu.ready),
+                     seq.enable.eq(enable & ~engine_reset)]
+        raw_regs = ("RAW_GYRO_X", "RAW_GYRO_Y", "RAW_GYRO_Z",
+                    "RAW_ACCEL_X", "RAW_ACCEL_Y", "RAW_ACCEL_Z")
+        raw_hold = [Signal(32, name=f"raw_{k}") for k in range(6)]
+        with m.If(sensors.imu.valid & sensors.imu.ready):
+            for k, f in enumerate(("gx", "gy", "gz", "ax", "ay", "az")):
+                m.d.sync += raw_hold[k].eq(getattr(raw, f))
+        for reg, hold in zip(raw_regs, raw_hold, strict=True):
+            m.d.comb += getattr(regs, f"i_{reg}").eq(hold)
+
+        m.d.comb += [
+            seq.eng_addr.eq(_bits(regs.o_ENG_ADDR, "ENG_ADDR", "addr")),
+            seq.eng_wdata.eq(regs.o_ENG_WDATA),
+            seq.eng_write.eq(_bits(regs.p_ENG_CMD, "ENG_CMD", "write")),
+            seq.eng_read.eq(_bits(regs.p_ENG_CMD, "ENG_CMD", "read")),
+            regs.i_ENG_RDATA.eq(seq.eng_rdata),
+            regs.i_ENG_STATUS.eq(Cat(seq.busy, Signal(7), seq.propagations)),
+            seq.trn_start.eq(_bits(regs.p_TRN_CTRL, "TRN_CTRL", "start")),
+            seq.alt_start.eq(_bits(regs.p_ALT_CTRL, "ALT_CTRL", "start")),
+            seq.trn_y0.eq(regs.o_TRN_POS_N), seq.trn_y1.eq(regs.o_TRN_POS_E),
+            seq.trn_r00.eq(regs.o_TRN_COV_NN), seq.trn_r01.eq(regs.o_TRN_COV_NE),
+            seq.trn_r11.eq(regs.o_TRN_COV_EE), seq.trn_lag.eq(regs.o_TRN_LAG),
+            seq.trn_gate.eq(regs.o_TRN_GATE),
+            seq.alt_h_meas.eq(regs.o_ALT_MEAS), seq.alt_r.eq(regs.o_ALT_VAR),
+            seq.alt_gate.eq(regs.o_ALT_GATE),
+            regs.i_TRN_STATUS.eq(seq.trn_status), regs.i_TRN_NIS.eq(seq.trn_nis),
+            regs.i_ALT_STATUS.eq(seq.alt_status), regs.i_ALT_NIS.eq(seq.alt_nis),
+        ]
+        shadow = {n: seq.shadow[k] for k, n in enumerate(SHADOW_WORDS)}
+        for i in range(3):
+            m.d.comb += [getattr(regs, f"i_BIAS_A{'XYZ'[i]}").eq(shadow[f"ba{i}"]),
+                         getattr(regs, f"i_BIAS_G{'XYZ'[i]}").eq(shadow[f"bg{i}"])]
+        for i in range(N_STATES):
+            m.d.comb += getattr(regs, f"i_COV_DIAG_{i}").eq(shadow[p_reg(i, i)])
+
+        # ------------------------------------------------------------ outputs
+        fmt = NavOutputFormatter()
+        m.submodules.formatter = fmt
+        fmt_pending = Signal()
+        with m.If(seq.shadow_valid):
+            m.d.sync += fmt_pending.eq(1)
+        with m.Elif(fmt.i.ready):
+            m.d.sync += fmt_pending.eq(0)
+        for f in FMT_IN:
+            src = regs.o_REF_ALT if f == "ref_alt" else shadow[f]
+            m.d.comb += getattr(fmt.i.payload, f).eq(src)
+        m.d.comb += [fmt.i.valid.eq(fmt_pending), fmt.o.ready.eq(1)]
+        for w in OUT_WORDS:
+            m.d.comb += getattr(regs, f"i_{REGISTER_OF[w]}").eq(getattr(fmt.o.payload, w))
+        m.d.comb += regs.i_NAV_FLAGS.eq(fmt.o.payload.flags)
+
+        sig = SigmaUnit()
+        m.submodules.sigma = sig
+        m.d.comb += sig.start.eq(seq.shadow_valid)
+        for i in range(N_STATES):
+            m.d.comb += sig.diag[i].eq(shadow[p_reg(i, i)])
+        m.d.comb += [regs.i_COV_POS.eq(sig.sigma[0]), regs.i_COV_VEL.eq(sig.sigma[1]),
+                     regs.i_COV_ATT.eq(sig.sigma[2])]
+
+        # ------------------------------------------------------------ profile DMA
+        prof = AltitudeProfileManager()
+        m.submodules.profile = prof
+        wiring.connect(m, prof.axi, wiring.flipped(self.dma))
+        m.d.comb += [
+            prof.entry.valid.eq(0),
+            prof.dma_start.eq(_bits(regs.p_PROF_CTRL, "PROF_CTRL", "start")),
+            prof.dma_address.eq(regs.o_PROF_ADDR),
+            prof.dma_count.eq(_bits(regs.o_PROF_COUNT, "PROF_COUNT", "count")),
+            regs.i_PROF_STATUS.eq(Cat(prof.busy, Signal(7), prof.fill)),
+        ]
+
+        # ------------------------------------------------------------ interrupts, status
+        sensor_error = Signal(3)
+        m.d.sync += sensor_error.eq(sensors.sensor_error)
+        error_event = Signal()
+        m.d.comb += error_event.eq((sensors.sensor_error & ~sensor_error).any()
+                                   | (prof.done & prof.error))
+        sticky_error = Signal()
+        with m.If(engine_reset):
+            m.d.sync += sticky_error.eq(0)
+        with m.Elif(error_event):
+            m.d.sync += sticky_error.eq(1)
+        irqgen = InterruptGenerator()
+        m.submodules.irq = irqgen
+        m.d.comb += [
+            irqgen.update_event.eq(seq.update | prof.done),
+            irqgen.error_event.eq(error_event),
+            regs.set_IRQ_STATUS.eq(irqgen.set_status),
+            irqgen.status.eq(regs.o_IRQ_STATUS[:2]),
+            irqgen.enable.eq(regs.o_IRQ_ENABLE[:2]),
+            self.irq.eq(irqgen.irq),
+            regs.i_STATUS.eq(Cat(enable & ~engine_reset, sticky_error)),
+        ]
+        trn_led = Signal(24)  # TRN update: a visible 168 ms flash
+        with m.If(seq.update & seq.trn_status[1]):
+            m.d.sync += trn_led.eq(1)
+        with m.Elif(trn_led != 0):
+            m.d.sync += trn_led.eq(trn_led + 1)
+        m.d.comb += self.led.eq(Cat(enable & ~engine_reset, sticky_error,
+                                    ~sensors.sensor_error[0] & enable, trn_led != 0))
+        return m
+
+
+class ZyboInsTrnTop(wiring.Component):
+    """:class:`InsTrnTop` with ``clk_rst_gen`` for the Digilent Zybo Z7-20: the 125 MHz
+    oscillator ``clk_in`` and the reset button ``rst_btn`` (active high) in; the AXI ports go to
+    the block design's Zynq PS7 (M_AXI_GP0 for ``axi``, S_AXI_HP0 for ``dma``, IRQ_F2P[0])."""
+
+    def __init__(self):
+        self.inner = InsTrnTop()
+        members = {"clk_in": In(1), "rst_btn": In(1)}
+        for name, member in self.inner.signature.members.items():
+            members[name] = member
+        super().__init__(members)
+        self.LATENCY = self.inner.LATENCY
+        self.THROUGHPUT = self.inner.THROUGHPUT
+
+    def elaborate(self, platform):
+        from navgate.systems.ins_trn.clocking import ClockResetGenerator
+
+        m = Module()
+        m.submodules.clk_rst = crg = ClockResetGenerator()
+        m.d.comb += [crg.clk_in.eq(self.clk_in), crg.ext_rst_n.eq(~self.rst_btn)]
+        m.submodules.top = top = self.inner
+        for name, member in top.signature.members.items():
+            if member.is_signature:
+                wiring.connect(m, getattr(top, name), wiring.flipped(getattr(self, name)))
+            elif member.flow == In:
+                m.d.comb += getattr(top, name).eq(getattr(self, name))
+            else:
+                m.d.comb += getattr(self, name).eq(getattr(top, name))
+        return m
+
+
+

@@ -1,0 +1,148 @@
+"""The navigation sequencer (ins_engines under job control) equals the fp32 engine bit for bit
+in Amaranth simulation: the PS's register loading through the window, IMU samples, an
+applied and a gate-rejected altitude update, an applied TRN update; every state register read
+back through the window, the shadow words, status, NIS, and the exact job cycles."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from amaranth.sim import Simulator
+
+from navgate.systems.ins_trn import flight
+from navgate.systems.ins_trn.fp32_engine import Fp32Engine
+from navgate.systems.ins_trn.fp32_exec import float_to_bits
+from navgate.systems.ins_trn.fp32_program import STATE_REGS
+from navgate.systems.ins_trn.navigation import flight_stream
+from navgate.systems.ins_trn.navigator import engine_setup
+from navgate.systems.ins_trn.sequencer import SHADOW_WORDS, NavSequencer, job_cycles
+from navgate.trn.dem import Dem
+
+
+@pytest.fixture(scope="module")
+def setup_and_words():
+    dem = Dem.default()
+    cfg = flight.FlightConfig(duration_s=2.0, seed=3)
+    route = flight.plan_route(dem, cfg)
+    data = flight.simulate_sensors(route, dem, cfg)
+    stream = flight_stream(data, dem, cfg, flight.initial_estimate(data, cfg))
+    return engine_setup(stream.header, cfg), stream.gyro_words[:3], stream.accel_words[:3]
+
+
+def _bits(x) -> int:
+    return int(np.float32(x).view(np.uint32))
+
+
+def test_sequencer_equals_fp32_engine(setup_and_words):
+    setup, gw, aw = setup_and_words
+    model = Fp32Engine(setup)
+    m = model.m
+    dut = NavSequencer(__import__("navgate.systems.ins_trn.engines",
+                                  fromlist=["engine_image"]).engine_image("ins_engines"))
+    addr = dut.addr
+    loads = [(a, float_to_bits(m.regs[m.index[n]]) if n in m.index else 0)
+             for n, a in addr.items() if not n.startswith("c:")]
+    gate1 = float(model._gate[1])
+    gate2 = float(model._gate[2])
+    alt_cases = [(setup.nav0[2] + 3.0, 4.0), (setup.nav0[2] + 900.0, 0.01)]  # applied, gated
+    trn = dict(y0=12.0, y1=-7.5, r00=400.0, r01=20.0, r11=300.0, lag=0.25, gate=gate2)
+    log = {}
+
+    async def bench(ctx):
+        async def wait_idle():
+            n = 0
+            while ctx.get(dut.busy) or n < 2:
+                await ctx.tick()
+                n += 1
+
+        for a, v in loads:
+            ctx.set(dut.eng_addr, a)
+            ctx.set(dut.eng_wdata, v)
+            ctx.set(dut.eng_write, 1)
+            await ctx.tick()
+            ctx.set(dut.eng_write, 0)
+            await ctx.tick().repeat(3)
+        ctx.set(dut.enable, 1)
+        cycles = []
+        for g, a in zip(gw, aw, strict=True):
+            for f, w in zip(("gx", "gy", "gz", "ax", "ay", "az"), list(g) + list(a),
+                            strict=True):
+                ctx.set(getattr(dut.imu.payload, f), int(w) & 0xFFFFFFFF)
+            ctx.set(dut.imu.valid, 1)
+            n = 0
+            while not ctx.get(dut.imu.ready):
+                await ctx.tick()
+            await ctx.tick()
+            ctx.set(dut.imu.valid, 0)
+            n = 1
+            while not ctx.get(dut.update):
+                await ctx.tick()
+                n += 1
+            cycles.append(n)
+            log.setdefault("shadow", []).append([ctx.get(dut.shadow[k])
+                                                 for k in range(len(SHADOW_WORDS))])
+        log["imu_cycles"] = cycles
+        ctx.set(dut.enable, 0)
+        for h, r in alt_cases:
+            ctx.set(dut.alt_h_meas, _bits(h))
+            ctx.set(dut.alt_r, _bits(r))
+            ctx.set(dut.alt_gate, _bits(gate1))
+            ctx.set(dut.alt_start, 1)
+            await ctx.tick()
+            ctx.set(dut.alt_start, 0)
+            n = 1
+            while not ctx.get(dut.update):
+                await ctx.tick()
+                n += 1
+            await ctx.tick()
+            log.setdefault("alt", []).append((ctx.get(dut.alt_status), ctx.get(dut.alt_nis), n))
+        for k, v in trn.items():
+            ctx.set(getattr(dut, f"trn_{k}"), _bits(v))
+        ctx.set(dut.trn_start, 1)
+        await ctx.tick()
+        ctx.set(dut.trn_start, 0)
+        n = 1
+        while not ctx.get(dut.update):
+            await ctx.tick()
+            n += 1
+        await ctx.tick()
+        log["trn"] = (ctx.get(dut.trn_status), ctx.get(dut.trn_nis), n)
+        await wait_idle()
+        got = {}
+        for name in STATE_REGS:
+            ctx.set(dut.eng_addr, addr[name])
+            ctx.set(dut.eng_read, 1)
+            await ctx.tick()
+            ctx.set(dut.eng_read, 0)
+            await ctx.tick().repeat(4)
+            got[name] = ctx.get(dut.eng_rdata)
+        log["regs"] = got
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+
+    # the model: the same calls on the fp32 engine
+    shadows = []
+    for g, a in zip(gw, aw, strict=True):
+        model.propagate(np.array([g]), np.array([a]))
+        shadows.append([float_to_bits(m.get(n)) for n in SHADOW_WORDS])
+    assert log["shadow"] == shadows
+    img = dut.image
+    assert log["imu_cycles"] == [job_cycles(img, "imu")] * 3 == [710] * 3
+    outcomes = [model._update("baro", "alt_gate", "alt_apply", 1, h_meas=h, r=r)
+                for h, r in alt_cases]
+    assert outcomes[0].accepted and not outcomes[1].accepted
+    assert log["alt"][0][0] == 0b010 and log["alt"][1][0] == 0b110
+    for (_status, nis, n), out, applied in zip(log["alt"], outcomes, (True, False), strict=True):
+        assert nis == _bits(out.nis)
+        assert n == job_cycles(img, "alt", applied)
+    out = model.update_trn(np.array([trn["y0"], trn["y1"]]),
+                           np.array([[trn["r00"], trn["r01"]], [trn["r01"], trn["r11"]]]),
+                           trn["lag"])
+    assert out.accepted and log["trn"][0] == 0b010 and log["trn"][1] == _bits(out.nis)
+    assert log["trn"][2] == job_cycles(img, "trn")
+    want = {n: float_to_bits(m.get(n)) for n in STATE_REGS}
+    diff = [n for n in STATE_REGS if want[n] != log["regs"][n]]
+    assert not diff, diff[:8]
