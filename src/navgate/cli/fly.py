@@ -34,6 +34,22 @@ def _positive_float(ctx, param, value):
     return value
 
 
+def _simulation_errors() -> tuple:
+    """The gateware co-simulations' own failures (a Verilator build or run that failed)."""
+    from navgate.gateware.native_stream import NativeStreamError
+    from navgate.systems.ins_trn.rtl_engine import RtlError
+
+    errors = [NativeStreamError, RtlError]
+    try:
+        from navgate.gateware.native_axi import NativeAxiError
+        from navgate.systems.ins_trn.fpga_sim import FpgaSimError
+
+        errors += [NativeAxiError, FpgaSimError]
+    except ImportError:  # pragma: no cover
+        pass
+    return tuple(errors)
+
+
 @click.command()
 @click.option("--dem", "dem_path", type=click.Path(dir_okay=True), default=None,
               help="DEM file (GeoTIFF, DTED .dt0/.dt1/.dt2, SRTM .hgt; geographic CRS). "
@@ -53,12 +69,13 @@ def _positive_float(ctx, param, value):
 @click.option("--trn", "trn_method", type=click.Choice(["pmf", "tercom"]), default="pmf",
               show_default=True,
               help="TRN method: point-mass filter or batch TERCOM (docs/trn.md compares them).")
-@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl"]), default="reference",
-              show_default=True,
-              help="PL engine: float64 reference, the float32 bit-true model, or the "
-                   "ins_engines gateware in Verilator (equal to fp32 bit for bit; about a "
-                   "minute per flight second); with fp32/rtl the reference flies too, for "
-                   "the comparison in summary.json.")
+@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl", "fpga-sim"]),
+              default="reference", show_default=True,
+              help="PL engine: float64 reference, the float32 bit-true model, the "
+                   "ins_engines gateware in Verilator, or the whole FPGA (ins_trn_top, IMU on "
+                   "its SPI pins, the PS through AXI registers) in Verilator; rtl and "
+                   "fpga-sim equal fp32 bit for bit. With fp32/rtl/fpga-sim the reference "
+                   "flies too, for the comparison in summary.json.")
 @click.option("--record", "record_path", type=click.Path(dir_okay=False), default=None,
               help="Also write the sensor record stream to this log file (navgate replay).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")
@@ -79,6 +96,9 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
         raise CliError(f"--speed must be between 5 and 400 m/s, got {speed:g}")
     if seed < 0:
         raise CliError(f"--seed must be non-negative, got {seed}")
+    if engine == "fpga-sim" and ideal_sensors:
+        raise CliError("--engine fpga-sim needs the IMU's int16 output words, which "
+                       "--ideal-sensors does not produce")
     try:
         dem = Dem.default() if dem_path is None else Dem.from_file(dem_path)
     except DemError as error:
@@ -107,9 +127,12 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
             *columns, TimeElapsedColumn(), console=console, disable=quiet,
             transient=False) as bar:
         task = bar.add_task("simulating sensors", total=total)
-        result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
-                            stage=lambda s: bar.update(task, description=s), route=route,
-                            engine=engine)
+        try:
+            result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
+                                stage=lambda s: bar.update(task, description=s), route=route,
+                                engine=engine)
+        except _simulation_errors() as error:
+            raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
         bar.update(task, description="writing report", completed=total)
         summary = result.summary()
         summary["wall_time_s"] = time.perf_counter() - start

@@ -91,13 +91,25 @@ def build_block(
     out_dir = Path(out_dir)
     say(f"{name}: elaborating and emitting Verilog")
     component = block.factory()
+    board = TARGETS[target].board
+    for_target = getattr(component, "for_target", None)
+    if board is not None and for_target is not None:
+        component = for_target(board)  # the board variant (its clocking and pins)
     text = emit_verilog(component, name)
     (out_dir / f"{name}.v").write_text(text)
     description = describe_block(component, name, block.description, text)
-    # a component may carry more deliverables (a register bank: its C header and docs)
+    description["target"] = target
+    # a component may carry more deliverables (a register bank: its C header and docs; a top
+    # level on a board target: its constraints and filelist)
     artifacts = getattr(component, "write_artifacts", None)
     if artifacts is not None:
-        description["artifacts"] = sorted(p.name for p in artifacts(out_dir, name))
+        import inspect
+
+        if "target" in inspect.signature(artifacts).parameters:
+            made = artifacts(out_dir, name, target=target)
+        else:
+            made = artifacts(out_dir, name)
+        description["artifacts"] = sorted(p.name for p in made)
     _write_json(out_dir / f"{name}.json", description)
     with tempfile.TemporaryDirectory(prefix=f"navgate-{name}-") as scratch:
         work = out_dir / "work" / name if keep_work else Path(scratch)

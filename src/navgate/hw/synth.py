@@ -58,6 +58,9 @@ class Target:
     part: str
     #: available resources (Zynq-7000 SoC overview DS190, Z-7020 column)
     capacity: dict[str, int] = field(default_factory=dict)
+    #: a board target: the block may build its board variant (clocking, pins) and write the
+    #: board's constraints (``for_target`` / ``write_artifacts`` of the component)
+    board: str | None = None
 
 
 TARGETS: dict[str, Target] = {
@@ -66,6 +69,15 @@ TARGETS: dict[str, Target] = {
         "xc7",
         "xc7z020clg400-1",
         {"lut": 53200, "ff": 106400, "dsp": 220, "carry4": 13300, "bram36": 140},
+    ),
+    # the Digilent Zybo Z7-20 carries the same part; a block that knows the board (ins_trn_top)
+    # adds its clocking and writes the XDC and a filelist
+    "zybo-z7-20": Target(
+        "zybo-z7-20",
+        "xc7",
+        "xc7z020clg400-1",
+        {"lut": 53200, "ff": 106400, "dsp": 220, "carry4": 13300, "bram36": 140},
+        board="zybo-z7-20",
     ),
 }
 

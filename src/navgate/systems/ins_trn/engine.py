@@ -230,6 +230,9 @@ ENGINES: dict[str, tuple[str, str]] = {
                    "fp32 without the Kahan position compensation (measurement only)"),
     "rtl": ("navgate.systems.ins_trn.rtl_engine:RtlEngine",
             "the ins_engines gateware in Verilator (equals fp32 bit for bit; slow)"),
+    "fpga-sim": ("navgate.systems.ins_trn.fpga_sim:FpgaSimEngine",
+                 "the whole ins_trn_top in Verilator, IMU on its SPI pins, PS through AXI "
+                 "registers (equals fp32 bit for bit)"),
 }
 
 

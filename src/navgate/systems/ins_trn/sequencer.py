@@ -142,6 +142,12 @@ class NavSequencer(wiring.Component):
         propagations = Signal(24)
         m.d.comb += [self.alt_status.eq(alt_status), self.trn_status.eq(trn_status),
                      self.propagations.eq(propagations)]
+        # a start strobe shows busy at once (not done), so that a status poll right after the
+        # start never sees the previous update's done
+        with m.If(self.alt_start):
+            m.d.sync += alt_status.eq(0b001)
+        with m.If(self.trn_start):
+            m.d.sync += trn_status.eq(0b001)
         m.d.sync += [self.update.eq(0), self.shadow_valid.eq(0)]
 
         # write lists: (register address, source) per job and step
@@ -189,7 +195,7 @@ class NavSequencer(wiring.Component):
         n_shadow = len(SHADOW_WORDS)
 
         m.d.comb += core.host_wdata.eq(wdata)
-        with m.FSM():
+        with m.FSM() as fsm:
             with m.State("IDLE"):
                 m.d.sync += step.eq(0)
                 with m.If(req["write"]):
@@ -289,5 +295,5 @@ class NavSequencer(wiring.Component):
                     m.d.sync += self.update.eq(1)
                 m.next = "IDLE"
         m.d.comb += self.busy.eq(req["write"] | req["read"] | req["trn"] | req["alt"]
-                                 | core.busy)
+                                 | ~fsm.ongoing("IDLE"))
         return m

@@ -1,0 +1,295 @@
+"""The ``fpga-sim`` engine: the whole of seed 000's PL (``ins_trn_top``) in Verilator, driven
+by the PS side through its AXI4-Lite registers, with the IMU on its SPI pins.
+
+Reference: seed 000 "System Architecture" / "Data Flow". The co-simulation top
+(:class:`InsTrnSimTop`) is ``ins_trn_top`` with an ADIS16500 emulator in HDL on its IMU pins
+(:class:`navgate.systems.ins_trn.sensors.adis16500_emulator.Adis16500Emulator`): the IMU words
+of the flight's record stream are pushed into the emulator, which raises data-ready and
+answers the top's burst reads bit by bit; ``spi_master_imu`` (data-ready paced, IMU_CFG.dr_sync)
+checks the checksum and hands the raw words to the sequencer, which runs the ``propagate``
+program on the engines. Python stays out of the per-cycle path: the model runs in a
+persistent native Verilator process (:class:`navgate.gateware.native_axi.NativeAxiSim`) that
+takes batches of bus commands.
+
+The PS side is the ``fp32`` engine's (:class:`Fp32Engine`), talking to the PL only through
+registers:
+
+- set-up: the engine registers (calibration, noise, initial state, P0) through the engine
+  register window (ENG_ADDR/ENG_WDATA/ENG_CMD), the reference point (REF_*), IMU_CFG
+  (fastest SCLK, data-ready pacing, enabled), IRQ_ENABLE.update, CTRL.enable;
+- IMU samples: pushed into the emulator; the PS waits until ENG_STATUS counts them
+  (propagations) and the sequencer is idle;
+- altitude and TRN updates: ALT_* / TRN_* registers (the fix as the innovation, its
+  covariance, lag and chi-square gate), the start strobe, then the update interrupt
+  (IRQ_STATUS, read to clear), the status and NIS registers; the gate flags and the
+  correction words through the window;
+- state reads (``read_nav``, ``read_cov_diag``, ...): the raw state and compensation words
+  through the window (the PS recovers geodetic position in float64 from them, as with the
+  ``fp32`` engine), cached until the next engine job.
+
+The result equals the ``fp32`` engine's bit for bit (tests/systems/ins_trn/test_fpga_sim.py).
+Not through the PL in this engine: the altitude profile (kept by the PS, as the ``fp32``
+engine keeps it: the profile manager's DMA is verified on its own), and the barometer and
+ranger values (the record stream's, written by the PS; docs/seed000-top.md).
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+from amaranth import Module
+from amaranth.lib import stream, wiring
+from amaranth.lib.wiring import In, Out
+
+from navgate.gateware.axi_lite import axi_lite_signature
+from navgate.systems.ins_trn.engine import EngineSetup, UpdateOutcome
+from navgate.systems.ins_trn.fp32_engine import Fp32Engine
+from navgate.systems.ins_trn.fp32_exec import float_to_bits, to_f32
+from navgate.systems.ins_trn.fp32_program import N_STATES, NAV_REGS, p_reg
+from navgate.systems.ins_trn.registers import register_map
+
+__all__ = ["InsTrnSimTop", "FpgaSimEngine", "FpgaSimError"]
+
+
+class FpgaSimError(RuntimeError):
+    """The co-simulation failed or answered unexpectedly."""
+
+
+def _sample_layout():
+    from navgate.systems.ins_trn.sensors.adis16500_emulator import SAMPLE_LAYOUT
+
+    return SAMPLE_LAYOUT
+
+
+class InsTrnSimTop(wiring.Component):
+    """``ins_trn_top`` with an ADIS16500 emulator on its IMU pins (``imu_feed``: the samples),
+    the DMA master answered by an always-ready sink, the barometer and ranger lines idle."""
+
+    def __init__(self):
+        from navgate.systems.ins_trn.top import InsTrnTop
+
+        self.top = InsTrnTop()
+        super().__init__({
+            "axi": In(axi_lite_signature(register_map().address_width)),
+            "imu_feed": In(stream.Signature(_sample_layout())),
+            "irq": Out(1),
+        })
+
+    def elaborate(self, platform):
+        from navgate.systems.ins_trn.sensors.adis16500_emulator import Adis16500Emulator
+
+        m = Module()
+        m.submodules.top = top = self.top
+        m.submodules.imu = emu = Adis16500Emulator()
+        wiring.connect(m, wiring.flipped(self.axi), top.axi)
+        wiring.connect(m, wiring.flipped(self.imu_feed), emu.samples)
+        m.d.comb += [
+            emu.sclk.eq(top.imu_sclk), emu.mosi.eq(top.imu_mosi), emu.cs_n.eq(top.imu_cs_n),
+            top.imu_miso.eq(emu.miso | ~emu.miso_oe), top.imu_dr.eq(emu.dr),
+            top.baro_miso.eq(1), top.lidar_rx.eq(1), self.irq.eq(top.irq),
+        ]
+        # DMA sink: always ready, one OKAY response per burst
+        dma = top.dma
+        m.submodules.dma_sink = sink = _BSink()
+        m.d.comb += [dma.awready.eq(1), dma.wready.eq(1), sink.last.eq(dma.wvalid & dma.wlast),
+                     sink.ready.eq(dma.bready), dma.bvalid.eq(sink.valid), dma.bresp.eq(0),
+                     dma.bid.eq(0)]
+        return m
+
+
+class _BSink(wiring.Component):
+    last: In(1)
+    ready: In(1)
+    valid: Out(1)
+
+    def elaborate(self, platform):
+        m = Module()
+        with m.If(self.last):
+            m.d.sync += self.valid.eq(1)
+        with m.Elif(self.ready):
+            m.d.sync += self.valid.eq(0)
+        return m
+
+
+#: state words the navigator reads at every log row and ranger record, fetched in one batch
+HOT_WORDS = (NAV_REGS + ("cN", "cE", "cD", "cvN", "cvE", "cvD", "cq0", "cq1", "cq2", "cq3")
+             + tuple(p_reg(i, i) for i in range(N_STATES))
+             + tuple("c" + p_reg(i, i) for i in range(N_STATES))
+             + (p_reg(0, 1), "c" + p_reg(0, 1)))
+
+
+class _WindowMachine:
+    """The PS's view of the engine registers through the window, shaped like the part of
+    ``fp32_exec.Machine`` the ``fp32`` engine's read methods use (``get``, ``set``)."""
+
+    def __init__(self, engine: FpgaSimEngine, ps_machine):
+        self.e = engine
+        self.ps = ps_machine  # the PS's set-up values (register names and the index)
+        self.cache: dict[str, float] = {}
+
+    def __getattr__(self, name):
+        return getattr(self.ps, name)
+
+    def get(self, name: str) -> float:
+        if name not in self.cache:
+            names = [n for n in HOT_WORDS if n not in self.cache] if name in HOT_WORDS \
+                else [name]
+            for n, bits in zip(names, self.e.window_read(names), strict=True):
+                self.cache[n] = float(np.uint32(bits).view(np.float32))
+        return self.cache[name]
+
+    def set(self, name: str, value: float) -> None:
+        v = to_f32(value)
+        self.e.window_write([(name, float_to_bits(v))])
+        self.cache[name] = v
+
+
+class FpgaSimEngine(Fp32Engine):
+    """The whole PL in Verilator behind the PlEngine interface (module docstring)."""
+
+    name = "fpga-sim"
+
+    def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
+        super().__init__(setup, check_pd=False)
+        from navgate.gateware.native_axi import NativeAxiSim
+        from navgate.systems.ins_trn.engines import engine_image
+
+        self.image = engine_image("ins_engines")
+        self.addr = self.image.layout.fixed
+        self.off = {r.name: r.offset for r in register_map().registers}
+        self.sim = NativeAxiSim(InsTrnSimTop(), streams=("imu_feed",), watch=("irq",))
+        self._finalizer = weakref.finalize(self, self.sim.close)
+        self.propagations = 0
+        self.interrupts = 0
+        self._load()
+        self.m = _WindowMachine(self, self.m)
+
+    # -- bus ------------------------------------------------------------------------------------
+    def _w(self, reg: str, value: int) -> str:
+        return f"W {self.off[reg]:x} {int(value) & 0xFFFFFFFF:x} f"
+
+    def _batch(self, cmds: list[str]) -> list[str]:
+        from navgate.gateware.native_axi import NativeAxiError
+
+        try:
+            out = self.sim.batch(cmds)
+        except NativeAxiError as exc:
+            raise FpgaSimError(str(exc)) from None
+        bad = [c for c, t in zip(cmds, out, strict=True)
+               if (c[0] == "W" and t != "0") or (c[0] == "R" and "/" in t)]
+        if bad:
+            raise FpgaSimError(f"bus error on {bad[0]!r}")
+        return out
+
+    def _wait_idle(self) -> str:
+        return f"P {self.off['ENG_STATUS']:x} 1 0 100000"
+
+    def window_write(self, items) -> None:
+        cmds = []
+        for name, bits in items:
+            cmds += [self._w("ENG_ADDR", self.addr[name]), self._w("ENG_WDATA", bits),
+                     self._w("ENG_CMD", 1)]
+        cmds.append(self._wait_idle())
+        self._batch(cmds)
+
+    def window_read(self, names) -> list[int]:
+        cmds = []
+        for name in names:
+            a = self.addr[name] if isinstance(name, str) else int(name)
+            cmds += [self._w("ENG_ADDR", a), self._w("ENG_CMD", 2), self._wait_idle(),
+                     f"R {self.off['ENG_RDATA']:x}"]
+        out = self._batch(cmds)
+        return [int(out[4 * k + 3], 16) for k in range(len(names))]
+
+    def _load(self):
+        ps = self.m
+        items = [(n, float_to_bits(ps.regs[ps.index[n]]) if n in ps.index else 0)
+                 for n in self.addr if not n.startswith("c:")]
+        ref = self.setup.reference
+        cmds = [self._w("CTRL", 0)]
+        for name, bits in items:
+            cmds += [self._w("ENG_ADDR", self.addr[name]), self._w("ENG_WDATA", bits),
+                     self._w("ENG_CMD", 1)]
+        cmds += [self._w("REF_LAT", float_to_bits(ref.lat0)),
+                 self._w("REF_LON", float_to_bits(ref.lon0)),
+                 self._w("REF_ALT", float_to_bits(ref.h0)),
+                 self._w("IMU_CFG", 0 | 1 << 8 | 1 << 9),  # fastest SCLK, enabled, DR-paced
+                 self._w("IRQ_ENABLE", 1),
+                 self._w("CTRL", 1),
+                 self._wait_idle()]
+        self._batch(cmds)
+
+    # -- engine calls -----------------------------------------------------------------------------
+    def propagate(self, gyro_words, accel_words) -> None:
+        gw = np.asarray(gyro_words).reshape(-1, 3)
+        aw = np.asarray(accel_words).reshape(-1, 3)
+        words = np.concatenate([gw, aw], axis=1)
+        if not (np.all(np.isfinite(words)) and np.all(words == np.round(words))
+                and words.min(initial=0) >= -32768 and words.max(initial=0) <= 32767):
+            raise FpgaSimError("the fpga-sim engine needs the IMU's int16 output words "
+                               "(the ideal sensors' float words have no SPI encoding)")
+        from navgate.gateware import verify as V
+
+        fmt = self.sim.formats["imu_feed"]
+        w = words.astype(np.int64)
+        n = w.shape[0]
+        packed = V.pack(fmt, {"gx": w[:, 0], "gy": w[:, 1], "gz": w[:, 2], "ax": w[:, 3],
+                              "ay": w[:, 4], "az": w[:, 5], "temp": np.zeros(n, np.int64),
+                              "diag": np.zeros(n, np.int64)})
+        self.propagations += n
+        target = (self.propagations & 0xFFFFFF) << 8
+        cmds = [f"S 0 {int(p):x}" for p in packed]
+        cmds.append(f"P {self.off['ENG_STATUS']:x} ffffff01 {target:x} {4000 * n + 100000}")
+        self._batch(cmds)
+        self.m.cache.clear()
+        self.samples += n
+
+    def _update(self, kind, gate_key, apply_key, dof, **inputs) -> UpdateOutcome:
+        gate = self._gate[dof]
+        if dof == 1:
+            regs = {"ALT_MEAS": inputs["h_meas"], "ALT_VAR": inputs["r"], "ALT_GATE": gate}
+            ctrl, status, nis_reg = "ALT_CTRL", "ALT_STATUS", "ALT_NIS"
+        else:
+            regs = {"TRN_POS_N": inputs["y0"], "TRN_POS_E": inputs["y1"],
+                    "TRN_COV_NN": inputs["r00"], "TRN_COV_NE": inputs["r01"],
+                    "TRN_COV_EE": inputs["r11"], "TRN_LAG": inputs["lag"], "TRN_GATE": gate}
+            ctrl, status, nis_reg = "TRN_CTRL", "TRN_STATUS", "TRN_NIS"
+        cmds = [f"R {self.off['IRQ_STATUS']:x}"]  # clear pending (read to clear)
+        cmds += [self._w(r, float_to_bits(to_f32(v))) for r, v in regs.items()]
+        cmds += [self._w(ctrl, 1), "Q 0 100000", f"R {self.off['IRQ_STATUS']:x}",
+                 f"R {self.off[status]:x}", f"R {self.off[nis_reg]:x}"]
+        out = self._batch(cmds)
+        irq_status, st, nis_bits = (int(t, 16) for t in out[-3:])
+        if not irq_status & 1 or st & 0b011 != 0b010:
+            raise FpgaSimError(f"{ctrl}: no update interrupt or not done "
+                               f"(IRQ_STATUS {irq_status:#x}, {status} {st:#x})")
+        self.interrupts += 1
+        nis = float(np.uint32(nis_bits).view(np.float32))
+        outs = self.image.output_addr(gate_key)
+        if st & 0b100:
+            positive = self.window_read([outs["positive"]])[0]
+            self._count(self.rejected, kind)
+            reason = ("innovation covariance not positive" if positive != 0x3F800000
+                      else "rejected by chi-square gate")
+            return UpdateOutcome(False, nis, np.zeros(15), reason)
+        self.m.cache.clear()
+        dx_addr = self.image.output_addr(apply_key)
+        dx = self.window_read([dx_addr[f"dx{i}"] for i in range(15)])
+        self._count(self.accepted, kind)
+        return UpdateOutcome(True, nis,
+                             np.array([float(np.uint32(b).view(np.float32)) for b in dx]))
+
+    def read_cov(self):
+        p = np.empty((15, 15))
+        for i in range(15):
+            for j in range(i, 15):
+                p[i, j] = p[j, i] = self._p(i, j)
+        return p
+
+    @property
+    def cycles(self) -> int:
+        return self.sim.cycles
+
+    def close(self):
+        self._finalizer()
