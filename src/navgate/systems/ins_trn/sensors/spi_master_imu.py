@@ -18,8 +18,13 @@ half period (>= the data sheet's 200 ns for any SCLK up to 2.5 MHz); the chip se
 between bursts for the rest of the sample period, which must be >= tSTALL (16 us) - true for
 any UPDATE_RATE above the 176 us burst + 16 us at 1 MHz.
 
-Clock domains: everything runs in ``sync`` (seed: clk_sys, 100 MHz); MISO is the only
-asynchronous input and passes the PHY's two-flip-flop synchroniser.
+Data-ready mode (navgate extension, ``cfg_dr_sync`` = IMU_CFG[9], default 0): a burst starts
+at each rising edge of the ``dr`` pin (the ADIS16500's DR output; the data sheet recommends
+reading the burst after data ready) and the UPDATE_RATE timer is unused. With
+``cfg_dr_sync`` = 0 the ``dr`` pin is ignored and everything is as above.
+
+Clock domains: everything runs in ``sync`` (seed: clk_sys, 100 MHz); MISO and DR are the
+asynchronous inputs and each passes a two-flip-flop synchroniser (MISO inside the PHY path).
 """
 
 from __future__ import annotations
@@ -71,7 +76,7 @@ class SpiMasterImu(wiring.Component):
             "sclk": Out(1, init=1), "mosi": Out(1), "miso": In(1, init=1),
             "cs_n": Out(1, init=1),
             "cfg_spi_div": In(8, init=DEFAULT_DIV), "cfg_enable": In(1, init=1),
-            "cfg_rate": In(16, init=DEFAULT_RATE),
+            "cfg_rate": In(16, init=DEFAULT_RATE), "dr": In(1), "cfg_dr_sync": In(1),
             "o": Out(stream.Signature(SAMPLE_LAYOUT)),
             "sensor_error": Out(1), "sample_count": Out(counter_bits),
             "error_count": Out(counter_bits),
@@ -99,7 +104,7 @@ class SpiMasterImu(wiring.Component):
         with m.If(tick):
             m.d.sync += pre.eq(0)
             with m.If(ticks + 1 >= self.cfg_rate):
-                m.d.sync += [ticks.eq(0), fire.eq(self.cfg_enable)]
+                m.d.sync += [ticks.eq(0), fire.eq(self.cfg_enable & ~self.cfg_dr_sync)]
             with m.Else():
                 m.d.sync += ticks.eq(ticks + 1)
 
@@ -144,4 +149,13 @@ class SpiMasterImu(wiring.Component):
                     m.d.sync += [self.error_count.eq(self.error_count + 1),
                                  self.sensor_error.eq(1)]
                 m.next = "IDLE"
+
+        # data-ready mode: a burst per rising edge of the synchronised DR (after the FSM so
+        # that an edge in the cycle a burst starts is kept for the next burst)
+        dr = Signal()
+        dr_d = Signal()
+        m.submodules.dr_sync = FFSynchronizer(self.dr, dr, init=0, stages=2)
+        m.d.sync += dr_d.eq(dr)
+        with m.If(self.cfg_dr_sync & self.cfg_enable & dr & ~dr_d):
+            m.d.sync += fire.eq(1)
         return m
