@@ -15,6 +15,7 @@ import pytest
 from amaranth import Cat, Const, Module, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
+from amaranth.sim import Simulator
 
 from navgate.gateware.axi_lite import AxiLiteRegisterBank, axi_lite_signature
 from navgate.gateware.native_axi import (
@@ -47,17 +48,34 @@ M32 = 0xFFFFFFFF
 
 
 class AccumulatorTop(wiring.Component):
-    """Register bank + ``feed`` stream (ready every other cycle) + ``irq``."""
+    """Register bank + ``feed`` stream (ready every other cycle) + ``irq``, and ``bad``: a
+    sticky flag of the master's rules (a valid dropped, or its payload changed, before the
+    handshake on AW, W, AR or ``feed``)."""
 
     def __init__(self, regmap):
         self.regmap = regmap
         super().__init__({"axi": In(axi_lite_signature(regmap.address_width)),
-                          "feed": In(stream.Signature(PAYLOAD)), "irq": Out(1)})
+                          "feed": In(stream.Signature(PAYLOAD)), "irq": Out(1),
+                          "bad": Out(1)})
+
+    def monitor(self, m):
+        axi, feed = self.axi, self.feed
+        channels = ((axi.awvalid, axi.awready, Cat(axi.awaddr, axi.awprot)),
+                    (axi.wvalid, axi.wready, Cat(axi.wdata, axi.wstrb)),
+                    (axi.arvalid, axi.arready, Cat(axi.araddr, axi.arprot)),
+                    (feed.valid, feed.ready, feed.payload.as_value()))
+        for valid, ready, payload in channels:
+            pending = Signal()
+            held = Signal(len(payload))
+            m.d.sync += [pending.eq(valid & ~ready), held.eq(payload)]
+            with m.If(pending & (~valid | (payload != held))):
+                m.d.sync += self.bad.eq(1)
 
     def elaborate(self, platform):
         m = Module()
         m.submodules.bank = bank = AxiLiteRegisterBank(self.regmap)
         wiring.connect(m, wiring.flipped(self.axi), bank.axi)
+        self.monitor(m)
         total, count, check = Signal(32), Signal(32), Signal(32)
         cool = Signal()
         p = self.feed.payload
@@ -116,7 +134,14 @@ def top(regmap):
 
 
 def new_sim(top, **kw):
-    return NativeAxiSim(top, streams=("feed",), watch=("irq",), top="axisim_test", **kw)
+    return NativeAxiSim(top, streams=("feed",), watch=("irq", "bad"), top="axisim_test",
+                        **kw)
+
+
+def assert_rules_kept(sim):
+    """The monitor's ``bad`` flag is low (waiting 0 cycles for it times out)."""
+    with pytest.raises(NativeAxiError, match="wait for output 1 timed out"):
+        sim.wait("bad", limit=0)
 
 
 def test_exact_cycles_of_a_fixed_sequence(top, regmap):
@@ -206,6 +231,7 @@ def test_stream_order_poll_wait_and_timeouts(top):
         assert sim.read(0x18) == 1 and sim.read(0x18) == 0   # EVENT: set once, read-clear
         sim.write(0x14, 1)                         # CMD.clear
         assert sim.read(0xC) == 0 and sim.read(0x8) == 0
+        assert_rules_kept(sim)
 
 
 def test_wait_counts_exact_cycles(top):
@@ -219,7 +245,7 @@ def test_bad_batches_and_a_wedged_model(top):
     with new_sim(top) as sim:
         for bad, why in ((["X 1"], "unknown command 'X'"), (["W 0 1"], "needs 3 arguments"),
                          (["W 0 1 10"], "bad arguments"), (["S 1 0"], "bad arguments"),
-                         (["S 0 " + "f" * 21], "bad arguments"), (["Q 1 5"], "bad arguments")):
+                         (["S 0 " + "f" * 21], "bad arguments"), (["Q 2 5"], "bad arguments")):
             with pytest.raises(NativeAxiError, match=why):
                 sim.batch(["W 0 5 f", *bad])
         assert sim.read(0x0) == 0x01020304 and sim.cycles == 2  # nothing ran
@@ -267,11 +293,34 @@ def test_random_channel_delays_give_the_same_answers(top, regmap, options):
 
     with new_sim(top) as sim:
         plain, plain_cycles = play(sim)
+        assert_rules_kept(sim)
     with new_sim(top, **options) as sim:
         delayed, delayed_cycles = play(sim)
+        assert_rules_kept(sim)
     assert delayed == plain
     assert delayed_cycles > plain_cycles
     assert sum(1 for r in plain if r == SLVERR or (isinstance(r, tuple) and r[1])) > 5
+
+
+def test_monitor_catches_a_dropped_valid(regmap):
+    """The rule monitor of the test top can fire (Amaranth simulation of a bad master)."""
+    dut = AccumulatorTop(regmap)
+    seen = []
+
+    async def bench(ctx):
+        ctx.set(dut.axi.awvalid, 1)      # taken at the first edge: the AW buffer fills
+        await ctx.tick()
+        await ctx.tick()                 # a second AW waits (awready low) ...
+        seen.append(ctx.get(dut.bad))
+        ctx.set(dut.axi.awvalid, 0)      # ... and is withdrawn: a rule violation
+        await ctx.tick()
+        seen.append(ctx.get(dut.bad))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    sim.add_testbench(bench)
+    sim.run()
+    assert seen == [0, 1]
 
 
 def test_registers_driver_and_deferred_batches(top, regmap):
@@ -305,3 +354,4 @@ def test_registers_driver_and_deferred_batches(top, regmap):
                 sim.write(0x0, 7)
                 sim.write(0x3C, 7)
         assert sim.read(0x0) == 7                          # the writes before it happened
+        assert_rules_kept(sim)
