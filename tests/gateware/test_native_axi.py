@@ -355,3 +355,23 @@ def test_registers_driver_and_deferred_batches(top, regmap):
                 sim.write(0x3C, 7)
         assert sim.read(0x0) == 7                          # the writes before it happened
         assert_rules_kept(sim)
+
+
+def test_a_bare_bank_without_streams_or_watched_outputs(top, regmap):
+    with pytest.raises(NativeAxiError, match="has no port 'imu'"):
+        NativeAxiSim(top, streams=("imu",))
+    with pytest.raises(NativeAxiError, match="'feed' is not a 1-bit output"):
+        NativeAxiSim(top, watch=("feed",))
+    with pytest.raises(NativeAxiError, match="'irq' is not an input stream"):
+        NativeAxiSim(top, streams=("irq",))
+    with pytest.raises(NativeAxiError, match="addr_width 8 != the component's 6"):
+        NativeAxiSim(top, addr_width=8)
+    with NativeAxiSim(AxiLiteRegisterBank(regmap), top="axisim_bank") as sim:
+        regs = Registers(regmap, NativeAxiBus(sim))
+        regs.write("THRESH", 0x123456)
+        assert regs.read("THRESH") == 0x123456 and regs.read("ID") == 0xA5150001
+        assert sim.cycles == 3 + 2 + 2
+        with pytest.raises(NativeAxiError, match="no stream 'feed'"):
+            sim.push("feed", 1)
+        with pytest.raises(NativeAxiError, match="output 'irq' is not watched"):
+            sim.wait("irq")
