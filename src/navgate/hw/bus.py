@@ -8,8 +8,10 @@ byte offsets from the bank's base). Transports here:
 * :class:`DevMemBus` - ``/dev/mem`` mapped with ``mmap`` on a Zynq running Linux (root needed);
 * :class:`PynqBus` - ``pynq.MMIO`` on a PYNQ image (``pynq`` is imported only when used).
 
-The co-simulation transport (a cocotb AXI4-Lite master on the Verilated bank) lives with the
-co-simulation tests, since it runs inside the simulator.
+The co-simulation transports live with the simulators: a cocotb AXI4-Lite master on the
+Verilated bank (:mod:`navgate.gateware.axi_lite_cocotb`, inside the simulator) and
+:class:`navgate.gateware.native_axi.NativeAxiBus` (batched commands to a native Verilator
+process running the whole top).
 """
 
 from __future__ import annotations
