@@ -68,6 +68,11 @@ BLOCKS: dict[str, tuple[str, str]] = {
                        "seed 003 INS_euler: Euler angles (3.1.7), own units"),
     "attitude_atan": ("navgate.systems.attitude.units:AtanCircuit",
                       "seed 003 fix16 arctangent (3.1.8): float32->Q2.13->CORDIC->float32"),
+    # Seed 000's whole PL (navgate.systems.ins_trn.top, docs/seed000-top.md); with
+    # --target zybo-z7-20 the board variant (MMCM clocking) plus XDC and filelist
+    "ins_trn_top": ("navgate.systems.ins_trn.top:InsTrnTop",
+                    "seed 000 ins_trn_top: registers, sensors, sequencer, engines, formatter, "
+                    "profile DMA, interrupts"),
     # Seed 000's PL engines (navgate.systems.ins_trn.engines): the banked scheduled float32
     # datapath (navgate.gateware.banked, docs/seed000-engines.md)
     "ins_engines": ("navgate.systems.ins_trn.engines:InsEngines",

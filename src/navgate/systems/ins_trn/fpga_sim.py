@@ -99,9 +99,10 @@ class InsTrnSimTop(wiring.Component):
 
 
 class _BSink(wiring.Component):
-    last: In(1)
-    ready: In(1)
-    valid: Out(1)
+    """B channel of the DMA sink: one response after each burst's last beat."""
+
+    def __init__(self):
+        super().__init__({"last": In(1), "ready": In(1), "valid": Out(1)})
 
     def elaborate(self, platform):
         m = Module()

@@ -39,7 +39,7 @@ from navgate.gateware.axi4 import axi4_write_signature
 from navgate.gateware.axi_lite import axi_lite_signature
 from navgate.systems.ins_trn.fp32_program import N_STATES, p_reg
 from navgate.systems.ins_trn.registers import register_map
-from navgate.systems.ins_trn.sequencer import SHADOW_WORDS, NavSequencer
+from navgate.systems.ins_trn.sequencer import SHADOW_WORDS, NavSequencer, job_cycles
 
 __all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "SigmaUnit"]
 
@@ -181,7 +181,7 @@ class InsTrnTop(wiring.Component):
             "lidar_rx": In(1, init=1), "lidar_tx": Out(1, init=1),
         }
         super().__init__(members)
-        seq_cycles = NavSequencer(self.image).LATENCY
+        seq_cycles = job_cycles(self.image, "imu")
         #: AXI read latency of the bank; an IMU sample's job (sequencer) in :attr:`IMU_CYCLES`
         self.LATENCY = 2
         self.IMU_CYCLES = seq_cycles
@@ -326,10 +326,16 @@ class InsTrnTop(wiring.Component):
         ]
 
         # ------------------------------------------------------------ interrupts, status
+        # errors of the enabled sensors only (a disabled ranger times out, by design)
+        enabled = Cat(_bits(regs.o_IMU_CFG, "IMU_CFG", "enable"),
+                      _bits(regs.o_BARO_CFG, "BARO_CFG", "enable"),
+                      _bits(regs.o_LIDAR_CFG, "LIDAR_CFG", "enable"))
+        live_error = Signal(3)
         sensor_error = Signal(3)
-        m.d.sync += sensor_error.eq(sensors.sensor_error)
+        m.d.comb += live_error.eq(sensors.sensor_error & enabled)
+        m.d.sync += sensor_error.eq(live_error)
         error_event = Signal()
-        m.d.comb += error_event.eq((sensors.sensor_error & ~sensor_error).any()
+        m.d.comb += error_event.eq((live_error & ~sensor_error).any()
                                    | (prof.done & prof.error))
         sticky_error = Signal()
         with m.If(engine_reset):

@@ -1,0 +1,178 @@
+"""The whole FPGA in the loop: ``ins_trn_top`` in Verilator (IMU words through an ADIS16500
+emulator onto its SPI pins, the PS through AXI4-Lite registers) equals the fp32 engine bit
+for bit over a 60 s flight of the default mission with altitude and TRN updates; then the
+top's output registers against their bit-true models, every register of the SystemRDL source
+through the driver, and SLVERR for unmapped offsets."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from navgate.hw.regmap import Registers
+from navgate.numerics.fp32 import fp32_add, fp32_sqrt
+from navgate.systems.ins_trn import flight
+from navgate.systems.ins_trn.engine import make_engine
+from navgate.systems.ins_trn.fp32_exec import float_to_bits
+from navgate.systems.ins_trn.fp32_program import N_STATES, STATE_REGS, p_reg
+from navgate.systems.ins_trn.navigation import flight_stream
+from navgate.systems.ins_trn.navigator import Navigator, engine_setup
+from navgate.systems.ins_trn.output_formatter import (
+    OUT_WORDS,
+    REGISTER_OF,
+    STATE_WORDS,
+    formatter_bittrue,
+)
+from navgate.systems.ins_trn.registers import ID_VALUE, register_map
+from navgate.systems.ins_trn.top import SigmaUnit
+from navgate.trn.dem import Dem
+
+
+def _same_registers(a, b):
+    diff = [n for n in STATE_REGS
+            if float_to_bits(a.m.get(n)) != float_to_bits(b.m.get(n))
+            and not (math.isnan(a.m.get(n)) and math.isnan(b.m.get(n)))]
+    assert not diff, diff[:8]
+
+
+def _fly(duration, seed=1):
+    dem = Dem.default()
+    cfg = flight.FlightConfig(duration_s=duration, seed=seed)
+    route = flight.plan_route(dem, cfg)
+    data = flight.simulate_sensors(route, dem, cfg)
+    stream = flight_stream(data, dem, cfg, flight.initial_estimate(data, cfg))
+    runs, engs = {}, {}
+    for name in ("fp32", "fpga-sim"):
+        eng = make_engine(name, engine_setup(stream.header, cfg))
+        nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=True)
+        runs[name], engs[name] = nav.run(stream), eng
+    a, b = runs["fp32"], runs["fpga-sim"]
+    assert np.array_equal(a.nav, b.nav) and np.array_equal(a.sigma, b.sigma)
+    assert np.array_equal(a.p_ne, b.p_ne)
+    assert a.accepted == b.accepted and a.rejected == b.rejected
+    assert [f["applied"] for f in a.fixes] == [f["applied"] for f in b.fixes]
+    _same_registers(engs["fp32"], engs["fpga-sim"])
+    return stream, a, engs
+
+
+def _directed_updates(engs):
+    """Applied, rejected by the gate, singular S: outcomes and every register equal."""
+    cases = [((3.0, -2.0), np.diag([25.0, 25.0]), 0.05),
+             ((5000.0, 4000.0), np.diag([1.0, 1.0]), 0.0),
+             ((1.0, 1.0), np.full((2, 2), 1e12), 0.0)]
+    reasons = []
+    for y, cov, lag in cases:
+        a = engs["fp32"].update_trn(np.array(y), cov, lag)
+        b = engs["fpga-sim"].update_trn(np.array(y), cov, lag)
+        assert a.accepted == b.accepted and a.reason == b.reason
+        assert float_to_bits(a.nis) == float_to_bits(b.nis) or (
+            math.isnan(a.nis) and math.isnan(b.nis))
+        assert np.array_equal(a.correction, b.correction)
+        reasons.append(a.reason if not a.accepted else "applied")
+        _same_registers(engs["fp32"], engs["fpga-sim"])
+    assert reasons[0] == "applied" and "gate" in reasons[1] and "positive" in reasons[2]
+
+
+def _output_registers(eng, regs: Registers, n_samples: int, last_words):
+    """The formatted outputs, sigmas, diagonal, biases and counters of the top."""
+    g = {n: float_to_bits(eng.m.get(n)) for n in STATE_WORDS}
+    g["ref_alt"] = float_to_bits(eng.setup.reference.h0)
+    want = formatter_bittrue({k: np.array([v], np.uint32) for k, v in g.items()})
+    for w in OUT_WORDS:
+        assert regs.read(REGISTER_OF[w]) == int(want[w][0]), w
+    assert regs.read("NAV_FLAGS") == int(want["flags"][0])
+    diag = [float_to_bits(eng.m.get(p_reg(i, i))) for i in range(N_STATES)]
+    for k in range(N_STATES):
+        assert regs.read(f"COV_DIAG_{k}") == diag[k]
+    for reg, group in zip(("COV_POS", "COV_VEL", "COV_ATT"), SigmaUnit.GROUPS, strict=True):
+        acc = np.uint32(diag[group[0]])
+        for k in group[1:]:
+            acc = fp32_add(acc, np.uint32(diag[k]))
+        assert regs.read(reg) == int(fp32_sqrt(acc)), reg
+    for i, axis in enumerate("XYZ"):
+        assert regs.read(f"BIAS_A{axis}") == float_to_bits(eng.m.get(f"ba{i}"))
+        assert regs.read(f"BIAS_G{axis}") == float_to_bits(eng.m.get(f"bg{i}"))
+    assert regs.read("SAMPLE_COUNT") == n_samples
+    assert regs.read("ERROR_COUNT") == 0
+    assert regs.read_fields("ENG_STATUS") == {"busy": 0, "propagations": n_samples}
+    assert regs.read_fields("STATUS") == {"running": 1, "error": 0}
+    raw = ("RAW_GYRO_X", "RAW_GYRO_Y", "RAW_GYRO_Z", "RAW_ACCEL_X", "RAW_ACCEL_Y", "RAW_ACCEL_Z")
+    for reg, w in zip(raw, last_words, strict=True):
+        assert regs.read(reg) == int(w) & 0xFFFFFFFF
+
+
+def _error_interrupt(regs: Registers, sim):
+    """A missing ranger, once enabled, times out: the error interrupt fires, IRQ_STATUS.error
+    is read to clear, STATUS.error stays set until CTRL.reset."""
+    regs.read("IRQ_STATUS")
+    regs.write("IRQ_ENABLE", update=0, error=1)
+    # 32 clocks a bit: the receiver's timeout (2304 bit times, free-running) expires within
+    # 73,728 cycles of enabling it
+    regs.write("LIDAR_CFG", baud_div=32, enable=1)
+    waited = sim.wait("irq", limit=200_000)
+    assert waited <= 2304 * 32 + 16, waited
+    assert regs.read_fields("IRQ_STATUS")["error"] == 1
+    assert regs.read_fields("IRQ_STATUS")["error"] == 0  # read to clear
+    assert regs.read_fields("STATUS")["error"] == 1
+    regs.write("LIDAR_CFG", baud_div=868, enable=0)
+    regs.write("CTRL", enable=1, reset=1)
+    regs.write("CTRL", enable=1, reset=0)
+    assert regs.read_fields("STATUS") == {"running": 1, "error": 0}
+
+
+def _every_register(regs: Registers):
+    """Every register of the map read (OKAY) and every software-writable one written and read
+    back through the driver; write-1 strobes read 0; unmapped offsets answer SLVERR."""
+    regmap = register_map()
+    rng = np.random.default_rng(5)
+    assert regs.read("ID") == ID_VALUE
+    regs.write("CTRL", 0)  # stop the pipeline first: writes below must not start anything
+    skip_write = {"CTRL", "ENG_CMD", "TRN_CTRL", "ALT_CTRL", "CAL_APPLY", "PROF_CTRL"}
+    for reg in regmap.registers:
+        value = regs.read(reg.name)
+        if reg.pulse_mask:
+            assert value & reg.pulse_mask == 0, reg.name
+        if reg.sw_write_mask and reg.name not in skip_write:
+            v = int(rng.integers(0, 2**32)) & reg.sw_write_mask
+            regs.write(reg.name, v)
+            assert regs.read(reg.name) & reg.sw_write_mask == v, reg.name
+    # strobes: a profile DMA of 0 entries completes at once, CAL_APPLY is accepted
+    regs.write("PROF_COUNT", 0)
+    regs.write("PROF_CTRL", start=1)
+    regs.write("CAL_APPLY", apply=1)
+    assert regs.read_fields("PROF_STATUS") == {"busy": 0, "count": 0}
+    mapped = {r.offset for r in regmap.registers}
+    unmapped = [o for o in range(0, 1 << regmap.address_width, 4) if o not in mapped]
+    for off in unmapped[:: max(1, len(unmapped) // 64)]:
+        with pytest.raises(OSError, match="SLVERR"):
+            regs.bus.read(off)
+        with pytest.raises(OSError, match="SLVERR"):
+            regs.bus.write(off, 0)
+
+
+def test_fpga_sim_equals_fp32_60s_flight():
+    """Issue 12's target: 60 s of the default mission with the whole FPGA in the loop."""
+    from navgate.gateware.native_axi import NativeAxiBus
+
+    stream, run, engs = _fly(60.0)
+    eng = engs["fpga-sim"]
+    assert sum(run.accepted.values()) > 10 and eng.interrupts > 10
+    n = round(60.0 * 400)
+    assert eng.samples == n
+    regs = Registers(register_map(), NativeAxiBus(eng.sim))
+    last = list(stream.gyro_words[-1]) + list(stream.accel_words[-1])
+    _output_registers(eng, regs, n, last)
+    _directed_updates(engs)
+    _error_interrupt(regs, eng.sim)
+    _every_register(regs)
+    eng.close()
+
+
+@pytest.mark.slow
+def test_fpga_sim_equals_fp32_whole_default_flight():
+    """The whole 10-minute default flight through the whole FPGA, bit for bit."""
+    _, run, engs = _fly(600.0, seed=0)
+    assert sum(run.accepted.values()) > 100
+    engs["fpga-sim"].close()
