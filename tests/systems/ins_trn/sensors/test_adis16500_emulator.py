@@ -162,6 +162,7 @@ def test_dr_mode_default_divider():
     assert res["bursts"] == 3 and res["error_count"] == 0
     lat = [v - c for c, v in zip(res["cs_fall_at"], res["valid_at"], strict=True)]
     assert lat == [BURST_LATENCY] * 3
+    assert list(np.diff(res["cs_fall_at"])) == [burst_cycles(49) + 8] * 2  # back to back
 
 
 @pytest.mark.parametrize("div", [MIN_DIV, 49])
