@@ -107,6 +107,17 @@ def test_timer_mode_with_underruns(div):
     assert res["sensor_error"] == 0  # cleared by the next good burst
 
 
+def test_dr_mode_switched_on_while_samples_wait():
+    """Samples queued in the emulator (DR high) before IMU_CFG.dr_sync is set, the timer too
+    slow to fire: setting dr_sync starts a burst (the gated DR edge), and the bursts then
+    drain the queue; before it, nothing is read."""
+    samples = _samples(4, seed=6)
+    res = run_imu_emulated(samples, div=MIN_DIV, dr_sync=1, rate=60000, dr_sync_at=3000,
+                           cycles=3000 + 4 * DR_PERIOD_MIN + 50)
+    assert res["cs_fall_at"][0] > 3000
+    assert res["got"] == _expected(samples) and res["error_count"] == 0
+
+
 def test_dr_mode_ignores_timer_and_timer_mode_ignores_dr():
     """DR mode with a fast timer: bursts only when samples are pushed (no underruns);
     timer mode with samples always waiting (DR high): one burst per timer period only."""

@@ -126,7 +126,7 @@ class ImuEmulatorPair(Elaboratable):
 
 
 def run_imu_emulated(samples, *, div, dr_sync, rate=0, cycles, gaps=None, push_after=None,
-                     tick_cycles=1):
+                     tick_cycles=1, dr_sync_at=0):
     """Adis16500Emulator -> pins -> SpiMasterImu (``cfg_spi_div`` = ``div``, data-ready mode if
     ``dr_sync``, else the timer with period ``rate``) at 100 MHz.
 
@@ -134,7 +134,8 @@ def run_imu_emulated(samples, *, div, dr_sync, rate=0, cycles, gaps=None, push_a
     (``gaps[k]`` idle cycles before sample k; a sample waits while the emulator's FIFO is
     full) and collect the master's output for ``cycles``. ``push_after`` = (cycle, samples): a
     second batch pushed from that cycle on. Returns the samples delivered, their cycles, the
-    CS_N falling cycles, push cycles and the counters of both sides."""
+    CS_N falling cycles, push cycles and the counters of both sides. ``dr_sync_at``: the
+    cycle at which ``cfg_dr_sync`` is set to ``dr_sync`` (0 until then)."""
     top = ImuEmulatorPair(SpiMasterImu(tick_cycles=tick_cycles))
     emu, mst = top.emu, top.master
     sim = Simulator(top)
@@ -173,11 +174,13 @@ def run_imu_emulated(samples, *, div, dr_sync, rate=0, cycles, gaps=None, push_a
 
     async def main(ctx):
         ctx.set(mst.cfg_spi_div, div)
-        ctx.set(mst.cfg_dr_sync, dr_sync)
         if rate:
             ctx.set(mst.cfg_rate, rate)
         ctx.set(mst.o.ready, 1)
-        await ctx.tick().repeat(cycles)
+        if dr_sync_at:
+            await ctx.tick().repeat(dr_sync_at)
+        ctx.set(mst.cfg_dr_sync, dr_sync)
+        await ctx.tick().repeat(cycles - dr_sync_at)
         res.update({n: ctx.get(getattr(emu, n)) for n in ("bursts", "underruns", "dropped")})
         res.update({n: ctx.get(getattr(mst, n)) for n in
                     ("sample_count", "error_count", "sensor_error")})
