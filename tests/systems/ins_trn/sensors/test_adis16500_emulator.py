@@ -7,24 +7,21 @@ are all-zero bursts that the master counts as errors."""
 import numpy as np
 import pytest
 from amaranth.hdl import Elaboratable, Module, Signal
-from amaranth.lib import stream, wiring
-from amaranth.lib.wiring import In, Out
 from amaranth.sim import Simulator
 
 from navgate.devices import adis16500 as A
 from navgate.gateware.verify import verify
 from navgate.systems.ins_trn.sensors.adis16500_emulator import (
     MIN_HALF,
-    SAMPLE_LAYOUT,
     Adis16500Emulator,
+    Adis16500Loopback,
 )
 from navgate.systems.ins_trn.sensors.sensor_subsystem import IMU_LAYOUT, SensorSubsystem
+from navgate.systems.ins_trn.sensors.sim_bench import run_imu_emulated
 from navgate.systems.ins_trn.sensors.spi_master_imu import (
     BURST_LATENCY,
-    SpiMasterImu,
     burst_cycles,
 )
-from navgate.systems.ins_trn.sensors.spi_master_imu import SAMPLE_LAYOUT as MASTER_LAYOUT
 
 FIELDS = ("gx", "gy", "gz", "ax", "ay", "az", "temp", "diag")
 MIN_DIV = MIN_HALF - 1  # cfg_spi_div 2: SCLK half period 3 cycles
@@ -42,84 +39,6 @@ def _samples(n, seed):
     return out[:n]
 
 
-class _Pair(Elaboratable):
-    """Emulator and master connected pin to pin, with a cycle counter."""
-
-    def __init__(self, master):
-        self.emu = Adis16500Emulator()
-        self.master = master
-        self.cycles = Signal(48)
-
-    def elaborate(self, platform):
-        m = Module()
-        m.submodules.emu = emu = self.emu
-        m.submodules.master = mst = self.master
-        m.d.comb += [emu.sclk.eq(mst.sclk), emu.mosi.eq(mst.mosi), emu.cs_n.eq(mst.cs_n),
-                     mst.miso.eq(emu.miso), mst.dr.eq(emu.dr)]
-        m.d.sync += self.cycles.eq(self.cycles + 1)
-        return m
-
-
-def _run(samples, *, div, dr_sync, rate=0, cycles, gaps=None, push_after=None, seed=0,
-         tick_cycles=1):
-    """Push ``samples`` into the emulator (``gaps[k]`` idle cycles before sample k; a sample
-    waits while the emulator's FIFO is full) and collect the master's output for ``cycles``.
-    ``push_after`` = (cycle, samples): a second batch pushed from that cycle on."""
-    top = _Pair(SpiMasterImu(tick_cycles=tick_cycles))
-    emu, mst = top.emu, top.master
-    sim = Simulator(top)
-    sim.add_clock(1e-8)
-    res = {"got": [], "valid_at": [], "cs_fall_at": [], "push_at": []}
-
-    async def push(ctx, batch, g):
-        for k, s in enumerate(batch):
-            await ctx.tick().repeat(max(1, g[k]))
-            ctx.set(emu.samples.payload, s)
-            ctx.set(emu.samples.valid, 1)
-            await ctx.tick().until(emu.samples.ready)
-            res["push_at"].append(ctx.get(top.cycles) - 1)
-            ctx.set(emu.samples.valid, 0)
-
-    async def pusher(ctx):
-        await push(ctx, samples, gaps or [1] * len(samples))
-        if push_after is not None:
-            at, batch = push_after
-            await ctx.tick().repeat(max(1, at - ctx.get(top.cycles)))
-            await push(ctx, batch, [1] * len(batch))
-
-    async def collect(ctx):
-        async for (_v,) in ctx.posedge(mst.o.valid):
-            while True:
-                res["valid_at"].append(ctx.get(top.cycles))
-                res["got"].append({n: ctx.get(getattr(mst.o.payload, n))
-                                   for n in FIELDS + ("cntr",)})
-                await ctx.tick()
-                if not ctx.get(mst.o.valid):
-                    break
-
-    async def cs(ctx):
-        async for (_c,) in ctx.negedge(mst.cs_n):
-            res["cs_fall_at"].append(ctx.get(top.cycles))
-
-    async def main(ctx):
-        ctx.set(mst.cfg_spi_div, div)
-        ctx.set(mst.cfg_dr_sync, dr_sync)
-        if rate:
-            ctx.set(mst.cfg_rate, rate)
-        ctx.set(mst.o.ready, 1)
-        await ctx.tick().repeat(cycles)
-        res.update({n: ctx.get(getattr(emu, n)) for n in ("bursts", "underruns", "dropped")})
-        res.update({n: ctx.get(getattr(mst, n)) for n in
-                    ("sample_count", "error_count", "sensor_error")})
-
-    sim.add_testbench(pusher, background=True)
-    sim.add_testbench(collect, background=True)
-    sim.add_testbench(cs, background=True)
-    sim.add_testbench(main)
-    sim.run()
-    return res
-
-
 def _expected(samples, first_cntr=1):
     return [s | {"cntr": (first_cntr + k) & 0xFFFF} for k, s in enumerate(samples)]
 
@@ -130,6 +49,7 @@ DR_LATENCY_MIN = burst_cycles(MIN_DIV) + 2
 #: the DR round trip: emulator CS_N synchroniser + edge (3), DR register (1), master DR
 #: synchroniser + edge (3), the FSM's IDLE -> CS_N low (1)
 DR_PERIOD_MIN = burst_cycles(MIN_DIV) + 8
+assert (DR_LATENCY_MIN, DR_PERIOD_MIN) == (1094, 1100)  # the figures in the docs
 
 
 def test_dr_mode_minimum_divider_random_samples():
@@ -140,7 +60,8 @@ def test_dr_mode_minimum_divider_random_samples():
     samples = _samples(n, seed=11)
     rng = np.random.default_rng(12)
     gaps = [int(g) for g in rng.choice([1, 3, 400, 1500, 2500], n)]
-    res = _run(samples, div=MIN_DIV, dr_sync=1, cycles=sum(gaps) + n * 1200 + 2000, gaps=gaps)
+    res = run_imu_emulated(samples, div=MIN_DIV, dr_sync=1, cycles=sum(gaps) + n * 1200 + 2000,
+                           gaps=gaps)
     assert res["got"] == _expected(samples)
     assert res["bursts"] == n and res["underruns"] == 0 and res["dropped"] == 0
     assert res["sample_count"] == n and res["error_count"] == 0 and res["sensor_error"] == 0
@@ -157,11 +78,12 @@ def test_dr_mode_default_divider():
     """cfg_spi_div 49 (the 100 MHz default, 1 MHz SCLK): three samples, the master's
     documented BURST_LATENCY from CS_N falling to the sample."""
     samples = _samples(3, seed=5)
-    res = _run(samples, div=49, dr_sync=1, cycles=3 * 18300 + 200)
+    res = run_imu_emulated(samples, div=49, dr_sync=1, cycles=3 * 18300 + 200)
     assert res["got"] == _expected(samples)
     assert res["bursts"] == 3 and res["error_count"] == 0
     lat = [v - c for c, v in zip(res["cs_fall_at"], res["valid_at"], strict=True)]
     assert lat == [BURST_LATENCY] * 3
+    assert list(np.diff(res["cs_fall_at"])) == [burst_cycles(49) + 8] * 2  # back to back
 
 
 @pytest.mark.parametrize("div", [MIN_DIV, 49])
@@ -176,7 +98,7 @@ def test_timer_mode_with_underruns(div):
     # 4 of the first fill the emulator FIFO before the first timer burst (at `rate`), the
     # other 2 follow as bursts pop; bursts 7 and 8 underrun; the second batch arrives just
     # before burst 9 and bursts 9..13 serve 5 of it
-    res = _run(first, div=div, dr_sync=0, rate=rate, cycles=13 * rate + burst + 50,
+    res = run_imu_emulated(first, div=div, dr_sync=0, rate=rate, cycles=13 * rate + burst + 50,
                push_after=(9 * rate - 50, second))
     assert len(res["cs_fall_at"]) == 13
     assert res["got"] == _expected(first) + _expected(second[:5], first_cntr=7)
@@ -185,14 +107,26 @@ def test_timer_mode_with_underruns(div):
     assert res["sensor_error"] == 0  # cleared by the next good burst
 
 
+def test_dr_mode_switched_on_while_samples_wait():
+    """Samples queued in the emulator (DR high) before IMU_CFG.dr_sync is set, the timer too
+    slow to fire: setting dr_sync starts a burst (the gated DR edge), and the bursts then
+    drain the queue; before it, nothing is read."""
+    samples = _samples(4, seed=6)
+    res = run_imu_emulated(samples, div=MIN_DIV, dr_sync=1, rate=60000, dr_sync_at=3000,
+                           cycles=3000 + 4 * DR_PERIOD_MIN + 50)
+    assert res["cs_fall_at"][0] > 3000
+    assert res["got"] == _expected(samples) and res["error_count"] == 0
+
+
 def test_dr_mode_ignores_timer_and_timer_mode_ignores_dr():
     """DR mode with a fast timer: bursts only when samples are pushed (no underruns);
     timer mode with samples always waiting (DR high): one burst per timer period only."""
     samples = _samples(2, seed=3)
-    res = _run(samples, div=MIN_DIV, dr_sync=1, rate=200, cycles=6000, gaps=[1, 3000])
+    res = run_imu_emulated(samples, div=MIN_DIV, dr_sync=1, rate=200, cycles=6000, gaps=[1, 3000])
     assert len(res["cs_fall_at"]) == 2 and res["underruns"] == 0
     assert res["got"] == _expected(samples)
-    res = _run(_samples(4, seed=4), div=MIN_DIV, dr_sync=0, rate=1500, cycles=4 * 1500 - 10)
+    res = run_imu_emulated(_samples(4, seed=4), div=MIN_DIV, dr_sync=0, rate=1500,
+                           cycles=4 * 1500 - 10)
     assert len(res["cs_fall_at"]) == 3  # at 1500, 3000, 4500 (not at DR)
     assert res["got"] == _expected(_samples(4, seed=4))[:3]
 
@@ -216,7 +150,7 @@ class _PhyBench(Elaboratable):
         return m
 
 
-def _phy_run(push, transactions):
+def _phyrun_imu_emulated(push, transactions):
     """Push samples, then run transactions (lists of words sent, CS_N low around each);
     returns the words read, DR before/during/after each, and the emulator's counters."""
     b = _PhyBench()
@@ -264,7 +198,7 @@ def test_burst_words_equal_the_device_encoder():
     transaction and high after it only while samples are waiting."""
     samples = _samples(2, seed=31)
     burst = [A.BURST_CMD] + [0] * A.BURST_WORDS
-    out = _phy_run(samples, [burst, burst, burst])
+    out = _phyrun_imu_emulated(samples, [burst, burst, burst])
     for k, s in enumerate(samples):
         want = A.burst_words([s["gx"], s["gy"], s["gz"]], [s["ax"], s["ay"], s["az"]],
                              s["temp"], s["diag"], k + 1)
@@ -278,7 +212,7 @@ def test_other_commands_drop_the_sample():
     """A transaction whose command is not 0x6800 (a PROD_ID read) reads zeros and drops the
     sample popped at CS_N falling; the next burst serves the next sample with DATA_CNTR 1."""
     samples = _samples(2, seed=32)
-    out = _phy_run(samples, [[A.REG["PROD_ID"] << 8, 0, 0], [A.BURST_CMD] + [0] * 10])
+    out = _phyrun_imu_emulated(samples, [[A.REG["PROD_ID"] << 8, 0, 0], [A.BURST_CMD] + [0] * 10])
     assert out["words"][0] == [0, 0, 0]
     s = samples[1]
     want = A.burst_words([s["gx"], s["gy"], s["gz"]], [s["ax"], s["ay"], s["az"]],
@@ -345,27 +279,6 @@ def test_sensor_subsystem_raw_words_end_to_end():
     assert exp[0]["gx"] == 0xFFFF8000 and exp[1]["gx"] == 0x7FFF  # sign extension checked
 
 
-class _Loopback(wiring.Component):
-    """Emulator -> pins -> SpiMasterImu (DR mode, cfg_spi_div ``div``) as one stream block for
-    the verify harness: ``i`` = the emulator's samples, ``o`` = the master's FIFO output."""
-
-    def __init__(self, div):
-        self.div = div
-        super().__init__({"i": In(stream.Signature(SAMPLE_LAYOUT)),
-                          "o": Out(stream.Signature(MASTER_LAYOUT))})
-
-    def elaborate(self, platform):
-        m = Module()
-        m.submodules.emu = emu = Adis16500Emulator()
-        m.submodules.master = mst = SpiMasterImu(tick_cycles=1)
-        m.d.comb += [emu.sclk.eq(mst.sclk), emu.mosi.eq(mst.mosi), emu.cs_n.eq(mst.cs_n),
-                     mst.miso.eq(emu.miso), mst.dr.eq(emu.dr), mst.cfg_dr_sync.eq(1),
-                     mst.cfg_spi_div.eq(self.div)]
-        wiring.connect(m, wiring.flipped(self.i), emu.samples)
-        wiring.connect(m, mst.o, wiring.flipped(self.o))
-        return m
-
-
 def _loopback_model(seen):
     n = len(seen["gx"])
     return {f: seen[f] for f in FIELDS} | {"cntr": (np.arange(n) + 1) & 0xFFFF}
@@ -379,7 +292,7 @@ def _loopback_inputs(n, seed):
 def test_loopback_amaranth_with_gaps_and_stalls():
     """The same loopback through the verify harness in Amaranth: random input gaps and
     output stalls (the master's 16-deep FIFO absorbs them)."""
-    res = verify(_Loopback(MIN_DIV), _loopback_model, _loopback_inputs(24, seed=41),
+    res = verify(Adis16500Loopback(MIN_DIV), _loopback_model, _loopback_inputs(24, seed=41),
                  valid_prob=0.3, ready_prob=0.5, seed=2)
     assert res.n_vectors == 24 and res.n_mismatches == 0, res
 
@@ -387,7 +300,9 @@ def test_loopback_amaranth_with_gaps_and_stalls():
 def test_loopback_verilator(tmp_path):
     """Emitted Verilog of emulator + master (DR mode, minimum divider) in Verilator: 200
     samples (extremes + random) out of the master exactly as pushed in, DATA_CNTR 1..200."""
-    res = verify(_Loopback(MIN_DIV), _loopback_model, _loopback_inputs(200, seed=42),
+    dut = Adis16500Loopback(MIN_DIV)
+    assert (dut.LATENCY, 1 / dut.THROUGHPUT) == (DR_LATENCY_MIN, DR_PERIOD_MIN)
+    res = verify(dut, _loopback_model, _loopback_inputs(200, seed=42),
                  backend="verilator", work_dir=tmp_path)
     assert res.n_vectors == 200 and res.n_mismatches == 0, res
     assert res.cycles >= 200 * DR_PERIOD_MIN

@@ -62,6 +62,8 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.devices import adis16500
 
+from .spi_master_imu import SAMPLE_LAYOUT as MASTER_SAMPLE_LAYOUT
+from .spi_master_imu import SpiMasterImu, burst_cycles
 from .spi_phy import MIN_HALF as _MASTER_MIN_HALF
 
 #: the samples' layout (int16 words as the part outputs them; DIAG_STAT unsigned)
@@ -79,6 +81,10 @@ PIN_DELAY = SYNC_STAGES + 1
 MIN_HALF = 3
 assert MIN_HALF == _MASTER_MIN_HALF
 FIFO_DEPTH = 4
+#: CS_N rising (master) to the next CS_N falling in SpiMasterImu's data-ready mode while
+#: samples are waiting: emulator CS_N synchroniser + edge (3), DR register (1), master DR
+#: synchroniser + edge (3), master FSM idle -> CS_N low (1)
+DR_ROUND_TRIP = PIN_DELAY + 1 + 3 + 1
 
 
 class Adis16500Emulator(wiring.Component):
@@ -172,4 +178,30 @@ class Adis16500Emulator(wiring.Component):
                 with m.Elif(word <= adis16500.BURST_WORDS):
                     m.d.sync += [word.eq(word + 1), sr.eq(load),
                                  csum.eq(csum + load[:8] + load[8:])]
+        return m
+
+
+class Adis16500Loopback(wiring.Component):
+    """Emulator -> pins -> SpiMasterImu (DR mode, cfg_spi_div ``div``) as one stream block
+    (a test and co-simulation fixture for the verify harness): ``i`` = the emulator's
+    samples, ``o`` = the master's FIFO output (spi_master_imu.SAMPLE_LAYOUT)."""
+
+    def __init__(self, div: int = MIN_HALF - 1):
+        self.div = div
+        #: CS_N falling to the sample out (1,094 at cfg_spi_div 2; asserted in the tests)
+        self.LATENCY = burst_cycles(div) + 2
+        #: samples waiting: one per burst + DR round trip (1,100 cycles at cfg_spi_div 2)
+        self.THROUGHPUT = Fraction(1, burst_cycles(div) + DR_ROUND_TRIP)
+        super().__init__({"i": In(stream.Signature(SAMPLE_LAYOUT)),
+                          "o": Out(stream.Signature(MASTER_SAMPLE_LAYOUT))})
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.emu = emu = Adis16500Emulator()
+        m.submodules.master = mst = SpiMasterImu(tick_cycles=1)
+        m.d.comb += [emu.sclk.eq(mst.sclk), emu.mosi.eq(mst.mosi), emu.cs_n.eq(mst.cs_n),
+                     mst.miso.eq(emu.miso), mst.dr.eq(emu.dr), mst.cfg_dr_sync.eq(1),
+                     mst.cfg_spi_div.eq(self.div)]
+        wiring.connect(m, wiring.flipped(self.i), emu.samples)
+        wiring.connect(m, mst.o, wiring.flipped(self.o))
         return m

@@ -6,17 +6,22 @@ and the model (served samples, timing violations). The clock frequency is a para
 design counts cycles, the models check seconds, so a run at a scaled-down clock with a
 proportionally smaller divider checks the same timing with fewer simulated cycles (the
 default-configuration run at 100 MHz is in the tests too).
+
+:func:`run_imu_emulated` runs SpiMasterImu against the gateware ADIS16500 emulator instead
+(pins only between the two; the testbench only pushes samples and collects the output).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from amaranth.hdl import Elaboratable, Module, Signal
 from amaranth.sim import Simulator
 
 from navgate.devices import adis16500, bmp390, tfluna
 from navgate.devices.bench import CycleCounter, spi_slave_testbench, uart_source_testbench
 
+from .adis16500_emulator import Adis16500Emulator
 from .spi_master_baro import SpiMasterBaro
 from .spi_master_imu import SpiMasterImu
 from .uart_rx_lidar import UartRxLidar
@@ -97,6 +102,95 @@ def _run_spi(dut, model, cycles, clk_hz, div, rate, names, ready):
     sim.add_testbench(main)
     sim.run()
     return run
+
+
+IMU_FIELDS = ("gx", "gy", "gz", "ax", "ay", "az", "temp", "diag", "cntr")
+
+
+class ImuEmulatorPair(Elaboratable):
+    """Emulator and master connected pin to pin, with a cycle counter."""
+
+    def __init__(self, master):
+        self.emu = Adis16500Emulator()
+        self.master = master
+        self.cycles = Signal(48)
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.emu = emu = self.emu
+        m.submodules.master = mst = self.master
+        m.d.comb += [emu.sclk.eq(mst.sclk), emu.mosi.eq(mst.mosi), emu.cs_n.eq(mst.cs_n),
+                     mst.miso.eq(emu.miso), mst.dr.eq(emu.dr)]
+        m.d.sync += self.cycles.eq(self.cycles + 1)
+        return m
+
+
+def run_imu_emulated(samples, *, div, dr_sync, rate=0, cycles, gaps=None, push_after=None,
+                     tick_cycles=1, dr_sync_at=0):
+    """Adis16500Emulator -> pins -> SpiMasterImu (``cfg_spi_div`` = ``div``, data-ready mode if
+    ``dr_sync``, else the timer with period ``rate``) at 100 MHz.
+
+    Push ``samples`` (dicts of the emulator's SAMPLE_LAYOUT fields) into the emulator
+    (``gaps[k]`` idle cycles before sample k; a sample waits while the emulator's FIFO is
+    full) and collect the master's output for ``cycles``. ``push_after`` = (cycle, samples): a
+    second batch pushed from that cycle on. Returns the samples delivered, their cycles, the
+    CS_N falling cycles, push cycles and the counters of both sides. ``dr_sync_at``: the
+    cycle at which ``cfg_dr_sync`` is set to ``dr_sync`` (0 until then)."""
+    top = ImuEmulatorPair(SpiMasterImu(tick_cycles=tick_cycles))
+    emu, mst = top.emu, top.master
+    sim = Simulator(top)
+    sim.add_clock(1e-8)
+    res = {"got": [], "valid_at": [], "cs_fall_at": [], "push_at": []}
+
+    async def push(ctx, batch, g):
+        for k, s in enumerate(batch):
+            await ctx.tick().repeat(max(1, g[k]))
+            ctx.set(emu.samples.payload, s)
+            ctx.set(emu.samples.valid, 1)
+            await ctx.tick().until(emu.samples.ready)
+            res["push_at"].append(ctx.get(top.cycles) - 1)
+            ctx.set(emu.samples.valid, 0)
+
+    async def pusher(ctx):
+        await push(ctx, samples, gaps or [1] * len(samples))
+        if push_after is not None:
+            at, batch = push_after
+            await ctx.tick().repeat(max(1, at - ctx.get(top.cycles)))
+            await push(ctx, batch, [1] * len(batch))
+
+    async def collect(ctx):
+        async for (_v,) in ctx.posedge(mst.o.valid):
+            while True:
+                res["valid_at"].append(ctx.get(top.cycles))
+                res["got"].append({n: ctx.get(getattr(mst.o.payload, n))
+                                   for n in IMU_FIELDS})
+                await ctx.tick()
+                if not ctx.get(mst.o.valid):
+                    break
+
+    async def cs(ctx):
+        async for (_c,) in ctx.negedge(mst.cs_n):
+            res["cs_fall_at"].append(ctx.get(top.cycles))
+
+    async def main(ctx):
+        ctx.set(mst.cfg_spi_div, div)
+        if rate:
+            ctx.set(mst.cfg_rate, rate)
+        ctx.set(mst.o.ready, 1)
+        if dr_sync_at:
+            await ctx.tick().repeat(dr_sync_at)
+        ctx.set(mst.cfg_dr_sync, dr_sync)
+        await ctx.tick().repeat(cycles - dr_sync_at)
+        res.update({n: ctx.get(getattr(emu, n)) for n in ("bursts", "underruns", "dropped")})
+        res.update({n: ctx.get(getattr(mst, n)) for n in
+                    ("sample_count", "error_count", "sensor_error")})
+
+    sim.add_testbench(pusher, background=True)
+    sim.add_testbench(collect, background=True)
+    sim.add_testbench(cs, background=True)
+    sim.add_testbench(main)
+    sim.run()
+    return res
 
 
 def run_lidar(stream: tfluna.LidarStream, *, div: int = 0, baud_error: float = 0.0,

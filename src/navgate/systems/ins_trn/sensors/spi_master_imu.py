@@ -20,8 +20,10 @@ any UPDATE_RATE above the 176 us burst + 16 us at 1 MHz.
 
 Data-ready mode (navgate extension, ``cfg_dr_sync`` = IMU_CFG[9], default 0): a burst starts
 at each rising edge of the ``dr`` pin (the ADIS16500's DR output; the data sheet recommends
-reading the burst after data ready) and the UPDATE_RATE timer is unused. With
-``cfg_dr_sync`` = 0 the ``dr`` pin is ignored and everything is as above.
+reading the burst after data ready) and the UPDATE_RATE timer is unused. The edge is that of
+DR gated by ``cfg_dr_sync`` and ``cfg_enable``: turning the mode on while DR is high also
+starts one burst (a level-DR source holding samples would otherwise never produce an edge).
+With ``cfg_dr_sync`` = 0 the ``dr`` pin is ignored and everything is as above.
 
 Clock domains: everything runs in ``sync`` (seed: clk_sys, 100 MHz); MISO and DR are the
 asynchronous inputs and each passes a two-flip-flop synchroniser (MISO inside the PHY path).
@@ -151,11 +153,15 @@ class SpiMasterImu(wiring.Component):
                 m.next = "IDLE"
 
         # data-ready mode: a burst per rising edge of the synchronised DR (after the FSM so
-        # that an edge in the cycle a burst starts is kept for the next burst)
+        # that an edge in the cycle a burst starts is kept for the next burst). The edge is
+        # taken of DR gated by the mode bits, so that switching the mode on while DR is
+        # already high (samples waiting) also starts a burst.
         dr = Signal()
-        dr_d = Signal()
+        armed = Signal()
+        armed_d = Signal()
         m.submodules.dr_sync = FFSynchronizer(self.dr, dr, init=0, stages=2)
-        m.d.sync += dr_d.eq(dr)
-        with m.If(self.cfg_dr_sync & self.cfg_enable & dr & ~dr_d):
+        m.d.comb += armed.eq(dr & self.cfg_dr_sync & self.cfg_enable)
+        m.d.sync += armed_d.eq(armed)
+        with m.If(armed & ~armed_d):
             m.d.sync += fire.eq(1)
         return m
