@@ -122,6 +122,39 @@ def _error_interrupt(regs: Registers, sim):
     assert regs.read_fields("STATUS") == {"running": 1, "error": 0}
 
 
+def _profile_dma(regs: Registers, sim):
+    """The PS pushes 70 profile entries (the FIFO keeps the newest 64) and takes the newest 40
+    by DMA into the co-simulation's DDR: the words read back are the entries, oldest first, in
+    the seed's 128-bit format; the DMA's end raises the update interrupt."""
+    from navgate.systems.ins_trn.fpga_sim import DMA_WINDOW
+    from navgate.systems.ins_trn.profile_manager import pack_entry
+
+    rng = np.random.default_rng(11)
+    entries = []
+    with sim.deferred():
+        for k in range(70):
+            h, n, e = (float_to_bits(np.float32(v)) for v in rng.uniform(-5e3, 5e3, 3))
+            t = int(rng.integers(0, 1 << 24))
+            entries.append(pack_entry(h, n, e, t, k % 5 != 0))
+            regs.write("PROF_ENTRY_H", h)
+            regs.write("PROF_ENTRY_N", n)
+            regs.write("PROF_ENTRY_E", e)
+            regs.write("PROF_ENTRY_T", time_ms=t, valid=int(k % 5 != 0))
+            regs.write("PROF_PUSH", push=1)
+    assert regs.read_fields("PROF_STATUS") == {"busy": 0, "count": 64}
+    regs.read("IRQ_STATUS")
+    regs.write("IRQ_ENABLE", update=1, error=0)
+    regs.write("PROF_ADDR", 0x40)
+    regs.write("PROF_COUNT", 40)
+    regs.write("PROF_CTRL", start=1)
+    sim.wait("irq", limit=10_000)
+    assert regs.read_fields("IRQ_STATUS")["update"] == 1
+    assert regs.read_fields("PROF_STATUS") == {"busy": 0, "count": 64}
+    words = [regs.bus.read(DMA_WINDOW + 0x40 + 4 * k) for k in range(40 * 4)]
+    got = [sum(words[4 * j + i] << (32 * i) for i in range(4)) for j in range(40)]
+    assert got == entries[-40:]
+
+
 def _every_register(regs: Registers):
     """Every register of the map read (OKAY) and every software-writable one written and read
     back through the driver; write-1 strobes read 0; unmapped offsets answer SLVERR."""
@@ -139,10 +172,11 @@ def _every_register(regs: Registers):
             regs.write(reg.name, v)
             assert regs.read(reg.name) & reg.sw_write_mask == v, reg.name
     # strobes: a profile DMA of 0 entries completes at once, CAL_APPLY is accepted
+    fill = regs.read_fields("PROF_STATUS")["count"]
     regs.write("PROF_COUNT", 0)
     regs.write("PROF_CTRL", start=1)
     regs.write("CAL_APPLY", apply=1)
-    assert regs.read_fields("PROF_STATUS") == {"busy": 0, "count": 0}
+    assert regs.read_fields("PROF_STATUS") == {"busy": 0, "count": fill}
     mapped = {r.offset for r in regmap.registers}
     unmapped = [o for o in range(0, 1 << regmap.address_width, 4) if o not in mapped]
     for off in unmapped[:: max(1, len(unmapped) // 64)]:
@@ -166,6 +200,7 @@ def test_fpga_sim_equals_fp32_60s_flight():
     _output_registers(eng, regs, n, last)
     _directed_updates(engs)
     _error_interrupt(regs, eng.sim)
+    _profile_dma(regs, eng.sim)
     _every_register(regs)
     eng.close()
 

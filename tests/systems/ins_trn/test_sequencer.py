@@ -12,7 +12,7 @@ from amaranth.sim import Simulator
 from navgate.systems.ins_trn import flight
 from navgate.systems.ins_trn.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.fp32_exec import float_to_bits
-from navgate.systems.ins_trn.fp32_program import STATE_REGS
+from navgate.systems.ins_trn.fp32_program import CAL_REGS, STATE_REGS
 from navgate.systems.ins_trn.navigation import flight_stream
 from navgate.systems.ins_trn.navigator import engine_setup
 from navgate.systems.ins_trn.sequencer import SHADOW_WORDS, NavSequencer, job_cycles
@@ -41,7 +41,8 @@ def test_sequencer_equals_fp32_engine(setup_and_words):
                                   fromlist=["engine_image"]).engine_image("ins_engines"))
     addr = dut.addr
     loads = [(a, float_to_bits(m.regs[m.index[n]]) if n in m.index else 0)
-             for n, a in addr.items() if not n.startswith("c:")]
+             for n, a in addr.items() if not n.startswith("c:") and n not in CAL_REGS]
+    cal = {n: float_to_bits(m.get(n)) for n in CAL_REGS}  # through CAL_APPLY
     gate1 = float(model._gate[1])
     gate2 = float(model._gate[2])
     alt_cases = [(setup.nav0[2] + 3.0, 4.0), (setup.nav0[2] + 900.0, 0.01)]  # applied, gated
@@ -62,6 +63,16 @@ def test_sequencer_equals_fp32_engine(setup_and_words):
             await ctx.tick()
             ctx.set(dut.eng_write, 0)
             await ctx.tick().repeat(3)
+        for n, v in cal.items():
+            ctx.set(getattr(dut, n), v)
+        ctx.set(dut.cal_apply, 1)
+        await ctx.tick()
+        ctx.set(dut.cal_apply, 0)
+        n = 1
+        while ctx.get(dut.busy):
+            await ctx.tick()
+            n += 1
+        log["cal_cycles"] = n
         ctx.set(dut.enable, 1)
         cycles = []
         for g, a in zip(gw, aw, strict=True):
@@ -131,6 +142,7 @@ def test_sequencer_equals_fp32_engine(setup_and_words):
     assert log["shadow"] == shadows
     img = dut.image
     assert log["imu_cycles"] == [job_cycles(img, "imu")] * 3 == [710] * 3
+    assert log["cal_cycles"] == job_cycles(img, "cal")
     outcomes = [model._update("baro", "alt_gate", "alt_apply", 1, h_meas=h, r=r)
                 for h, r in alt_cases]
     assert outcomes[0].accepted and not outcomes[1].accepted

@@ -14,8 +14,9 @@ takes batches of bus commands.
 The PS side is the ``fp32`` engine's (:class:`Fp32Engine`), talking to the PL only through
 registers:
 
-- set-up: the engine registers (calibration, noise, initial state, P0) through the engine
-  register window (ENG_ADDR/ENG_WDATA/ENG_CMD), the reference point (REF_*), IMU_CFG
+- set-up: the calibration through CAL_* and CAL_APPLY; the other engine registers (noise,
+  initial state, P0) through the engine register window (ENG_ADDR/ENG_WDATA/ENG_CMD); the
+  reference point (REF_*), IMU_CFG
   (fastest SCLK, data-ready pacing, enabled), IRQ_ENABLE.update, CTRL.enable;
 - IMU samples: pushed into the emulator; the PS waits until ENG_STATUS counts them
   (propagations) and the sequencer is idle;
@@ -38,7 +39,7 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
-from amaranth import Module
+from amaranth import Module, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -46,8 +47,9 @@ from navgate.gateware.axi_lite import axi_lite_signature
 from navgate.systems.ins_trn.engine import EngineSetup, UpdateOutcome
 from navgate.systems.ins_trn.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.fp32_exec import float_to_bits, to_f32
-from navgate.systems.ins_trn.fp32_program import N_STATES, NAV_REGS, p_reg
+from navgate.systems.ins_trn.fp32_program import CAL_REGS, N_STATES, NAV_REGS, p_reg
 from navgate.systems.ins_trn.registers import register_map
+from navgate.systems.ins_trn.top import CAL_REGISTER_OF
 
 __all__ = ["InsTrnSimTop", "FpgaSimEngine", "FpgaSimError"]
 
@@ -62,16 +64,25 @@ def _sample_layout():
     return SAMPLE_LAYOUT
 
 
+#: the co-simulation's "DDR": the DMA target memory, readable at this AXI offset
+DMA_WINDOW = 0x800
+DMA_WORDS = 256
+
+
 class InsTrnSimTop(wiring.Component):
     """``ins_trn_top`` with an ADIS16500 emulator on its IMU pins (``imu_feed``: the samples),
-    the DMA master answered by an always-ready sink, the barometer and ranger lines idle."""
+    the barometer and ranger lines idle, and the DMA master writing into a 1 KiB memory that
+    stands for DDR (:class:`_DmaMemory`). The AXI4-Lite port is one bit wider than the bank's:
+    reads at :data:`DMA_WINDOW` and above return that memory's words (the PS's view of DDR);
+    everything else goes to the bank. The window is read-only and the co-simulation's PS never
+    writes there (writes are decoded by the bank's 11 address bits)."""
 
     def __init__(self):
         from navgate.systems.ins_trn.top import InsTrnTop
 
         self.top = InsTrnTop()
         super().__init__({
-            "axi": In(axi_lite_signature(register_map().address_width)),
+            "axi": In(axi_lite_signature(register_map().address_width + 1)),
             "imu_feed": In(stream.Signature(_sample_layout())),
             "irq": Out(1),
         })
@@ -82,34 +93,85 @@ class InsTrnSimTop(wiring.Component):
         m = Module()
         m.submodules.top = top = self.top
         m.submodules.imu = emu = Adis16500Emulator()
-        wiring.connect(m, wiring.flipped(self.axi), top.axi)
+        m.submodules.ddr = ddr = _DmaMemory()
+        wiring.connect(m, top.dma, ddr.axi)
         wiring.connect(m, wiring.flipped(self.imu_feed), emu.samples)
         m.d.comb += [
             emu.sclk.eq(top.imu_sclk), emu.mosi.eq(top.imu_mosi), emu.cs_n.eq(top.imu_cs_n),
             top.imu_miso.eq(emu.miso | ~emu.miso_oe), top.imu_dr.eq(emu.dr),
             top.baro_miso.eq(1), top.lidar_rx.eq(1), self.irq.eq(top.irq),
         ]
-        # DMA sink: always ready, one OKAY response per burst
-        dma = top.dma
-        m.submodules.dma_sink = sink = _BSink()
-        m.d.comb += [dma.awready.eq(1), dma.wready.eq(1), sink.last.eq(dma.wvalid & dma.wlast),
-                     sink.ready.eq(dma.bready), dma.bvalid.eq(sink.valid), dma.bresp.eq(0),
-                     dma.bid.eq(0)]
+        # AXI4-Lite: write channels and AR/R to the bank, except reads of the DDR window
+        a, b = self.axi, top.axi
+        aw = len(b.awaddr)
+        m.d.comb += [
+            b.awaddr.eq(a.awaddr[:aw]), b.awprot.eq(a.awprot), b.awvalid.eq(a.awvalid),
+            a.awready.eq(b.awready), b.wdata.eq(a.wdata), b.wstrb.eq(a.wstrb),
+            b.wvalid.eq(a.wvalid), a.wready.eq(b.wready), a.bresp.eq(b.bresp),
+            a.bvalid.eq(b.bvalid), b.bready.eq(a.bready),
+            b.araddr.eq(a.araddr[:aw]), b.arprot.eq(a.arprot),
+        ]
+        window = a.araddr[aw]
+        mem_rvalid = Signal()
+        busy = Signal()  # a read of either side is outstanding
+        m.d.comb += [busy.eq(b.rvalid | mem_rvalid),
+                     b.arvalid.eq(a.arvalid & ~window & ~mem_rvalid),
+                     ddr.raddr.eq(a.araddr[2:2 + (DMA_WORDS - 1).bit_length()]),
+                     ddr.rload.eq(a.arvalid & window & ~busy)]
+        with m.If(window):
+            m.d.comb += a.arready.eq(~busy)
+        with m.Else():
+            m.d.comb += a.arready.eq(b.arready & ~mem_rvalid)
+        with m.If(a.arvalid & window & ~busy):
+            m.d.sync += mem_rvalid.eq(1)
+        with m.Elif(mem_rvalid & a.rready):
+            m.d.sync += mem_rvalid.eq(0)
+        with m.If(mem_rvalid):
+            m.d.comb += [a.rvalid.eq(1), a.rdata.eq(ddr.rdata), a.rresp.eq(0)]
+        with m.Else():
+            m.d.comb += [a.rvalid.eq(b.rvalid), a.rdata.eq(b.rdata), a.rresp.eq(b.rresp),
+                         b.rready.eq(a.rready)]
         return m
 
 
-class _BSink(wiring.Component):
-    """B channel of the DMA sink: one response after each burst's last beat."""
+class _DmaMemory(wiring.Component):
+    """An AXI4 write slave over :data:`DMA_WORDS` 32-bit words (incrementing bursts of any
+    length; the address wraps inside the memory) with a read port: ``rload`` loads the word
+    at ``raddr`` into ``rdata``, which holds it until the next load."""
 
     def __init__(self):
-        super().__init__({"last": In(1), "ready": In(1), "valid": Out(1)})
+        from navgate.gateware.axi4 import axi4_write_signature
+
+        bits = (DMA_WORDS - 1).bit_length()
+        super().__init__({"axi": In(axi4_write_signature()), "raddr": In(bits),
+                          "rload": In(1), "rdata": Out(32)})
 
     def elaborate(self, platform):
+        from amaranth.lib.memory import Memory
+
         m = Module()
-        with m.If(self.last):
-            m.d.sync += self.valid.eq(1)
-        with m.Elif(self.ready):
-            m.d.sync += self.valid.eq(0)
+        m.submodules.mem = mem = Memory(shape=32, depth=DMA_WORDS, init=[])
+        wr = mem.write_port()
+        rd = mem.read_port(domain="comb")
+        ax = self.axi
+        bits = (DMA_WORDS - 1).bit_length()
+        addr = Signal(bits)
+        in_burst = Signal()
+        bvalid = Signal()
+        m.d.comb += [rd.addr.eq(self.raddr), ax.awready.eq(~in_burst & ~bvalid),
+                     ax.wready.eq(in_burst), ax.bvalid.eq(bvalid), ax.bresp.eq(0),
+                     ax.bid.eq(0), wr.addr.eq(addr), wr.data.eq(ax.wdata),
+                     wr.en.eq(ax.wvalid & in_burst)]
+        with m.If(self.rload):
+            m.d.sync += self.rdata.eq(rd.data)
+        with m.If(ax.awvalid & ax.awready):
+            m.d.sync += [addr.eq(ax.awaddr[2:2 + bits]), in_burst.eq(1)]
+        with m.If(ax.wvalid & in_burst):
+            m.d.sync += addr.eq(addr + 1)
+            with m.If(ax.wlast):
+                m.d.sync += [in_burst.eq(0), bvalid.eq(1)]
+        with m.If(bvalid & ax.bready):
+            m.d.sync += bvalid.eq(0)
         return m
 
 
@@ -206,12 +268,16 @@ class FpgaSimEngine(Fp32Engine):
     def _load(self):
         ps = self.m
         items = [(n, float_to_bits(ps.regs[ps.index[n]]) if n in ps.index else 0)
-                 for n in self.addr if not n.startswith("c:")]
+                 for n in self.addr if not n.startswith("c:") and n not in CAL_REGS]
         ref = self.setup.reference
         cmds = [self._w("CTRL", 0)]
         for name, bits in items:
             cmds += [self._w("ENG_ADDR", self.addr[name]), self._w("ENG_WDATA", bits),
                      self._w("ENG_CMD", 1)]
+        # the calibration through the seed's CAL_* registers and CAL_APPLY
+        cmds += [self._w(reg, float_to_bits(ps.get(word)))
+                 for reg, word in CAL_REGISTER_OF.items()]
+        cmds += [self._w("CAL_APPLY", 1), self._wait_idle()]
         cmds += [self._w("REF_LAT", float_to_bits(ref.lat0)),
                  self._w("REF_LON", float_to_bits(ref.lon0)),
                  self._w("REF_ALT", float_to_bits(ref.h0)),

@@ -20,6 +20,8 @@ job         steps
             EE, TRN_LAG, TRN_GATE) -> run ``trn_gate`` -> flags -> ``trn_apply`` -> read back
 ``write``   ENG_WDATA to register ENG_ADDR (the PS's engine register window)
 ``read``    register ENG_ADDR to ENG_RDATA
+``cal``     CAL_APPLY: the 26 calibration registers (biases, matrices, LSBs; seed "IMU
+            Calibration Parameters") into the engines' calibration words
 =========== ===================================================================================
 
 The decision between the gate and the apply half is the fp32 engine's
@@ -27,7 +29,7 @@ The decision between the gate and the apply half is the fp32 engine's
 and ``accept`` are both exactly 1.0 (``0x3F800000``); the inputs are not rewritten between the
 halves (they are unchanged), so the result is the fp32 engine's bit for bit.
 
-Priorities when several requests wait: window commands, then the TRN update, then the altitude
+Priorities when several requests wait: window commands, CAL_APPLY, the TRN update, then the altitude
 update, then an IMU sample (which waits in the sensor interface's FIFO). Requests are latched
 (a strobe while a job runs is kept, one per kind). The *shadow* words (the navigation state,
 the biases and the 15 variances of P as stored) are read back after every job that changes
@@ -43,7 +45,7 @@ from amaranth import Array, Const, Module, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from navgate.systems.ins_trn.fp32_program import N_STATES, p_reg
+from navgate.systems.ins_trn.fp32_program import CAL_REGS, N_STATES, p_reg
 
 __all__ = ["NavSequencer", "SHADOW_WORDS", "RAW_IMU_LAYOUT", "ONE", "job_cycles"]
 
@@ -60,7 +62,9 @@ SHADOW_WORDS = (("pN", "pE", "h", "vN", "vE", "vD", "q0", "q1", "q2", "q3")
 ALT_INPUTS = ("h_meas", "r", "gate")
 TRN_INPUTS = ("y0", "y1", "r00", "r01", "r11", "lag", "gate")
 GATE_OUTPUTS = ("positive", "accept", "nis")
-JOBS = ("imu", "alt", "trn", "write", "read")
+JOBS = ("imu", "alt", "trn", "write", "read", "cal")
+#: the calibration registers CAL_APPLY copies into the engines (fp32_program.CAL_REGS order)
+CAL_INPUTS = CAL_REGS
 
 
 def job_cycles(image, job: str, applied: bool = True) -> int:
@@ -74,6 +78,8 @@ def job_cycles(image, job: str, applied: bool = True) -> int:
     n_shadow = len(SHADOW_WORDS)
     if job in ("write", "read"):
         return 3 if job == "write" else 4
+    if job == "cal":
+        return 2 + len(CAL_INPUTS) + 1
     if job == "imu":
         return 1 + len(IMU_REGS) + 1 + image.cycles("propagate") + 1 + n_shadow + 1 + 1
     ins = ALT_INPUTS if job == "alt" else TRN_INPUTS
@@ -104,7 +110,7 @@ class NavSequencer(wiring.Component):
             "eng_addr": In(aw), "eng_wdata": In(32), "eng_write": In(1), "eng_read": In(1),
             "eng_rdata": Out(32), "busy": Out(1), "propagations": Out(24),
             # updates
-            "alt_start": In(1), "trn_start": In(1),
+            "alt_start": In(1), "trn_start": In(1), "cal_apply": In(1),
             "alt_status": Out(3), "trn_status": Out(3), "alt_nis": Out(32), "trn_nis": Out(32),
             "shadow": Out(data.ArrayLayout(32, len(SHADOW_WORDS))),
             "shadow_valid": Out(1),  #: one-cycle pulse: the shadow words are new
@@ -114,6 +120,8 @@ class NavSequencer(wiring.Component):
             members[f"alt_{n}"] = In(32)
         for n in TRN_INPUTS:
             members[f"trn_{n}"] = In(32)
+        for n in CAL_INPUTS:
+            members[n] = In(32)
         super().__init__(members)
 
     def elaborate(self, platform):
@@ -124,8 +132,9 @@ class NavSequencer(wiring.Component):
         prog_no = {k: self.keys.index(k) for k in self.keys}
 
         # latched requests
-        req = {j: Signal(name=f"req_{j}") for j in ("alt", "trn", "write", "read")}
+        req = {j: Signal(name=f"req_{j}") for j in ("alt", "trn", "write", "read", "cal")}
         for j, strobe in (("alt", self.alt_start), ("trn", self.trn_start),
+                          ("cal", self.cal_apply),
                           ("write", self.eng_write), ("read", self.eng_read)):
             with m.If(strobe):
                 m.d.sync += req[j].eq(1)
@@ -154,7 +163,7 @@ class NavSequencer(wiring.Component):
         sources_imu = [getattr(imu_words, f) for f in IMU_FIELDS]
         waddr = Signal(img.fields.aw)
         wdata = Signal(32)
-        n_writes = Signal(range(8))
+        n_writes = Signal(range(len(CAL_INPUTS) + 1))
         with m.Switch(job):
             with m.Case(JOBS.index("imu")):
                 m.d.comb += n_writes.eq(len(IMU_REGS))
@@ -174,6 +183,12 @@ class NavSequencer(wiring.Component):
                     for k, r in enumerate(TRN_INPUTS):
                         with m.Case(k):
                             m.d.comb += [waddr.eq(a[r]), wdata.eq(getattr(self, f"trn_{r}"))]
+            with m.Case(JOBS.index("cal")):
+                m.d.comb += n_writes.eq(len(CAL_INPUTS))
+                with m.Switch(step):
+                    for k, r in enumerate(CAL_INPUTS):
+                        with m.Case(k):
+                            m.d.comb += [waddr.eq(a[r]), wdata.eq(getattr(self, r))]
             with m.Default():
                 m.d.comb += [n_writes.eq(1), waddr.eq(self.eng_addr),
                              wdata.eq(self.eng_wdata)]
@@ -204,6 +219,9 @@ class NavSequencer(wiring.Component):
                 with m.Elif(req["read"]):
                     m.d.sync += [job.eq(JOBS.index("read")), req["read"].eq(0)]
                     m.next = "READ"
+                with m.Elif(req["cal"]):
+                    m.d.sync += [job.eq(JOBS.index("cal")), req["cal"].eq(0)]
+                    m.next = "WRITE"
                 with m.Elif(req["trn"]):
                     m.d.sync += [job.eq(JOBS.index("trn")), req["trn"].eq(0),
                                  trn_status.eq(0b001)]
@@ -221,7 +239,7 @@ class NavSequencer(wiring.Component):
                 m.d.sync += step.eq(step + 1)
                 with m.If(step == n_writes - 1):
                     m.d.sync += step.eq(0)
-                    with m.If(job == JOBS.index("write")):
+                    with m.If((job == JOBS.index("write")) | (job == JOBS.index("cal"))):
                         m.next = "FINISH"
                     with m.Else():
                         m.next = "START"
@@ -295,5 +313,5 @@ class NavSequencer(wiring.Component):
                     m.d.sync += self.update.eq(1)
                 m.next = "IDLE"
         m.d.comb += self.busy.eq(req["write"] | req["read"] | req["trn"] | req["alt"]
-                                 | ~fsm.ongoing("IDLE"))
+                                 | req["cal"] | ~fsm.ongoing("IDLE"))
         return m

@@ -41,11 +41,21 @@ from navgate.systems.ins_trn.fp32_program import N_STATES, p_reg
 from navgate.systems.ins_trn.registers import register_map
 from navgate.systems.ins_trn.sequencer import SHADOW_WORDS, NavSequencer, job_cycles
 
-__all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "SigmaUnit"]
+__all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "SigmaUnit", "CAL_REGISTER_OF"]
 
 #: the top's pin ports (board pins; docs/seed000-top.md)
 PIN_PORTS = ("imu_sclk", "imu_mosi", "imu_miso", "imu_cs_n", "imu_dr",
              "baro_sclk", "baro_mosi", "baro_miso", "baro_cs_n", "lidar_rx", "lidar_tx")
+
+
+#: calibration register of the map -> engine calibration word (CAL_APPLY copies them)
+CAL_REGISTER_OF = {
+    **{f"CAL_{sensor}_LSB": f"cal_{s}_lsb" for sensor, s in (("GYRO", "g"), ("ACCEL", "a"))},
+    **{f"CAL_{sensor}_BIAS_{'XYZ'[j]}": f"cal_{s}_b{j}"
+       for sensor, s in (("GYRO", "g"), ("ACCEL", "a")) for j in range(3)},
+    **{f"CAL_{sensor}_M_{3 * i + j}": f"cal_{s}_m{i}{j}"
+       for sensor, s in (("GYRO", "g"), ("ACCEL", "a")) for i in range(3) for j in range(3)},
+}
 
 
 def _field(reg: str, name: str):
@@ -282,6 +292,9 @@ class InsTrnTop(wiring.Component):
             regs.i_TRN_STATUS.eq(seq.trn_status), regs.i_TRN_NIS.eq(seq.trn_nis),
             regs.i_ALT_STATUS.eq(seq.alt_status), regs.i_ALT_NIS.eq(seq.alt_nis),
         ]
+        m.d.comb += seq.cal_apply.eq(_bits(regs.p_CAL_APPLY, "CAL_APPLY", "apply"))
+        for reg, word in CAL_REGISTER_OF.items():
+            m.d.comb += getattr(seq, word).eq(getattr(regs, f"o_{reg}"))
         shadow = {n: seq.shadow[k] for k, n in enumerate(SHADOW_WORDS)}
         for i in range(3):
             m.d.comb += [getattr(regs, f"i_BIAS_A{'XYZ'[i]}").eq(shadow[f"ba{i}"]),
@@ -318,7 +331,12 @@ class InsTrnTop(wiring.Component):
         m.submodules.profile = prof
         wiring.connect(m, prof.axi, wiring.flipped(self.dma))
         m.d.comb += [
-            prof.entry.valid.eq(0),
+            prof.entry.valid.eq(_bits(regs.p_PROF_PUSH, "PROF_PUSH", "push")),
+            prof.entry.payload.h_terrain.eq(regs.o_PROF_ENTRY_H),
+            prof.entry.payload.pos_n.eq(regs.o_PROF_ENTRY_N),
+            prof.entry.payload.pos_e.eq(regs.o_PROF_ENTRY_E),
+            prof.entry.payload.time.eq(_bits(regs.o_PROF_ENTRY_T, "PROF_ENTRY_T", "time_ms")),
+            prof.entry.payload.valid.eq(_bits(regs.o_PROF_ENTRY_T, "PROF_ENTRY_T", "valid")),
             prof.dma_start.eq(_bits(regs.p_PROF_CTRL, "PROF_CTRL", "start")),
             prof.dma_address.eq(regs.o_PROF_ADDR),
             prof.dma_count.eq(_bits(regs.o_PROF_COUNT, "PROF_COUNT", "count")),
