@@ -677,3 +677,23 @@ def test_report_parallel_blocks_progress_and_order(tmp_path, capsys, monkeypatch
         assert (tmp_path / f"r{jobs}.md").read_text() == out
         tables[jobs] = out
     assert tables[1] == tables[3]
+
+
+def test_fpga_sim_refuses_ideal_sensors_and_reports_simulation_failures(tmp_path, capsys,
+                                                                       monkeypatch):
+    """``--engine fpga-sim`` needs the IMU's int16 words (one line, exit 2, before any
+    simulation); a co-simulation that fails mid-flight is one line too, not a traceback."""
+    code, _, err = run(["fly", "--engine", "fpga-sim", "--ideal-sensors", "--duration", "5",
+                        "--out", tmp_path / "a"], capsys)
+    assert_one_line(err, code, needle="--ideal-sensors")
+    assert not (tmp_path / "a").exists()
+    from navgate.systems.ins_trn import fpga_sim
+
+    def broken(self, setup, **kw):
+        raise fpga_sim.FpgaSimError("native model: wedged by an earlier timeout")
+
+    monkeypatch.setattr(fpga_sim.FpgaSimEngine, "__init__", broken)
+    code, _, err = run(["fly", "--engine", "fpga-sim", "--duration", "5", "--quiet",
+                        "--out", tmp_path / "b"], capsys)
+    assert_one_line(err, code, needle="co-simulation failed")
+    assert not (tmp_path / "b").exists()

@@ -36,18 +36,12 @@ def _positive_float(ctx, param, value):
 
 def _simulation_errors() -> tuple:
     """The gateware co-simulations' own failures (a Verilator build or run that failed)."""
+    from navgate.gateware.native_axi import NativeAxiError
     from navgate.gateware.native_stream import NativeStreamError
+    from navgate.systems.ins_trn.fpga_sim import FpgaSimError
     from navgate.systems.ins_trn.rtl_engine import RtlError
 
-    errors = [NativeStreamError, RtlError]
-    try:
-        from navgate.gateware.native_axi import NativeAxiError
-        from navgate.systems.ins_trn.fpga_sim import FpgaSimError
-
-        errors += [NativeAxiError, FpgaSimError]
-    except ImportError:  # pragma: no cover
-        pass
-    return tuple(errors)
+    return (NativeStreamError, RtlError, NativeAxiError, FpgaSimError)
 
 
 @click.command()

@@ -201,6 +201,7 @@ class InsTrnTop(wiring.Component):
         """The board variant (``navgate build ins_trn_top --target zybo-z7-20``)."""
         if board != "zybo-z7-20":
             raise KeyError(f"ins_trn_top has no variant for board {board!r}")
+        self._MustUse__silence = True  # replaced by the board variant, never elaborated
         return ZyboInsTrnTop()
 
     def write_artifacts(self, out_dir, name: str, target: str | None = None):
