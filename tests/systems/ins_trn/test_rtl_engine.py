@@ -62,7 +62,15 @@ def _fly_both(duration):
         _same_registers(engs)
     assert reasons[0] == "applied" and "gate" in reasons[1] and "positive" in reasons[2], \
         reasons
-    assert engs["rtl"].samples == engs["fp32"].samples == round(duration * cfg.imu_rate_hz)
+    # the integrity monitor's covariance inflation (a PS register write) reaches the gateware:
+    # the next samples propagate the inflated P in both engines
+    for name in ("fp32", "rtl"):
+        engs[name].inflate_p_horizontal(np.array([[400.0, 10.0], [10.0, 300.0]]))
+    _same_registers(engs)
+    for name in ("fp32", "rtl"):
+        engs[name].propagate(stream.gyro_words[-3:], stream.accel_words[-3:])
+    _same_registers(engs)
+    assert engs["rtl"].samples == engs["fp32"].samples == round(duration * cfg.imu_rate_hz) + 3
     link = engs["rtl"].link
     engs["rtl"].close()
     return a, link

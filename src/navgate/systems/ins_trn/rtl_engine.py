@@ -119,6 +119,13 @@ class _RtlMachine:
             self._m.regs[self._m.index[n]] = _f(int(data[start + k]))
         return [int(v) for v in data[start + len(back):]]
 
+    def set(self, name, value):
+        """A PS register write (e.g. the monitor's covariance inflation): into the PS's copy
+        and the gateware's register file."""
+        self._m.set(name, value)
+        bits = float_to_bits(self._m.regs[self._m.index[name]])
+        self.link.batch([(CMD_WRITE, self.addr[name], bits, 0)], [1])
+
     def propagate(self, gyro_words, accel_words):
         rows, runs = [], []
         for g, a in zip(gyro_words, accel_words, strict=True):
