@@ -123,6 +123,23 @@ class PlEngine(ABC):
     def read_p_horizontal(self) -> np.ndarray:
         return self.read_cov()[:2, :2].copy()
 
+    # -- sensors read through the PL --------------------------------------------------------------
+    #: True when the PS reads the barometer and the ranger from the PL's sensor interfaces (the
+    #: float32 engines, which model the PL); the reference engine takes the record stream's
+    #: values as they are
+    pl_sensors: bool = False
+
+    def prepare_baro(self, uncomp_press, uncomp_temp) -> None:  # noqa: B027 (optional hook)
+        """The flight's barometer words ahead of time (a model may compute them at once)."""
+
+    def read_baro(self, uncomp_press: int, uncomp_temp: int) -> float:
+        """The PL's compensated pressure (Pa) for the BMP390's ADC words."""
+        raise NotImplementedError(f"the {self.name} engine has no PL barometer path")
+
+    def read_ranger(self, dist: int, strength: int) -> tuple[int, int]:
+        """(distance word, strength) of the ranger frame as the PL's receiver reports it."""
+        raise NotImplementedError(f"the {self.name} engine has no PL ranger path")
+
     # -- altitude profile buffer ---------------------------------------------------------------
     def profile_push(self, **entry) -> str:
         return self.profile.add(**entry)

@@ -57,6 +57,7 @@ class Fp32Engine(PlEngine):
     def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
         super().__init__(setup)
         self.m = Machine(programs(self.compensated))
+        self._baro_cache: dict = {}
         self.check_pd = check_pd
         self.pd_stats = np.zeros(2, np.int64)  #: [not positive definite, non-finite]
         self._write_config(setup)
@@ -157,6 +158,34 @@ class Fp32Engine(PlEngine):
         return self._update("trn", "trn_gate", "trn_apply", 2, y0=y_ne[0], y1=y_ne[1],
                             r00=cov[0, 0], r01=0.5 * (cov[0, 1] + cov[1, 0]), r11=cov[1, 1],
                             lag=lag_s)
+
+    # -- sensors through the PL ------------------------------------------------------------------
+    pl_sensors = True
+
+    def prepare_baro(self, uncomp_press, uncomp_temp) -> None:
+        """Compensate a whole flight's barometer words at once (the model is a pure function
+        of the words; :meth:`read_baro` then looks the result up)."""
+        from navgate.devices import bmp390
+
+        up = np.asarray(uncomp_press, np.int64)
+        ut = np.asarray(uncomp_temp, np.int64)
+        if up.size:
+            p, _ = bmp390.compensate_fp32(up, ut)
+            self._baro_cache.update(zip(zip(up.tolist(), ut.tolist(), strict=True),
+                                        np.asarray(p, np.uint32).view(np.float32).tolist(),
+                                        strict=True))
+
+    def read_baro(self, uncomp_press: int, uncomp_temp: int) -> float:
+        """baro_compensation's float32 result (navgate.devices.bmp390.compensate_fp32, which
+        the gateware equals bit for bit)."""
+        key = (int(uncomp_press), int(uncomp_temp))
+        if key not in self._baro_cache:
+            self.prepare_baro([key[0]], [key[1]])
+        return self._baro_cache[key]
+
+    def read_ranger(self, dist: int, strength: int) -> tuple[int, int]:
+        """uart_rx_lidar delivers the frame's words as sent (a frame with a good checksum)."""
+        return int(dist), int(strength)
 
     # -- register reads ---------------------------------------------------------------------------
     def inflate_p_horizontal(self, d_p) -> None:

@@ -58,11 +58,22 @@ class FpgaSimError(RuntimeError):
     """The co-simulation failed or answered unexpectedly."""
 
 
+def _lidar_layout():
+    from navgate.systems.ins_trn.sensors.tfluna_emulator import SAMPLE_LAYOUT
+
+    return SAMPLE_LAYOUT
+
+
 def _sample_layout():
     from navgate.systems.ins_trn.sensors.adis16500_emulator import SAMPLE_LAYOUT
 
     return SAMPLE_LAYOUT
 
+
+#: UART bit time of the ranger emulator and LIDAR_CFG.baud_div in the co-simulation (cycles)
+LIDAR_BIT_CYCLES = 32
+#: the TF-Luna temperature word the emulator sends (25 degC: (25 + 256) * 8)
+LIDAR_TEMP_WORD = 2248
 
 #: the co-simulation's "DDR": the DMA target memory, readable at this AXI offset
 DMA_WINDOW = 0x800
@@ -84,6 +95,7 @@ class InsTrnSimTop(wiring.Component):
         super().__init__({
             "axi": In(axi_lite_signature(register_map().address_width + 1)),
             "imu_feed": In(stream.Signature(_sample_layout())),
+            "lidar_feed": In(stream.Signature(_lidar_layout())),
             "irq": Out(1),
         })
 
@@ -94,12 +106,17 @@ class InsTrnSimTop(wiring.Component):
         m.submodules.top = top = self.top
         m.submodules.imu = emu = Adis16500Emulator()
         m.submodules.ddr = ddr = _DmaMemory()
+        from navgate.systems.ins_trn.sensors.tfluna_emulator import TfLunaEmulator
+
+        m.submodules.lidar = lidar = TfLunaEmulator()
+        wiring.connect(m, wiring.flipped(self.lidar_feed), lidar.samples)
+        m.d.comb += [lidar.cfg_bit_cycles.eq(LIDAR_BIT_CYCLES), top.lidar_rx.eq(lidar.tx)]
         wiring.connect(m, top.dma, ddr.axi)
         wiring.connect(m, wiring.flipped(self.imu_feed), emu.samples)
         m.d.comb += [
             emu.sclk.eq(top.imu_sclk), emu.mosi.eq(top.imu_mosi), emu.cs_n.eq(top.imu_cs_n),
             top.imu_miso.eq(emu.miso | ~emu.miso_oe), top.imu_dr.eq(emu.dr),
-            top.baro_miso.eq(1), top.lidar_rx.eq(1), self.irq.eq(top.irq),
+            top.baro_miso.eq(1), self.irq.eq(top.irq),
         ]
         # AXI4-Lite: write channels and AR/R to the bank, except reads of the DDR window
         a, b = self.axi, top.axi
@@ -221,7 +238,9 @@ class FpgaSimEngine(Fp32Engine):
         self.image = engine_image("ins_engines")
         self.addr = self.image.layout.fixed
         self.off = {r.name: r.offset for r in register_map().registers}
-        self.sim = NativeAxiSim(InsTrnSimTop(), streams=("imu_feed",), watch=("irq",))
+        self.sim = NativeAxiSim(InsTrnSimTop(), streams=("imu_feed", "lidar_feed"),
+                                watch=("irq",))
+        self.lidar_frames = 0
         self._finalizer = weakref.finalize(self, self.sim.close)
         self.propagations = 0
         self.interrupts = 0
@@ -346,6 +365,25 @@ class FpgaSimEngine(Fp32Engine):
         self._count(self.accepted, kind)
         return UpdateOutcome(True, nis,
                              np.array([float(np.uint32(b).view(np.float32)) for b in dx]))
+
+    def read_ranger(self, dist: int, strength: int) -> tuple[int, int]:
+        """The frame through the TF-Luna emulator, the UART pin and ``uart_rx_lidar``: push
+        it, wait until LIDAR_FRAMES counts it, read LIDAR_DATA."""
+        from navgate.gateware import verify as V
+
+        cmds = []
+        if not self.lidar_frames:  # the ranger's receiver is enabled with its first frame
+            cmds.append(self._w("LIDAR_CFG", LIDAR_BIT_CYCLES | 1 << 16))
+        packed = V.pack(self.sim.formats["lidar_feed"],
+                        {"dist": [int(dist)], "strength": [int(strength)],
+                         "temp": [LIDAR_TEMP_WORD]})[0]
+        self.lidar_frames += 1
+        cmds += [f"S 1 {int(packed):x}",
+                 f"P {self.off['LIDAR_FRAMES']:x} ffffffff {self.lidar_frames & 0xFFFFFFFF:x} "
+                 f"{200 * LIDAR_BIT_CYCLES + 10_000}",
+                 f"R {self.off['LIDAR_DATA']:x}"]
+        word = int(self._batch(cmds)[-1], 16)
+        return word & 0xFFFF, word >> 16
 
     def read_cov(self):
         p = np.empty((15, 15))

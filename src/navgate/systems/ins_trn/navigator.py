@@ -33,6 +33,7 @@ from navgate.nav.calibration import ImuCalibration
 from navgate.nav.earth import LocalTangent
 from navgate.nav.rotations import quat_to_dcm_array
 from navgate.sim import sensors
+from navgate.systems.ins_trn import pl_sensors
 from navgate.systems.ins_trn.engine import EngineSetup, PlEngine, make_engine
 from navgate.systems.ins_trn.records import BARO, IMU, RANGER, RecordStream
 from navgate.trn.profile import ACCEPTED
@@ -97,6 +98,7 @@ class Navigator:
         self.dt = 1.0 / cfg.imu_rate_hz
         self.log_every = max(1, int(round(cfg.imu_rate_hz / cfg.log_rate_hz)))
         self.baro_sigma = max(sensors.Barometer(sensors.BMP390).altitude_noise_m, 0.05)
+        self.ranger_unit = pl_sensors.ranger_unit(cfg.ranger)
         self.tangent = engine.setup.reference
         self.correlator = make_correlator(cfg, dem, self.tangent) if self.use_trn else None
         if self.use_trn:
@@ -140,8 +142,17 @@ class Navigator:
                 self.progress(j - i)
             i = j
 
-    def feed_baro(self, t, altitude, valid=True):
+    def feed_baro(self, t, altitude, valid=True, words=None):
+        """A barometer record; with a PL engine it is read through the PL (pl_sensors), from
+        the ADC ``words`` (up, ut, ok) when :meth:`run` has encoded them already."""
         h = float(altitude) if valid else math.nan
+        if self.engine.pl_sensors and math.isfinite(h):
+            if words is None:
+                up, ut, ok = (w[0] for w in pl_sensors.baro_words(h))
+            else:
+                up, ut, ok = words
+            h = (pl_sensors.altitude_from_pressure(self.engine.read_baro(int(up), int(ut)))
+                 if ok else math.nan)
         self.h_baro = h
         if math.isfinite(h):
             self.engine.update_altitude(h, self.baro_sigma)
@@ -152,6 +163,10 @@ class Navigator:
         if not self.use_trn:
             return
         e = self.engine
+        if e.pl_sensors:  # the frame through the PL's receiver
+            dist, strength = e.read_ranger(*pl_sensors.ranger_words(
+                float(slant_range), bool(valid), self.ranger_unit))
+            slant_range, valid = pl_sensors.range_from_words(dist, strength, self.ranger_unit)
         nav = e.read_nav()
         roll, pitch, _ = _euler(nav[6:10])
         pn, pe = e.read_position_ned()
@@ -203,6 +218,11 @@ class Navigator:
         """Consume a whole stream (runs of IMU records go to the engine in one call)."""
         kind = stream.kind
         other = np.flatnonzero(kind != IMU)
+        baro = None
+        if self.engine.pl_sensors:  # the BMP390's words for every record, encoded at once
+            baro = pl_sensors.baro_words(np.where(stream.baro_status == 0,
+                                                  stream.baro_altitude, np.nan))
+            self.engine.prepare_baro(baro[0][baro[2]], baro[1][baro[2]])
         pos = 0
         for m in list(other) + [len(stream)]:
             if m > pos:
@@ -212,7 +232,8 @@ class Navigator:
                 break
             k, t, i = kind[m], float(stream.t[m]), stream.index[m]
             if k == BARO:
-                self.feed_baro(t, stream.baro_altitude[i], stream.baro_status[i] == 0)
+                self.feed_baro(t, stream.baro_altitude[i], stream.baro_status[i] == 0,
+                               None if baro is None else (baro[0][i], baro[1][i], baro[2][i]))
             elif k == RANGER:
                 self.feed_ranger(t, stream.ranger_range[i], stream.ranger_status[i] == 0)
             pos = m + 1

@@ -48,6 +48,10 @@ PIN_PORTS = ("imu_sclk", "imu_mosi", "imu_miso", "imu_cs_n", "imu_dr",
              "baro_sclk", "baro_mosi", "baro_miso", "baro_cs_n", "lidar_rx", "lidar_tx")
 
 
+#: the ranger's silence timeout (bit times): 320 ms at 115200 baud, three frame periods of
+#: a 10 Hz ranger (the receiver's own default, 20 ms, suits only the TF-Luna's 100 Hz)
+LIDAR_TIMEOUT_BITS = 36_864
+
 #: calibration register of the map -> engine calibration word (CAL_APPLY copies them)
 CAL_REGISTER_OF = {
     **{f"CAL_{sensor}_LSB": f"cal_{s}_lsb" for sensor, s in (("GYRO", "g"), ("ACCEL", "a"))},
@@ -232,8 +236,20 @@ class InsTrnTop(wiring.Component):
         engine_reset = _bits(ctrl, "CTRL", "reset")
 
         # ------------------------------------------------------------ sensors
-        sensors = SensorSubsystem(self.tick_cycles, calibrate=False)
+        sensors = SensorSubsystem(self.tick_cycles, calibrate=False,
+                                  lidar_timeout_bits=LIDAR_TIMEOUT_BITS)
         m.submodules.sensors = sensors
+        # the last barometer sample and ranger frame, for the PS
+        baro_p, baro_t, baro_count = Signal(32), Signal(32), Signal(32)
+        with m.If(sensors.baro.valid):
+            m.d.sync += [baro_p.eq(sensors.baro.payload.p), baro_t.eq(sensors.baro.payload.t),
+                         baro_count.eq(baro_count + 1)]
+        lidar_dist, lidar_strength = Signal(16), Signal(16)
+        lidar_count = Signal(32)
+        with m.If(sensors.lidar.valid):
+            m.d.sync += [lidar_dist.eq(sensors.lidar.payload.dist),
+                         lidar_strength.eq(sensors.lidar.payload.strength),
+                         lidar_count.eq(lidar_count + 1)]
         baud_div = _bits(regs.o_LIDAR_CFG, "LIDAR_CFG", "baud_div")
         tick_div = Signal(8)
         with m.If(baud_div[4:] > 256):
@@ -253,6 +269,10 @@ class InsTrnTop(wiring.Component):
             sensors.update_rate.eq(regs.o_UPDATE_RATE[:16]),
             sensors.baro_rate.eq(regs.o_BARO_RATE[:16]),
             sensors.baro.ready.eq(1), sensors.lidar.ready.eq(1),
+            regs.i_BARO_PRESS.eq(baro_p), regs.i_BARO_TEMP.eq(baro_t),
+            regs.i_BARO_SAMPLES.eq(baro_count),
+            regs.i_LIDAR_DATA.eq(Cat(lidar_dist, lidar_strength)),
+            regs.i_LIDAR_FRAMES.eq(lidar_count),
             regs.i_SAMPLE_COUNT.eq(sensors.imu_samples),
             regs.i_ERROR_COUNT.eq(sensors.imu_errors + sensors.baro_errors
                                   + sensors.lidar_errors),

@@ -50,10 +50,14 @@ FP32_UNITS = {"add": 2, "mul": 2, "from_int": 2}
 class SensorSubsystem(wiring.Component):
     """Seed 000 sensor_subsystem: IMU/baro/lidar interfaces, calibration, compensation."""
 
-    def __init__(self, tick_cycles: int = 100, cal=None, calibrate: bool = True):
+    def __init__(self, tick_cycles: int = 100, cal=None, calibrate: bool = True,
+                 lidar_timeout_bits: int = 2304):
         self.tick_cycles = tick_cycles
         self.cal = cal
         self.calibrate = calibrate
+        #: the ranger's silence timeout in bit times (2304: 20 ms at 115200 baud, for the
+        #: TF-Luna's 100 Hz frames; a 10 Hz ranger needs more)
+        self.lidar_timeout_bits = lidar_timeout_bits
         #: IMU path: CS_N falling to the calibrated sample (burst + FIFO + calibration program);
         #: without calibration, CS_N falling to the raw sample at the FIFO output
         self.LATENCY = (BURST_LATENCY + 1 + len(IN_FIELDS) + CAL_LATENCY if calibrate
@@ -85,7 +89,7 @@ class SensorSubsystem(wiring.Component):
         m.submodules.imu_if = imu = SpiMasterImu(self.tick_cycles)
         m.submodules.baro_if = baro = SpiMasterBaro(self.tick_cycles)
         m.submodules.baro_comp = comp = BaroCompensation()
-        m.submodules.lidar_if = lidar = UartRxLidar()
+        m.submodules.lidar_if = lidar = UartRxLidar(timeout_bits=self.lidar_timeout_bits)
 
         m.d.comb += [
             self.imu_sclk.eq(imu.sclk), self.imu_mosi.eq(imu.mosi), self.imu_cs_n.eq(imu.cs_n),
