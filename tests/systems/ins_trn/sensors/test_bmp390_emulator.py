@@ -15,9 +15,9 @@ from navgate.gateware.verify import verify
 from navgate.systems.ins_trn.sensors.baro_compensation import BaroCompensation
 from navgate.systems.ins_trn.sensors.bmp390_emulator import (
     FIFO_DEPTH,
+    INT_ROUND_TRIP,
     MIN_HALF,
     Bmp390Emulator,
-    INT_ROUND_TRIP,
     Bmp390Loopback,
 )
 from navgate.systems.ins_trn.sensors.sensor_subsystem import SensorSubsystem
@@ -199,6 +199,44 @@ def test_timer_mode_with_underruns():
     assert r["sensor_error"] == 1  # the last reads underran (nothing pushed after)
 
 
+def test_int_mode_ignores_a_fast_timer():
+    """INT mode with BARO_RATE = 300 cycles (a timer that would read 20 times): only the 2
+    pushed samples are read, no underruns."""
+    samples = _samples(2, seed=64)
+    r = _run(samples, div=MIN_DIV, int_sync=1, rate=300, cycles=10000, gaps=[1, 5000])
+    _check_delivered(r, samples, B.DEFAULT_NVM)
+    assert len(r["cs_fall_at"]) == 4 and (r["underruns"], r["error_count"]) == (0, 0)
+
+
+def test_int_mode_failed_startup_retries_on_the_timer():
+    """INT mode with no part on the bus (MISO pulled high: CHIP_ID reads 0xFF, INT never
+    rises): the start-up fails, is counted, and is retried every BARO_RATE period."""
+    from navgate.systems.ins_trn.sensors.spi_master_baro import SpiMasterBaro
+
+    dut = SpiMasterBaro(tick_cycles=1)
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    falls = []
+
+    async def cs(ctx):
+        async for (_c,) in ctx.negedge(dut.cs_n):
+            falls.append(1)
+
+    async def main(ctx):
+        ctx.set(dut.cfg_spi_div, MIN_DIV)
+        ctx.set(dut.cfg_rate, 5000)
+        ctx.set(dut.cfg_int_sync, 1)
+        await ctx.tick().repeat(3 * 5000 + 4500)
+        falls.append((ctx.get(dut.error_count), ctx.get(dut.nvm_valid),
+                      ctx.get(dut.sensor_error)))
+
+    sim.add_testbench(cs, background=True)
+    sim.add_testbench(main)
+    sim.run()
+    # start-up (write + NVM read) at 0, retried after the timer at 5000, 10000, 15000
+    assert falls == [1] * 8 + [(4, 0, 1)]
+
+
 class _PhyBench(Elaboratable):
     """The emulator driven by a bare 8-bit SpiPhy (half period MIN_HALF) and a CS_N signal."""
 
@@ -361,6 +399,7 @@ def test_loopback_verilator(tmp_path):
     """The same loopback's emitted Verilog in Verilator: 100 samples (range corners + random)
     out of the master exactly as pushed in."""
     dut = Bmp390Loopback(MIN_DIV)
+    assert (dut.LATENCY, 1 / dut.THROUGHPUT) == (INT_TO_SAMPLE_MIN, 624)
     res = verify(dut, _loopback_model, _loopback_inputs(100, seed=92),
                  backend="verilator", work_dir=tmp_path)
     assert res.n_vectors == 100 and res.n_mismatches == 0, res

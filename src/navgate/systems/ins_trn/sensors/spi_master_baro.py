@@ -25,9 +25,9 @@ sample reads. As in spi_master_imu's data-ready mode, the edge is that of INT ga
 unchanged, except that an INT edge seen during it is dropped at its end (the emulator, and a
 part whose INT means "unread sample waiting", raise INT again after the start-up read, which
 consumes no sample; keeping the early edge would start a second read of the same sample,
-found in the tests); while the NVM is not valid (a failed start-up) the timer keeps pacing the start-up
-retries in this mode too, since a missing part never raises INT. With ``cfg_int_sync`` = 0
-``int_pin`` is ignored and everything is as above.
+found in the tests); while the NVM is not valid (a failed start-up) the timer keeps pacing
+the start-up retries in this mode too, since a missing part never raises INT. With
+``cfg_int_sync`` = 0 ``int_pin`` is ignored and everything is as above.
 """
 
 from __future__ import annotations
