@@ -159,15 +159,19 @@ def test_int_mode_minimum_divider_random_samples():
 
 
 def test_int_mode_default_divider():
-    """cfg_spi_div 5 (the default): 4 samples after start-up, INT -> sample 1,236 cycles."""
+    """cfg_spi_div 5 (the default): 4 samples after start-up, two pairs pushed back to back:
+    INT -> sample 1,236 cycles each; reads of waiting samples 1,239 cycles apart."""
     samples = _samples(4, seed=61)
-    r = _run(samples, div=5, int_sync=1, cycles=4 * 1800 + 12000, gaps=[1, 1500, 1500, 1500],
+    r = _run(samples, div=5, int_sync=1, cycles=4 * 1800 + 12000, gaps=[1, 1, 3000, 1],
              push_at=8000)
     _check_delivered(r, samples, B.DEFAULT_NVM)
     assert (r["served"], r["underruns"], r["error_count"]) == (4, 0, 0)
-    assert [v - i for i, v in zip(r["int_at"], r["raw_at"], strict=True)] == \
-        [INT_TO_SAMPLE_DEFAULT] * 4
-    assert len(r["int_at"]) == 4 and len(r["cs_fall_at"]) == 6
+    reads = r["cs_fall_at"][2:]
+    ints = [max(i for i in r["int_at"] if i < c) for c in reads]
+    assert [v - i for i, v in zip(ints, r["raw_at"], strict=True)] == [INT_TO_SAMPLE_DEFAULT] * 4
+    assert len(reads) == 4 and len(r["int_at"]) == 4
+    assert [reads[1] - reads[0], reads[3] - reads[2]] == [
+        read_cycles(5, SAMPLE_BYTES) + INT_ROUND_TRIP] * 2 == [1239] * 2
 
 
 def test_int_mode_samples_waiting_before_startup():
