@@ -5,8 +5,8 @@ xc7z020).
 Cycles: Adis16500Emulator -> pins -> SpiMasterImu in the Amaranth simulator with ``-n``
 samples pushed at once (the emulator's FIFO keeps the master busy), for each divider; prints
 CS_N falling -> sample out (latency) and CS_N falling -> next CS_N falling (period).
-Resources: the emulators, spi_master_imu and spi_master_baro synthesised from their emitted Verilog. Prints
-tables and writes a JSON summary.
+Resources: the emulators, spi_master_imu and spi_master_baro synthesised from their emitted
+Verilog. Prints tables and writes a JSON summary.
 
     python benchmarks/bench_sensor_emulators.py [-n 8] [--div 2 49] [--no-synth]
                                                 [--out build/bench_sensor_emulators.json]
