@@ -5,8 +5,8 @@ xc7z020).
 Cycles: Adis16500Emulator -> pins -> SpiMasterImu in the Amaranth simulator with ``-n``
 samples pushed at once (the emulator's FIFO keeps the master busy), for each divider; prints
 CS_N falling -> sample out (latency) and CS_N falling -> next CS_N falling (period).
-Resources: the emulators and spi_master_imu synthesised from their emitted Verilog. Prints
-tables and writes a JSON summary.
+Resources: the emulators, spi_master_imu and spi_master_baro synthesised from their emitted
+Verilog. Prints tables and writes a JSON summary.
 
     python benchmarks/bench_sensor_emulators.py [-n 8] [--div 2 49] [--no-synth]
                                                 [--out build/bench_sensor_emulators.json]
@@ -23,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from navgate.systems.ins_trn.sensors.adis16500_emulator import Adis16500Emulator
+from navgate.systems.ins_trn.sensors.bmp390_emulator import Bmp390Emulator
 from navgate.systems.ins_trn.sensors.sim_bench import run_imu_emulated
+from navgate.systems.ins_trn.sensors.spi_master_baro import SpiMasterBaro
 from navgate.systems.ins_trn.sensors.spi_master_imu import SpiMasterImu, burst_cycles
 from navgate.systems.ins_trn.sensors.tfluna_emulator import TfLunaEmulator
 
@@ -52,7 +54,9 @@ def resources() -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         for name, comp in (("adis16500_emulator", Adis16500Emulator()),
                            ("tfluna_emulator", TfLunaEmulator()),
-                           ("spi_master_imu", SpiMasterImu())):
+                           ("spi_master_imu", SpiMasterImu()),
+                           ("bmp390_emulator", Bmp390Emulator()),
+                           ("spi_master_baro", SpiMasterBaro())):
             r = synthesize(emit_verilog(comp, name), name, "xc7z020", Path(tmp) / name)
             out[name] = {k: r[k] for k in ("lut", "ff", "dsp", "carry4", "bram36")}
             out[name]["ram32m"] = r["cells"].get("RAM32M", 0)

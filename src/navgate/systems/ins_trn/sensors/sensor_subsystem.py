@@ -14,7 +14,10 @@ go if the consumer runs there.
 
 Options (navgate extensions for the FPGA top, issue 12): ``imu_dr`` is the ADIS16500's data-
 ready pin and ``imu_cfg`` bit 9 (IMU_CFG.dr_sync) makes spi_master_imu burst on its rising
-edge instead of the UPDATE_RATE timer (:class:`~.spi_master_imu.SpiMasterImu`).
+edge instead of the UPDATE_RATE timer (:class:`~.spi_master_imu.SpiMasterImu`). Likewise
+``baro_int`` is the BMP390's INT pin (data ready) and ``baro_cfg`` bit 9 (BARO_CFG.int_sync)
+makes spi_master_baro read a sample on its rising edge instead of the BARO_RATE timer
+(:class:`~.spi_master_baro.SpiMasterBaro`).
 ``calibrate=False`` leaves out the calibration block (and its ``cal_*`` ports): the ``imu``
 stream then carries the raw words straight from the IMU FIFO, each gyro/accel field the int16
 word sign-extended to 32 bits (two's complement), with ``cntr`` and ``diag`` as before; the top
@@ -70,9 +73,9 @@ class SensorSubsystem(wiring.Component):
             "imu_sclk": Out(1, init=1), "imu_mosi": Out(1), "imu_miso": In(1, init=1),
             "imu_cs_n": Out(1, init=1), "imu_dr": In(1),
             "baro_sclk": Out(1, init=1), "baro_mosi": Out(1), "baro_miso": In(1, init=1),
-            "baro_cs_n": Out(1, init=1),
+            "baro_cs_n": Out(1, init=1), "baro_int": In(1),
             "lidar_rx": In(1, init=1),
-            "imu_cfg": In(10, init=0x100 | 49), "baro_cfg": In(9, init=0x100 | 5),
+            "imu_cfg": In(10, init=0x100 | 49), "baro_cfg": In(10, init=0x100 | 5),
             "lidar_cfg": In(9, init=0x100 | 53), "update_rate": In(16, init=2500),
             "baro_rate": In(16, init=40000),
             **cal_ports,
@@ -99,7 +102,8 @@ class SensorSubsystem(wiring.Component):
             self.baro_sclk.eq(baro.sclk), self.baro_mosi.eq(baro.mosi),
             self.baro_cs_n.eq(baro.cs_n), baro.miso.eq(self.baro_miso),
             baro.cfg_spi_div.eq(self.baro_cfg[:8]), baro.cfg_enable.eq(self.baro_cfg[8]),
-            baro.cfg_rate.eq(self.baro_rate),
+            baro.cfg_rate.eq(self.baro_rate), baro.int_pin.eq(self.baro_int),
+            baro.cfg_int_sync.eq(self.baro_cfg[9]),
             lidar.rx.eq(self.lidar_rx), lidar.cfg_div.eq(self.lidar_cfg[:8]),
             lidar.cfg_enable.eq(self.lidar_cfg[8]),
             self.imu_samples.eq(imu.sample_count), self.imu_errors.eq(imu.error_count),

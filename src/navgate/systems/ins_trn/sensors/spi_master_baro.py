@@ -15,6 +15,19 @@ SPI reads send 0x80 | address, then the part returns one dummy byte before the d
 = div + 1 cycles; 5 -> 8.3 MHz at 100 MHz, limit 10 MHz), ``cfg_enable`` (BARO_CFG[8]) and
 ``cfg_rate`` (sample period in ticks, default 40,000 us = 25 Hz; a navgate extension of the
 register map, BARO_RATE). MISO passes a two-flip-flop synchroniser in the PHY path.
+
+INT-paced mode (navgate extension, ``cfg_int_sync`` = BARO_CFG[9], default 0): a sample read
+starts at each rising edge of the ``int_pin`` input (the BMP390's INT pin used as data ready,
+asynchronous, through a two-flip-flop synchroniser) and the BARO_RATE timer no longer starts
+sample reads. As in spi_master_imu's data-ready mode, the edge is that of INT gated by
+``cfg_int_sync`` and ``cfg_enable``, so that switching the mode on while INT is already high
+(a sample waiting) also starts a read. The start-up sequence (PWR_CTRL write, NVM read) is
+unchanged, except that an INT edge seen during it is dropped at its end (the emulator, and a
+part whose INT means "unread sample waiting", raise INT again after the start-up read, which
+consumes no sample; keeping the early edge would start a second read of the same sample,
+found in the tests); while the NVM is not valid (a failed start-up) the timer keeps pacing
+the start-up retries in this mode too, since a missing part never raises INT. With
+``cfg_int_sync`` = 0 ``int_pin`` is ignored and everything is as above.
 """
 
 from __future__ import annotations
@@ -55,7 +68,7 @@ class SpiMasterBaro(wiring.Component):
             "sclk": Out(1, init=1), "mosi": Out(1), "miso": In(1, init=1),
             "cs_n": Out(1, init=1),
             "cfg_spi_div": In(8, init=DEFAULT_DIV), "cfg_enable": In(1, init=1),
-            "cfg_rate": In(16, init=DEFAULT_RATE),
+            "cfg_rate": In(16, init=DEFAULT_RATE), "int_pin": In(1), "cfg_int_sync": In(1),
             "o": Out(stream.Signature(IN_LAYOUT)),
             "nvm_valid": Out(1), "sensor_error": Out(1),
             "sample_count": Out(counter_bits), "error_count": Out(counter_bits),
@@ -78,7 +91,9 @@ class SpiMasterBaro(wiring.Component):
         with m.If(tick):
             m.d.sync += pre.eq(0)
             with m.If(ticks + 1 >= self.cfg_rate):
-                m.d.sync += [ticks.eq(0), fire.eq(self.cfg_enable)]
+                # INT mode: the timer only paces start-up retries (see the module docstring)
+                m.d.sync += [ticks.eq(0), fire.eq(self.cfg_enable
+                                                  & (~self.cfg_int_sync | ~self.nvm_valid))]
             with m.Else():
                 m.d.sync += ticks.eq(ticks + 1)
 
@@ -157,6 +172,11 @@ class SpiMasterBaro(wiring.Component):
                 chip_ok = chip == bmp390.CHIP_ID
                 drdy = bmp390.STATUS_DRDY_PRESS | bmp390.STATUS_DRDY_TEMP
                 with m.If(init):
+                    # INT mode: an INT edge seen during the start-up is dropped here; the
+                    # part raises INT again after the start-up read if a sample is waiting
+                    # (that read consumes none), so keeping it would read one sample twice
+                    with m.If(self.cfg_int_sync):
+                        m.d.sync += fire.eq(0)
                     with m.If(chip_ok):
                         m.d.sync += self.nvm_valid.eq(1)
                     with m.Else():
@@ -173,4 +193,16 @@ class SpiMasterBaro(wiring.Component):
                 with m.Else():
                     fail()
                 m.next = "WAIT"
+
+        # INT mode: a sample read per rising edge of the synchronised INT (after the FSM so
+        # that an edge in the cycle a read starts is kept for the next read), taken of INT
+        # gated by the mode bits (switching the mode on while INT is high starts a read)
+        int_s = Signal()
+        armed = Signal()
+        armed_d = Signal()
+        m.submodules.int_sync = FFSynchronizer(self.int_pin, int_s, init=0, stages=2)
+        m.d.comb += armed.eq(int_s & self.cfg_int_sync & self.cfg_enable)
+        m.d.sync += armed_d.eq(armed)
+        with m.If(armed & ~armed_d):
+            m.d.sync += fire.eq(1)
         return m
