@@ -26,7 +26,7 @@ from navgate.systems.ins_trn.output_formatter import (
     formatter_bittrue,
 )
 from navgate.systems.ins_trn.registers import ID_VALUE, register_map
-from navgate.systems.ins_trn.top import SigmaUnit
+from navgate.systems.ins_trn.top import LIDAR_TIMEOUT_BITS, SigmaUnit
 from navgate.trn.dem import Dem
 
 
@@ -99,6 +99,9 @@ def _output_registers(eng, regs: Registers, n_samples: int, last_words):
         assert regs.read(f"BIAS_A{axis}") == float_to_bits(eng.m.get(f"ba{i}"))
         assert regs.read(f"BIAS_G{axis}") == float_to_bits(eng.m.get(f"bg{i}"))
     assert regs.read("SAMPLE_COUNT") == n_samples
+    # the barometer and the ranger through their pins: every sample counted, the last read
+    assert regs.read("BARO_SAMPLES") == eng.baro_samples
+    assert regs.read("LIDAR_FRAMES") == eng.lidar_frames
     assert regs.read("ERROR_COUNT") == 0
     assert regs.read_fields("ENG_STATUS") == {"busy": 0, "propagations": n_samples}
     assert regs.read_fields("STATUS") == {"running": 1, "error": 0}
@@ -112,11 +115,12 @@ def _error_interrupt(regs: Registers, sim):
     is read to clear, STATUS.error stays set until CTRL.reset."""
     regs.read("IRQ_STATUS")
     regs.write("IRQ_ENABLE", update=0, error=1)
-    # 32 clocks a bit: the receiver's timeout (2304 bit times, free-running) expires within
-    # 73,728 cycles of enabling it
-    regs.write("LIDAR_CFG", baud_div=32, enable=1)
-    waited = sim.wait("irq", limit=200_000)
-    assert waited <= 2304 * 32 + 16, waited
+    # 16 clocks a bit: the receiver's silence timeout (free-running) expires within
+    # LIDAR_TIMEOUT_BITS bit times of enabling it, or at once if it already expired
+    regs.write("LIDAR_CFG", baud_div=16, enable=0)
+    regs.write("LIDAR_CFG", baud_div=16, enable=1)
+    waited = sim.wait("irq", limit=LIDAR_TIMEOUT_BITS * 16 + 100)
+    assert waited <= LIDAR_TIMEOUT_BITS * 16 + 16, waited
     assert regs.read_fields("IRQ_STATUS")["error"] == 1
     assert regs.read_fields("IRQ_STATUS")["error"] == 0  # read to clear
     assert regs.read_fields("STATUS")["error"] == 1
@@ -196,6 +200,9 @@ def test_fpga_sim_equals_fp32_60s_flight():
 
     stream, run, engs = _fly(60.0)
     eng = engs["fpga-sim"]
+    # every valid barometer record and every ranger record went through the pins
+    assert eng.baro_samples == int(np.sum(stream.baro_status == 0)) > 1000
+    assert eng.lidar_frames == stream.ranger_range.size > 500
     assert sum(run.accepted.values()) > 10 and eng.interrupts > 10
     n = round(60.0 * 400)
     assert eng.samples == n

@@ -8,8 +8,8 @@ CS, MOSI, MISO, SCK; UART "type 3" pin 2 = TXD, pin 3 = RXD seen from the host):
 
 - ADIS16500 SPI CS_N, MOSI, MISO, SCLK on JD1-4 (T14, T15, P14, R14), DR and RST_N on JD7-8
   (U14, U15): the IMU's burst SPI on the high-speed header;
-- BMP390 SPI CS_N, MOSI, MISO, SCLK on JE1-4 (V12, W16, J15, H15): a slow SPI on the standard
-  header;
+- BMP390 SPI CS_N, MOSI, MISO, SCLK on JE1-4 (V12, W16, J15, H15) and its INT (data ready)
+  on JE7 (V13): a slow SPI on the standard header;
 - TF-Luna UART, TX to the ranger on JC2 (W15) and RX from it on JC3 (T11): type 3 pin order;
 - the 125 MHz clock on K17, the reset button BTN0 on K18, status LEDs (running, error, IMU ok,
   TRN update) on LD0-LD3 (M14, M15, G14, D18).
@@ -29,13 +29,13 @@ ZYBO_Z7_20_PINS: dict[str, tuple[str, str]] = {
     "imu_cs_n": ("T14", "JD1"), "imu_mosi": ("T15", "JD2"), "imu_miso": ("P14", "JD3"),
     "imu_sclk": ("R14", "JD4"), "imu_dr": ("U14", "JD7"), "imu_rst_n": ("U15", "JD8"),
     "baro_cs_n": ("V12", "JE1"), "baro_mosi": ("W16", "JE2"), "baro_miso": ("J15", "JE3"),
-    "baro_sclk": ("H15", "JE4"),
+    "baro_sclk": ("H15", "JE4"), "baro_int": ("V13", "JE7"),
     "lidar_tx": ("W15", "JC2"), "lidar_rx": ("T11", "JC3"),
     "led[0]": ("M14", "LD0"), "led[1]": ("M15", "LD1"), "led[2]": ("G14", "LD2"),
     "led[3]": ("D18", "LD3"),
 }
 #: inputs that get a pull-up
-PULL_UPS = ("imu_miso", "imu_dr", "baro_miso", "lidar_rx")
+PULL_UPS = ("imu_miso", "imu_dr", "baro_miso", "baro_int", "lidar_rx")
 #: the oscillator period (ns)
 CLOCK_PERIOD_NS = 8.0
 

@@ -58,6 +58,12 @@ class FpgaSimError(RuntimeError):
     """The co-simulation failed or answered unexpectedly."""
 
 
+def _baro_layout():
+    from navgate.systems.ins_trn.sensors.bmp390_emulator import SAMPLE_LAYOUT
+
+    return SAMPLE_LAYOUT
+
+
 def _lidar_layout():
     from navgate.systems.ins_trn.sensors.tfluna_emulator import SAMPLE_LAYOUT
 
@@ -96,6 +102,7 @@ class InsTrnSimTop(wiring.Component):
             "axi": In(axi_lite_signature(register_map().address_width + 1)),
             "imu_feed": In(stream.Signature(_sample_layout())),
             "lidar_feed": In(stream.Signature(_lidar_layout())),
+            "baro_feed": In(stream.Signature(_baro_layout())),
             "irq": Out(1),
         })
 
@@ -111,12 +118,19 @@ class InsTrnSimTop(wiring.Component):
         m.submodules.lidar = lidar = TfLunaEmulator()
         wiring.connect(m, wiring.flipped(self.lidar_feed), lidar.samples)
         m.d.comb += [lidar.cfg_bit_cycles.eq(LIDAR_BIT_CYCLES), top.lidar_rx.eq(lidar.tx)]
+        from navgate.systems.ins_trn.sensors.bmp390_emulator import Bmp390Emulator
+
+        m.submodules.baro = baro = Bmp390Emulator()
+        wiring.connect(m, wiring.flipped(self.baro_feed), baro.samples)
+        m.d.comb += [baro.sclk.eq(top.baro_sclk), baro.mosi.eq(top.baro_mosi),
+                     baro.cs_n.eq(top.baro_cs_n), top.baro_miso.eq(baro.miso | ~baro.miso_oe),
+                     top.baro_int.eq(baro.int_pin)]
         wiring.connect(m, top.dma, ddr.axi)
         wiring.connect(m, wiring.flipped(self.imu_feed), emu.samples)
         m.d.comb += [
             emu.sclk.eq(top.imu_sclk), emu.mosi.eq(top.imu_mosi), emu.cs_n.eq(top.imu_cs_n),
             top.imu_miso.eq(emu.miso | ~emu.miso_oe), top.imu_dr.eq(emu.dr),
-            top.baro_miso.eq(1), self.irq.eq(top.irq),
+            self.irq.eq(top.irq),
         ]
         # AXI4-Lite: write channels and AR/R to the bank, except reads of the DDR window
         a, b = self.axi, top.axi
@@ -238,8 +252,10 @@ class FpgaSimEngine(Fp32Engine):
         self.image = engine_image("ins_engines")
         self.addr = self.image.layout.fixed
         self.off = {r.name: r.offset for r in register_map().registers}
-        self.sim = NativeAxiSim(InsTrnSimTop(), streams=("imu_feed", "lidar_feed"),
+        self.sim = NativeAxiSim(InsTrnSimTop(),
+                                streams=("imu_feed", "lidar_feed", "baro_feed"),
                                 watch=("irq",))
+        self.baro_samples = 0
         self.lidar_frames = 0
         self._finalizer = weakref.finalize(self, self.sim.close)
         self.propagations = 0
@@ -301,6 +317,7 @@ class FpgaSimEngine(Fp32Engine):
                  self._w("REF_LON", float_to_bits(ref.lon0)),
                  self._w("REF_ALT", float_to_bits(ref.h0)),
                  self._w("IMU_CFG", 0 | 1 << 8 | 1 << 9),  # fastest SCLK, enabled, DR-paced
+                 self._w("BARO_CFG", 2 | 1 << 8 | 1 << 9),  # fastest SCLK, enabled, INT-paced
                  self._w("IRQ_ENABLE", 1),
                  self._w("CTRL", 1),
                  self._wait_idle()]
@@ -365,6 +382,24 @@ class FpgaSimEngine(Fp32Engine):
         self._count(self.accepted, kind)
         return UpdateOutcome(True, nis,
                              np.array([float(np.uint32(b).view(np.float32)) for b in dx]))
+
+    def prepare_baro(self, uncomp_press, uncomp_temp) -> None:
+        """Nothing ahead of time: every sample goes through the pins when its record comes."""
+
+    def read_baro(self, uncomp_press: int, uncomp_temp: int) -> float:
+        """The sample through the BMP390 emulator, the SPI pins, ``spi_master_baro`` (INT
+        paced) and ``baro_compensation``: push the ADC words, wait until BARO_SAMPLES counts
+        the sample, read BARO_PRESS."""
+        from navgate.gateware import verify as V
+
+        packed = V.pack(self.sim.formats["baro_feed"],
+                        {"up": [int(uncomp_press)], "ut": [int(uncomp_temp)]})[0]
+        self.baro_samples += 1
+        out = self._batch([f"S 2 {int(packed):x}",
+                           f"P {self.off['BARO_SAMPLES']:x} ffffffff "
+                           f"{self.baro_samples & 0xFFFFFFFF:x} 100000",
+                           f"R {self.off['BARO_PRESS']:x}"])
+        return float(np.uint32(int(out[-1], 16)).view(np.float32))
 
     def read_ranger(self, dist: int, strength: int) -> tuple[int, int]:
         """The frame through the TF-Luna emulator, the UART pin and ``uart_rx_lidar``: push

@@ -45,7 +45,8 @@ __all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "SigmaUnit", "CAL_REGISTER
 
 #: the top's pin ports (board pins; docs/seed000-top.md)
 PIN_PORTS = ("imu_sclk", "imu_mosi", "imu_miso", "imu_cs_n", "imu_dr",
-             "baro_sclk", "baro_mosi", "baro_miso", "baro_cs_n", "lidar_rx", "lidar_tx")
+             "baro_sclk", "baro_mosi", "baro_miso", "baro_cs_n", "baro_int",
+             "lidar_rx", "lidar_tx")
 
 
 #: the ranger's silence timeout (bit times): 320 ms at 115200 baud, three frame periods of
@@ -191,7 +192,7 @@ class InsTrnTop(wiring.Component):
             "imu_sclk": Out(1, init=1), "imu_mosi": Out(1), "imu_miso": In(1, init=1),
             "imu_cs_n": Out(1, init=1), "imu_dr": In(1),
             "baro_sclk": Out(1, init=1), "baro_mosi": Out(1), "baro_miso": In(1, init=1),
-            "baro_cs_n": Out(1, init=1),
+            "baro_cs_n": Out(1, init=1), "baro_int": In(1),
             "lidar_rx": In(1, init=1), "lidar_tx": Out(1, init=1),
         }
         super().__init__(members)
@@ -262,9 +263,10 @@ class InsTrnTop(wiring.Component):
             sensors.imu_dr.eq(self.imu_dr),
             self.baro_sclk.eq(sensors.baro_sclk), self.baro_mosi.eq(sensors.baro_mosi),
             self.baro_cs_n.eq(sensors.baro_cs_n), sensors.baro_miso.eq(self.baro_miso),
+            sensors.baro_int.eq(self.baro_int),
             sensors.lidar_rx.eq(self.lidar_rx), self.lidar_tx.eq(1),
             sensors.imu_cfg.eq(regs.o_IMU_CFG[:10]),
-            sensors.baro_cfg.eq(regs.o_BARO_CFG[:9]),
+            sensors.baro_cfg.eq(regs.o_BARO_CFG[:10]),
             sensors.lidar_cfg.eq(Cat(tick_div, _bits(regs.o_LIDAR_CFG, "LIDAR_CFG", "enable"))),
             sensors.update_rate.eq(regs.o_UPDATE_RATE[:16]),
             sensors.baro_rate.eq(regs.o_BARO_RATE[:16]),
