@@ -44,19 +44,23 @@ class ClockResetGenerator(Elaboratable):
     THROUGHPUT = 1
 
     def __init__(self, *, simulation: bool = False, lock_cycles: int = 100_000,
-                 reset_cycles: int = 8):
+                 reset_cycles: int = 8, define_domain: bool = True):
         if reset_cycles < 1 or lock_cycles < 0:
             raise ValueError("reset_cycles must be >= 1 and lock_cycles >= 0")
         self.simulation = simulation
         self.lock_cycles = lock_cycles
         self.reset_cycles = reset_cycles
+        #: define ``sync`` here (a stand-alone generator); a top level that instantiates the
+        #: generator defines ``sync`` itself and passes False
+        self.define_domain = define_domain
         self.clk_in = Signal()
         self.ext_rst_n = Signal(init=1)
         self.locked = Signal()
 
     def elaborate(self, platform):
         m = Module()
-        m.domains.sync = ClockDomain("sync")
+        if self.define_domain:
+            m.domains.sync = ClockDomain("sync")
         # a domain without reset on the same clock holds the sequencer
         m.domains.por = ClockDomain("por", reset_less=True)
         m.d.comb += ClockSignal("por").eq(ClockSignal("sync"))

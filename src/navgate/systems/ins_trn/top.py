@@ -31,7 +31,7 @@ Register fields that configure blocks whose ports differ from the map:
 
 from __future__ import annotations
 
-from amaranth import Cat, Module, ResetInserter, Signal
+from amaranth import Cat, ClockDomain, Module, ResetInserter, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
@@ -441,7 +441,8 @@ class ZyboInsTrnTop(wiring.Component):
         from navgate.systems.ins_trn.clocking import ClockResetGenerator
 
         m = Module()
-        m.submodules.clk_rst = crg = ClockResetGenerator()
+        m.domains.sync = ClockDomain("sync")  # driven by clk_rst_gen
+        m.submodules.clk_rst = crg = ClockResetGenerator(define_domain=False)
         m.d.comb += [crg.clk_in.eq(self.clk_in), crg.ext_rst_n.eq(~self.rst_btn)]
         m.submodules.top = top = self.inner
         for name, member in top.signature.members.items():
