@@ -7,9 +7,9 @@ Reference: seed 000 "Module Hierarchy" and "Data Flow". The blocks and how they 
         nav_sequencer -> ins_engines (calibration, mechanization, covariance propagation,
         altitude and TRN Kalman updates on the shared float32 units) -> shadow words ->
         nav_output_formatter (POS/VEL/QUAT, Euler angles, NAV_FLAGS) -> registers
-    BMP390 pins -> spi_master_baro -> baro_compensation; TF-Luna RX -> uart_rx_lidar
-        (counters and error flags in the registers; docs/seed000-top.md says what the PS
-        does with the barometer and the ranger)
+    BMP390 pins -> spi_master_baro (INT-paced or timed) -> baro_compensation -> BARO_PRESS
+    TF-Luna RX -> uart_rx_lidar -> LIDAR_DATA (the PS turns both into the altitude update and
+        the terrain profile; docs/seed000-top.md)
     altitude_profile_manager (64 x 128-bit FIFO, DMA to DDR over an AXI4 write master)
     interrupt_gen -> irq (IRQ_F2P); status LEDs
 
