@@ -18,7 +18,6 @@ import numpy as np
 
 from navgate.systems.ins_trn import flight
 from navgate.systems.ins_trn.engine import make_engine
-from navgate.systems.ins_trn.navigation import flight_stream
 from navgate.systems.ins_trn.navigator import Navigator, engine_setup
 from navgate.trn.dem import Dem
 
@@ -31,9 +30,7 @@ def main():
     args = ap.parse_args()
     dem = Dem.default()
     cfg = flight.FlightConfig(duration_s=args.duration, seed=args.seed)
-    route = flight.plan_route(dem, cfg)
-    data = flight.simulate_sensors(route, dem, cfg)
-    stream = flight_stream(data, dem, cfg, flight.initial_estimate(data, cfg))
+    _, _, stream = flight.record_stream(dem, cfg)
     runs, wall, build = {}, {}, {}
     eng = None
     for name in ("fp32", "fpga-sim"):

@@ -117,12 +117,13 @@ def run_random_transactions(regmap, n, seed):
             for reg, value in zip(pulsed, values, strict=True):
                 if value:
                     log["pulses"] += 1
-                    expected = model.pulses.get(reg.name, [])
-                    if not expected:
+                    seen = log.setdefault("seen_pulses", {}).setdefault(reg.name, [])
+                    seen.append(value)
+                    # the model records a pulse when the testbench takes the B response, which
+                    # may be some cycles after the pulse: at most this one pulse is ahead of
+                    # the model (the lists are compared in order at the end)
+                    if len(seen) > len(model.pulses.get(reg.name, [])) + 1:
                         log["mismatches"].append(("unexpected pulse", reg.name, value))
-                    # the model records the pulse when the B response is seen, which is
-                    # after the pulse cycle; compare in order at the end instead
-                    log.setdefault("seen_pulses", {}).setdefault(reg.name, []).append(value)
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)

@@ -528,13 +528,15 @@ class NativeAxiSim:
     ``streams`` names the input streams (index k in the protocol is the k-th name) and
     ``watch`` the 1-bit outputs. ``delay_probability``/``max_delay``/``seed`` switch on random
     per-channel delays, ``skew`` offsets W from AW; ``limit`` bounds each bus transaction and
-    stream push (cycles). Use as a context manager, or call :meth:`close`.
+    stream push (cycles). ``verilog`` is the component's Verilog (top module ``top``) when the
+    caller has it already (emitting a large design takes a while). Use as a context manager,
+    or call :meth:`close`.
     """
 
     def __init__(self, component, streams: Sequence[str] = (), watch: Sequence[str] = (), *,
                  addr_width: int | None = None, top: str = "dut", limit: int = 100_000,
                  delay_probability: float = 0.0, max_delay: int = 3, seed: int = 0,
-                 skew: int = 0):
+                 skew: int = 0, verilog: str | None = None):
         axi = _member(component, "axi")
         if not axi.is_signature or axi.flow != wiring.In:
             raise NativeAxiError("port 'axi' must be In(axi_lite_signature(...))")
@@ -564,8 +566,10 @@ class NativeAxiSim:
         if not 0.0 <= delay_probability <= 1.0:
             raise NativeAxiError("delay_probability must be in [0, 1]")
         t0 = time.perf_counter()
+        if verilog is None:
+            verilog = V.emit_verilog(component, top)
         self.exe = build_native_axi(
-            V.emit_verilog(component, top), top, width,
+            verilog, top, width,
             [(n, self.formats[n].width) for n in self.streams], self.watch)
         self.build_seconds = time.perf_counter() - t0
         args = [str(self.exe), "--limit", str(int(limit)), "--seed", str(int(seed)),

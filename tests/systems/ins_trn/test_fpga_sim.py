@@ -17,7 +17,6 @@ from navgate.systems.ins_trn import flight
 from navgate.systems.ins_trn.engine import make_engine
 from navgate.systems.ins_trn.fp32_exec import float_to_bits
 from navgate.systems.ins_trn.fp32_program import N_STATES, STATE_REGS, p_reg
-from navgate.systems.ins_trn.navigation import flight_stream
 from navgate.systems.ins_trn.navigator import Navigator, engine_setup
 from navgate.systems.ins_trn.output_formatter import (
     OUT_WORDS,
@@ -40,9 +39,7 @@ def _same_registers(a, b):
 def _fly(duration, seed=1):
     dem = Dem.default()
     cfg = flight.FlightConfig(duration_s=duration, seed=seed)
-    route = flight.plan_route(dem, cfg)
-    data = flight.simulate_sensors(route, dem, cfg)
-    stream = flight_stream(data, dem, cfg, flight.initial_estimate(data, cfg))
+    _, _, stream = flight.record_stream(dem, cfg)
     runs, engs = {}, {}
     for name in ("fp32", "fpga-sim"):
         eng = make_engine(name, engine_setup(stream.header, cfg))

@@ -14,7 +14,6 @@ import pytest
 from navgate.systems.ins_trn import flight
 from navgate.systems.ins_trn.engine import make_engine
 from navgate.systems.ins_trn.fp32_program import STATE_REGS
-from navgate.systems.ins_trn.navigation import flight_stream
 from navgate.systems.ins_trn.navigator import Navigator, engine_setup
 from navgate.trn.dem import Dem
 
@@ -33,9 +32,7 @@ def _same_registers(engs):
 def _fly_both(duration):
     dem = Dem.default()
     cfg = flight.FlightConfig(duration_s=duration, seed=1)
-    route = flight.plan_route(dem, cfg)
-    data = flight.simulate_sensors(route, dem, cfg)
-    stream = flight_stream(data, dem, cfg, flight.initial_estimate(data, cfg))
+    _, _, stream = flight.record_stream(dem, cfg)
     runs, engs = {}, {}
     for name in ("fp32", "rtl"):
         eng = make_engine(name, engine_setup(stream.header, cfg))

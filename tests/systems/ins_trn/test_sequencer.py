@@ -13,7 +13,6 @@ from navgate.systems.ins_trn import flight
 from navgate.systems.ins_trn.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.fp32_exec import float_to_bits
 from navgate.systems.ins_trn.fp32_program import CAL_REGS, STATE_REGS
-from navgate.systems.ins_trn.navigation import flight_stream
 from navgate.systems.ins_trn.navigator import engine_setup
 from navgate.systems.ins_trn.sequencer import SHADOW_WORDS, NavSequencer, job_cycles
 from navgate.trn.dem import Dem
@@ -23,9 +22,7 @@ from navgate.trn.dem import Dem
 def setup_and_words():
     dem = Dem.default()
     cfg = flight.FlightConfig(duration_s=2.0, seed=3)
-    route = flight.plan_route(dem, cfg)
-    data = flight.simulate_sensors(route, dem, cfg)
-    stream = flight_stream(data, dem, cfg, flight.initial_estimate(data, cfg))
+    _, _, stream = flight.record_stream(dem, cfg)
     return engine_setup(stream.header, cfg), stream.gyro_words[:3], stream.accel_words[:3]
 
 

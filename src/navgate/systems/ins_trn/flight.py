@@ -120,6 +120,15 @@ def max_position_difference(dem: Dem, a: NavRun, b: NavRun) -> float:
     return float(np.max(d))
 
 
+def record_stream(dem: Dem, cfg: FlightConfig, route: Route | None = None):
+    """Plan (unless ``route`` is given) and simulate a flight, and package its sensor records
+    for the navigator: (route, sensor data, record stream)."""
+    if route is None:
+        route = plan_route(dem, cfg)
+    data = simulate_sensors(route, dem, cfg)
+    return route, data, flight_stream(data, dem, cfg, initial_estimate(data, cfg))
+
+
 def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None,
         engine: str = "reference") -> FlightResult:
     """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done.
@@ -164,4 +173,5 @@ def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progr
 
 
 __all__ = ["FlightConfig", "FlightResult", "NavRun", "RouteError", "fly", "fly_stream",
+           "record_stream",
            "max_position_difference", "plan_route", "run_navigation"]

@@ -206,6 +206,36 @@ class _DmaMemory(wiring.Component):
         return m
 
 
+def sim_verilog(top: InsTrnSimTop) -> str:
+    """The co-simulation top's Verilog (module ``dut``), emitted once per version of the
+    gateware: cached beside the Verilator models, keyed by the contents of every source file
+    of the navgate package and the Amaranth version (emitting it takes tens of seconds)."""
+    import hashlib
+    import os
+    from pathlib import Path
+
+    import amaranth
+
+    from navgate.gateware import verify as V
+
+    root = Path(__file__).resolve().parents[2]  # the navgate package
+    h = hashlib.sha256(amaranth.__version__.encode())
+    for path in sorted(root.rglob("*")):
+        if path.suffix in (".py", ".rdl") and path.is_file():
+            h.update(str(path.relative_to(root)).encode())
+            h.update(path.read_bytes())
+    cache = V.verilator_cache_dir()
+    cache.mkdir(parents=True, exist_ok=True)
+    path = cache / f"fpga-sim-dut-{h.hexdigest()[:24]}.v"
+    if path.exists():
+        return path.read_text()
+    text = V.emit_verilog(top, "dut")
+    tmp = path.with_suffix(f".{os.getpid()}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+    return text
+
+
 #: state words the navigator reads at every log row and ranger record, fetched in one batch
 HOT_WORDS = (NAV_REGS + ("cN", "cE", "cD", "cvN", "cvE", "cvD", "cq0", "cq1", "cq2", "cq3")
              + tuple(p_reg(i, i) for i in range(N_STATES))
@@ -252,9 +282,9 @@ class FpgaSimEngine(Fp32Engine):
         self.image = engine_image("ins_engines")
         self.addr = self.image.layout.fixed
         self.off = {r.name: r.offset for r in register_map().registers}
-        self.sim = NativeAxiSim(InsTrnSimTop(),
-                                streams=("imu_feed", "lidar_feed", "baro_feed"),
-                                watch=("irq",))
+        top = InsTrnSimTop()
+        self.sim = NativeAxiSim(top, streams=("imu_feed", "lidar_feed", "baro_feed"),
+                                watch=("irq",), verilog=sim_verilog(top))
         self.baro_samples = 0
         self.lidar_frames = 0
         self._finalizer = weakref.finalize(self, self.sim.close)

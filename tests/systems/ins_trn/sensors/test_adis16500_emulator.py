@@ -86,7 +86,7 @@ def test_dr_mode_default_divider():
     assert list(np.diff(res["cs_fall_at"])) == [burst_cycles(49) + 8] * 2  # back to back
 
 
-@pytest.mark.parametrize("div", [MIN_DIV, 49])
+@pytest.mark.parametrize("div", [MIN_DIV, pytest.param(49, marks=pytest.mark.slow)])
 def test_timer_mode_with_underruns(div):
     """Timer mode (cfg_dr_sync 0, DR ignored): samples waiting -> delivered in order; then
     the emulator runs dry -> all-zero bursts, counted by both sides, flagged, never
@@ -297,6 +297,7 @@ def test_loopback_amaranth_with_gaps_and_stalls():
     assert res.n_vectors == 24 and res.n_mismatches == 0, res
 
 
+@pytest.mark.slow  # the emulators run in Verilator in every fpga-sim flight test too
 def test_loopback_verilator(tmp_path):
     """Emitted Verilog of emulator + master (DR mode, minimum divider) in Verilator: 200
     samples (extremes + random) out of the master exactly as pushed in, DATA_CNTR 1..200."""

@@ -6,6 +6,7 @@ bit for bit; underruns are reads without drdy that the master counts as errors; 
 MISO equal those of the Python bus model Bmp390Model for the same transactions."""
 
 import numpy as np
+import pytest
 from amaranth.hdl import Elaboratable, Module, Signal
 from amaranth.sim import Simulator
 
@@ -399,6 +400,7 @@ def test_loopback_amaranth_with_gaps():
     assert res.n_vectors == 16 and res.n_mismatches == 0, res
 
 
+@pytest.mark.slow  # the emulators run in Verilator in every fpga-sim flight test too
 def test_loopback_verilator(tmp_path):
     """The same loopback's emitted Verilog in Verilator: 100 samples (range corners + random)
     out of the master exactly as pushed in."""

@@ -56,7 +56,6 @@ from fractions import Fraction
 
 from amaranth.hdl import Cat, Module, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
-from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
@@ -65,6 +64,7 @@ from navgate.devices import adis16500
 from .spi_master_imu import SAMPLE_LAYOUT as MASTER_SAMPLE_LAYOUT
 from .spi_master_imu import SpiMasterImu, burst_cycles
 from .spi_phy import MIN_HALF as _MASTER_MIN_HALF
+from .spi_phy import slave_pins
 
 #: the samples' layout (int16 words as the part outputs them; DIAG_STAT unsigned)
 SAMPLE_LAYOUT = data.StructLayout({
@@ -106,17 +106,7 @@ class Adis16500Emulator(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        sclk, mosi, cs_n = Signal(init=1), Signal(), Signal(init=1)
-        m.submodules.sclk_sync = FFSynchronizer(self.sclk, sclk, init=1, stages=SYNC_STAGES)
-        m.submodules.mosi_sync = FFSynchronizer(self.mosi, mosi, init=0, stages=SYNC_STAGES)
-        m.submodules.cs_sync = FFSynchronizer(self.cs_n, cs_n, init=1, stages=SYNC_STAGES)
-        sclk_d, cs_d = Signal(init=1), Signal(init=1)
-        m.d.sync += [sclk_d.eq(sclk), cs_d.eq(cs_n)]
-        cs_fall = Signal()
-        cs_rise = Signal()
-        sclk_rise = Signal()
-        m.d.comb += [cs_fall.eq(cs_d & ~cs_n), cs_rise.eq(~cs_d & cs_n),
-                     sclk_rise.eq(~sclk_d & sclk)]
+        mosi, sclk_rise, cs_fall, cs_rise = slave_pins(m, self.sclk, self.mosi, self.cs_n)
 
         m.submodules.fifo = fifo = SyncFIFOBuffered(width=SAMPLE_LAYOUT.size,
                                                     depth=self.fifo_depth)

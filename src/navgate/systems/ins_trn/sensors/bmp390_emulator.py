@@ -55,13 +55,13 @@ from fractions import Fraction
 
 from amaranth.hdl import Cat, Const, Module, Signal, unsigned
 from amaranth.lib import data, stream, wiring
-from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.fifo import SyncFIFOBuffered
 from amaranth.lib.wiring import In, Out
 
 from navgate.devices import bmp390
 
 from .spi_phy import MIN_HALF as _MASTER_MIN_HALF
+from .spi_phy import slave_pins
 
 #: the samples' layout: raw 24-bit ADC words (uncompensated pressure and temperature)
 SAMPLE_LAYOUT = data.StructLayout({"up": unsigned(24), "ut": unsigned(24)})
@@ -106,15 +106,7 @@ class Bmp390Emulator(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        sclk, mosi, cs_n = Signal(init=1), Signal(), Signal(init=1)
-        m.submodules.sclk_sync = FFSynchronizer(self.sclk, sclk, init=1, stages=SYNC_STAGES)
-        m.submodules.mosi_sync = FFSynchronizer(self.mosi, mosi, init=0, stages=SYNC_STAGES)
-        m.submodules.cs_sync = FFSynchronizer(self.cs_n, cs_n, init=1, stages=SYNC_STAGES)
-        sclk_d, cs_d = Signal(init=1), Signal(init=1)
-        m.d.sync += [sclk_d.eq(sclk), cs_d.eq(cs_n)]
-        cs_fall, cs_rise, sclk_rise = Signal(), Signal(), Signal()
-        m.d.comb += [cs_fall.eq(cs_d & ~cs_n), cs_rise.eq(~cs_d & cs_n),
-                     sclk_rise.eq(~sclk_d & sclk)]
+        mosi, sclk_rise, cs_fall, cs_rise = slave_pins(m, self.sclk, self.mosi, self.cs_n)
 
         m.submodules.fifo = fifo = SyncFIFOBuffered(width=SAMPLE_LAYOUT.size,
                                                     depth=self.fifo_depth)

@@ -42,7 +42,7 @@ from amaranth.lib.wiring import In, Out
 from navgate.devices import bmp390
 
 from .baro_compensation import IN_LAYOUT
-from .spi_phy import MIN_HALF, SpiPhy
+from .spi_phy import MIN_HALF, SpiPhy, ready_edge
 
 DEFAULT_DIV = 5
 DEFAULT_RATE = 40000
@@ -197,12 +197,6 @@ class SpiMasterBaro(wiring.Component):
         # INT mode: a sample read per rising edge of the synchronised INT (after the FSM so
         # that an edge in the cycle a read starts is kept for the next read), taken of INT
         # gated by the mode bits (switching the mode on while INT is high starts a read)
-        int_s = Signal()
-        armed = Signal()
-        armed_d = Signal()
-        m.submodules.int_sync = FFSynchronizer(self.int_pin, int_s, init=0, stages=2)
-        m.d.comb += armed.eq(int_s & self.cfg_int_sync & self.cfg_enable)
-        m.d.sync += armed_d.eq(armed)
-        with m.If(armed & ~armed_d):
+        with m.If(ready_edge(m, self.int_pin, self.cfg_int_sync, self.cfg_enable, name="int")):
             m.d.sync += fire.eq(1)
         return m

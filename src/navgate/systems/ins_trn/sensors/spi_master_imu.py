@@ -41,7 +41,7 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.devices import adis16500
 
-from .spi_phy import MIN_HALF, SpiPhy
+from .spi_phy import MIN_HALF, SpiPhy, ready_edge
 
 SAMPLE_LAYOUT = data.StructLayout({
     "diag": unsigned(16), "gx": signed(16), "gy": signed(16), "gz": signed(16),
@@ -156,12 +156,6 @@ class SpiMasterImu(wiring.Component):
         # that an edge in the cycle a burst starts is kept for the next burst). The edge is
         # taken of DR gated by the mode bits, so that switching the mode on while DR is
         # already high (samples waiting) also starts a burst.
-        dr = Signal()
-        armed = Signal()
-        armed_d = Signal()
-        m.submodules.dr_sync = FFSynchronizer(self.dr, dr, init=0, stages=2)
-        m.d.comb += armed.eq(dr & self.cfg_dr_sync & self.cfg_enable)
-        m.d.sync += armed_d.eq(armed)
-        with m.If(armed & ~armed_d):
+        with m.If(ready_edge(m, self.dr, self.cfg_dr_sync, self.cfg_enable, name="dr")):
             m.d.sync += fire.eq(1)
         return m

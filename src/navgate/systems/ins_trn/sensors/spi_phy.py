@@ -16,10 +16,45 @@ from __future__ import annotations
 
 from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import wiring
+from amaranth.lib.cdc import FFSynchronizer
 from amaranth.lib.wiring import In, Out
 
 SYNC_STAGES = 2
 MIN_HALF = SYNC_STAGES + 1
+
+
+def ready_edge(m: Module, pin, *enables, name: str = "ready"):
+    """A one-cycle pulse at each rising edge of a device's data-ready line (ADIS16500 DR,
+    BMP390 INT), asynchronous to ``sync``: the pin passes a two-flip-flop synchroniser and the
+    edge is taken of the level gated by ``enables`` (the mode bits), so that switching the
+    mode on while the line is already high also gives an edge."""
+    level = Signal(name=f"{name}_s")
+    armed = Signal(name=f"{name}_armed")
+    armed_d = Signal(name=f"{name}_armed_d")
+    m.submodules[f"{name}_sync"] = FFSynchronizer(pin, level, init=0, stages=SYNC_STAGES)
+    gate = level
+    for e in enables:
+        gate = gate & e
+    m.d.comb += armed.eq(gate)
+    m.d.sync += armed_d.eq(armed)
+    return armed & ~armed_d
+
+
+def slave_pins(m: Module, sclk_pin, mosi_pin, cs_n_pin):
+    """An SPI slave's view of the master's pins (asynchronous to ``sync``): each pin through a
+    two-flip-flop synchroniser, edges detected on the synchronised levels (every pin event is
+    seen ``SYNC_STAGES + 1`` cycles late, all three alike). Returns (mosi, sclk_rise,
+    cs_fall, cs_rise)."""
+    sclk, mosi, cs_n = Signal(init=1), Signal(), Signal(init=1)
+    m.submodules.sclk_sync = FFSynchronizer(sclk_pin, sclk, init=1, stages=SYNC_STAGES)
+    m.submodules.mosi_sync = FFSynchronizer(mosi_pin, mosi, init=0, stages=SYNC_STAGES)
+    m.submodules.cs_sync = FFSynchronizer(cs_n_pin, cs_n, init=1, stages=SYNC_STAGES)
+    sclk_d, cs_d = Signal(init=1), Signal(init=1)
+    m.d.sync += [sclk_d.eq(sclk), cs_d.eq(cs_n)]
+    cs_fall, cs_rise, sclk_rise = Signal(), Signal(), Signal()
+    m.d.comb += [cs_fall.eq(cs_d & ~cs_n), cs_rise.eq(~cs_d & cs_n),
+                 sclk_rise.eq(~sclk_d & sclk)]
+    return mosi, sclk_rise, cs_fall, cs_rise
 
 
 class SpiPhy(wiring.Component):
