@@ -110,3 +110,15 @@ def test_build_is_deterministic(built_fixed_mul, tmp_path):
     assert proc.returncode == 0, proc.stderr
     for name in ("fixed_mul.v", "fixed_mul.json", "fixed_mul.utilization.json"):
         assert (tmp_path / name).read_bytes() == (out / name).read_bytes()
+
+
+def test_board_target_builds_a_block_without_a_board_variant(tmp_path):
+    """``--target zybo-z7-20`` is the xc7z020 part: a block that has no board variant builds
+    as it is (same cells); ins_trn_top's variant is tested in tests/systems/ins_trn."""
+    proc = navgate("build", "fixed_mul", "--target", "zybo-z7-20", "--out", str(tmp_path))
+    assert proc.returncode == 0, proc.stderr
+    desc = json.loads((tmp_path / "fixed_mul.json").read_text())
+    use = json.loads((tmp_path / "fixed_mul.utilization.json").read_text())
+    assert desc["target"] == "zybo-z7-20" and use["part"] == "xc7z020clg400-1"
+    assert (use["lut"], use["ff"], use["dsp"], use["carry4"]) == (37, 81, 2, 4)
+    assert not list(tmp_path.glob("*.xdc"))

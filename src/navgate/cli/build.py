@@ -146,6 +146,8 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
         suffixes.append(".timing.json")
     for suffix in suffixes:
         click.echo(f"wrote {out_dir / (block + suffix)}", err=True)
+    for name in built.get("artifacts", []):  # C header, register docs, XDC, filelist
+        click.echo(f"wrote {out_dir / name}", err=True)
     if keep_work:
         click.echo(f"kept tool work files in {out_dir / 'work' / block}", err=True)
 
