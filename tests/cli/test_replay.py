@@ -47,3 +47,17 @@ def test_replay_bad_logs_are_one_line_errors(tmp_path):
         assert needle in lines[0] and "Traceback" not in proc.stderr
     proc = navgate("replay", str(tmp_path / "missing.log"))
     assert proc.returncode == 2 and "cannot read" in proc.stderr
+
+
+def test_replay_fpga_sim_refuses_an_ideal_sensor_log(tmp_path):
+    """The whole-FPGA engine needs the IMU's int16 words: a log of the ideal sensors' float
+    words is one line, exit 2, before any simulation."""
+    log = tmp_path / "ideal.log"
+    proc = navgate("fly", "--duration", "20", "--ideal-sensors", "--no-trn", "--record",
+                   str(log), "--out", str(tmp_path / "fly"), "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    proc = navgate("replay", str(log), "--engine", "fpga-sim", "--out", str(tmp_path / "rep"))
+    assert proc.returncode == 2, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "int16" in lines[0] and "Traceback" not in proc.stderr
+    assert not (tmp_path / "rep").exists()

@@ -468,3 +468,13 @@ def warning_handler(prefix: str) -> Iterator[None]:
         finally:
             root.removeHandler(handler)
             root.setLevel(level)
+
+
+def simulation_errors() -> tuple:
+    """The gateware co-simulations' own failures (a Verilator build or run that failed)."""
+    from navgate.gateware.native_axi import NativeAxiError
+    from navgate.gateware.native_stream import NativeStreamError
+    from navgate.systems.ins_trn.fpga_sim import FpgaSimError
+    from navgate.systems.ins_trn.rtl_engine import RtlError
+
+    return (NativeStreamError, RtlError, NativeAxiError, FpgaSimError)

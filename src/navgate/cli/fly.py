@@ -22,6 +22,7 @@ from navgate.cli.common import (
     non_finite_keys,
     numba_note,
     out_option,
+    simulation_errors,
     write_summary,
 )
 
@@ -32,16 +33,6 @@ def _positive_float(ctx, param, value):
     if not (math.isfinite(value) and value > 0):
         raise click.BadParameter(f"must be a positive number, got {value}")
     return value
-
-
-def _simulation_errors() -> tuple:
-    """The gateware co-simulations' own failures (a Verilator build or run that failed)."""
-    from navgate.gateware.native_axi import NativeAxiError
-    from navgate.gateware.native_stream import NativeStreamError
-    from navgate.systems.ins_trn.fpga_sim import FpgaSimError
-    from navgate.systems.ins_trn.rtl_engine import RtlError
-
-    return (NativeStreamError, RtlError, NativeAxiError, FpgaSimError)
 
 
 @click.command()
@@ -125,7 +116,7 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
             result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
                                 stage=lambda s: bar.update(task, description=s), route=route,
                                 engine=engine)
-        except _simulation_errors() as error:
+        except simulation_errors() as error:
             raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
         bar.update(task, description="writing report", completed=total)
         summary = result.summary()

@@ -12,14 +12,15 @@ import time
 
 import click
 
-from navgate.cli.common import CliError, prepare_out_dir, write_summary
+from navgate.cli.common import CliError, prepare_out_dir, simulation_errors, write_summary
 
 
 @click.command()
 @click.argument("log_path", type=click.Path(dir_okay=False))
-@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl"]), default="reference",
-              show_default=True, help="PL engine: float64 reference, float32 bit-true model, "
-                                      "or the ins_engines gateware in Verilator (slow).")
+@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl", "fpga-sim"]),
+              default="reference", show_default=True,
+              help="PL engine: float64 reference, float32 bit-true model, the ins_engines "
+                   "gateware in Verilator, or the whole FPGA (ins_trn_top) in Verilator.")
 @click.option("--dem", "dem_path", type=click.Path(dir_okay=True), default=None,
               help="DEM for TRN (default: the embedded Jacksboro fault DEM).")
 @click.option("--no-trn", is_flag=True, help="Run INS-only (with baro) and skip TRN.")
@@ -53,6 +54,9 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
     except (KeyError, TypeError, ValueError) as error:
         raise CliError(f"{log_path}: header lacks a usable flight configuration ({error})"
                        ) from None
+    if engine == "fpga-sim" and header.get("ideal"):
+        raise CliError(f"{log_path}: --engine fpga-sim needs the IMU's int16 output words; "
+                       "this log has the ideal sensors' float words")
     if no_trn:
         cfg = replace(cfg, trn=False)
     try:
@@ -61,7 +65,10 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
         raise CliError(str(error)) from None
     out = prepare_out_dir(out_dir)
     start = time.perf_counter()
-    runs = fly_stream(stream, dem, cfg, engine=engine)
+    try:
+        runs = fly_stream(stream, dem, cfg, engine=engine)
+    except simulation_errors() as error:
+        raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
     summary = {
         "log": str(log_path), "engine": engine, "dem": dem.name,
         "log_dem": header.get("dem"), "records": len(stream), "imu_records": stream.n_imu,

@@ -228,6 +228,7 @@ def sim_verilog(top: InsTrnSimTop) -> str:
     cache.mkdir(parents=True, exist_ok=True)
     path = cache / f"fpga-sim-dut-{h.hexdigest()[:24]}.v"
     if path.exists():
+        top._MustUse__silence = top.top._MustUse__silence = True  # not elaborated again
         return path.read_text()
     text = V.emit_verilog(top, "dut")
     tmp = path.with_suffix(f".{os.getpid()}.tmp")
