@@ -44,6 +44,7 @@ def test_sequencer_equals_fp32_engine(setup_and_words):
     gate2 = float(model._gate[2])
     alt_cases = [(setup.nav0[2] + 3.0, 4.0), (setup.nav0[2] + 900.0, 0.01)]  # applied, gated
     trn = dict(y0=12.0, y1=-7.5, r00=400.0, r01=20.0, r11=300.0, lag=0.25, gate=gate2)
+    trn_far = dict(trn, y0=5000.0, y1=4000.0, r00=1.0, r01=0.0, r11=1.0, lag=0.0)
     log = {}
 
     async def bench(ctx):
@@ -104,17 +105,18 @@ def test_sequencer_equals_fp32_engine(setup_and_words):
                 n += 1
             await ctx.tick()
             log.setdefault("alt", []).append((ctx.get(dut.alt_status), ctx.get(dut.alt_nis), n))
-        for k, v in trn.items():
-            ctx.set(getattr(dut, f"trn_{k}"), _bits(v))
-        ctx.set(dut.trn_start, 1)
-        await ctx.tick()
-        ctx.set(dut.trn_start, 0)
-        n = 1
-        while not ctx.get(dut.update):
+        for case in (trn, trn_far):  # applied, then rejected by the gate
+            for k, v in case.items():
+                ctx.set(getattr(dut, f"trn_{k}"), _bits(v))
+            ctx.set(dut.trn_start, 1)
             await ctx.tick()
-            n += 1
-        await ctx.tick()
-        log["trn"] = (ctx.get(dut.trn_status), ctx.get(dut.trn_nis), n)
+            ctx.set(dut.trn_start, 0)
+            n = 1
+            while not ctx.get(dut.update):
+                await ctx.tick()
+                n += 1
+            await ctx.tick()
+            log.setdefault("trn", []).append((ctx.get(dut.trn_status), ctx.get(dut.trn_nis), n))
         await wait_idle()
         got = {}
         for name in STATE_REGS:
@@ -144,14 +146,19 @@ def test_sequencer_equals_fp32_engine(setup_and_words):
                 for h, r in alt_cases]
     assert outcomes[0].accepted and not outcomes[1].accepted
     assert log["alt"][0][0] == 0b010 and log["alt"][1][0] == 0b110
+    assert [a[2] for a in log["alt"]] == [338, 67]
     for (_status, nis, n), out, applied in zip(log["alt"], outcomes, (True, False), strict=True):
         assert nis == _bits(out.nis)
         assert n == job_cycles(img, "alt", applied)
     out = model.update_trn(np.array([trn["y0"], trn["y1"]]),
                            np.array([[trn["r00"], trn["r01"]], [trn["r01"], trn["r11"]]]),
                            trn["lag"])
-    assert out.accepted and log["trn"][0] == 0b010 and log["trn"][1] == _bits(out.nis)
-    assert log["trn"][2] == job_cycles(img, "trn")
+    assert out.accepted and log["trn"][0][0] == 0b010 and log["trn"][0][1] == _bits(out.nis)
+    assert log["trn"][0][2] == job_cycles(img, "trn") == 491
+    far = model.update_trn(np.array([trn_far["y0"], trn_far["y1"]]), np.eye(2), 0.0)
+    assert not far.accepted and "gate" in far.reason
+    assert log["trn"][1][0] == 0b110 and log["trn"][1][1] == _bits(far.nis)
+    assert log["trn"][1][2] == job_cycles(img, "trn", applied=False) == 158
     want = {n: float_to_bits(m.get(n)) for n in STATE_REGS}
     diff = [n for n in STATE_REGS if want[n] != log["regs"][n]]
     assert not diff, diff[:8]
