@@ -6,7 +6,7 @@ are all-zero bursts that the master counts as errors."""
 
 import numpy as np
 import pytest
-from amaranth.hdl import Elaboratable, Module, Signal
+from amaranth.hdl import Elaboratable, Module
 from amaranth.sim import Simulator
 
 from navgate.devices import adis16500 as A
@@ -17,7 +17,7 @@ from navgate.systems.ins_trn.sensors.adis16500_emulator import (
     Adis16500Loopback,
 )
 from navgate.systems.ins_trn.sensors.sensor_subsystem import IMU_LAYOUT, SensorSubsystem
-from navgate.systems.ins_trn.sensors.sim_bench import run_imu_emulated
+from navgate.systems.ins_trn.sensors.sim_bench import run_emulator_transactions, run_imu_emulated
 from navgate.systems.ins_trn.sensors.spi_master_imu import (
     BURST_LATENCY,
     burst_cycles,
@@ -131,63 +131,12 @@ def test_dr_mode_ignores_timer_and_timer_mode_ignores_dr():
     assert res["got"] == _expected(_samples(4, seed=4))[:3]
 
 
-class _PhyBench(Elaboratable):
-    """The emulator driven by a bare SpiPhy (half period MIN_HALF) and a CS_N signal."""
-
-    def __init__(self):
-        from navgate.systems.ins_trn.sensors.spi_phy import SpiPhy
-
-        self.emu = Adis16500Emulator()
-        self.phy = SpiPhy(16)
-        self.cs_n = Signal(init=1)
-
-    def elaborate(self, platform):
-        m = Module()
-        m.submodules.emu, m.submodules.phy = self.emu, self.phy
-        m.d.comb += [self.emu.sclk.eq(self.phy.sclk), self.emu.mosi.eq(self.phy.mosi),
-                     self.emu.cs_n.eq(self.cs_n), self.phy.miso.eq(self.emu.miso),
-                     self.phy.half.eq(MIN_HALF)]
-        return m
-
-
 def _phyrun_imu_emulated(push, transactions):
     """Push samples, then run transactions (lists of words sent, CS_N low around each);
     returns the words read, DR before/during/after each, and the emulator's counters."""
-    b = _PhyBench()
-    sim = Simulator(b)
-    sim.add_clock(1e-8)
-    out = {"words": [], "dr": []}
-
-    async def main(ctx):
-        for s in push:
-            ctx.set(b.emu.samples.payload, s)
-            ctx.set(b.emu.samples.valid, 1)
-            await ctx.tick()
-        ctx.set(b.emu.samples.valid, 0)
-        await ctx.tick().repeat(4)
-        for tx_words in transactions:
-            dr = [ctx.get(b.emu.dr)]
-            ctx.set(b.cs_n, 0)
-            await ctx.tick().repeat(6)
-            dr.append(ctx.get(b.emu.dr))
-            words = []
-            for tx in tx_words:
-                ctx.set(b.phy.start, 1)
-                ctx.set(b.phy.tx, tx)
-                await ctx.tick()
-                ctx.set(b.phy.start, 0)
-                await ctx.tick().until(b.phy.done)
-                words.append(ctx.get(b.phy.rx))
-            await ctx.tick().repeat(4)
-            ctx.set(b.cs_n, 1)
-            await ctx.tick().repeat(8)
-            dr.append(ctx.get(b.emu.dr))
-            out["words"].append(words)
-            out["dr"].append(dr)
-        out.update({n: ctx.get(getattr(b.emu, n)) for n in ("bursts", "underruns", "dropped")})
-
-    sim.add_testbench(main)
-    sim.run()
+    out = run_emulator_transactions(Adis16500Emulator(), 16, push, transactions, ready="dr",
+                                    counters=("bursts", "underruns", "dropped"))
+    out["dr"] = out.pop("ready")
     return out
 
 

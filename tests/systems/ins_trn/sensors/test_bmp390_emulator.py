@@ -22,8 +22,8 @@ from navgate.systems.ins_trn.sensors.bmp390_emulator import (
     Bmp390Loopback,
 )
 from navgate.systems.ins_trn.sensors.sensor_subsystem import SensorSubsystem
+from navgate.systems.ins_trn.sensors.sim_bench import run_emulator_transactions
 from navgate.systems.ins_trn.sensors.spi_master_baro import SAMPLE_LAST_ADDR, read_cycles
-from navgate.systems.ins_trn.sensors.spi_phy import SpiPhy
 
 MIN_DIV = MIN_HALF - 1  # cfg_spi_div 2: SCLK half period 3 cycles
 SAMPLE_BYTES = SAMPLE_LAST_ADDR + 3  # command + dummy + 0x00..0x09
@@ -242,57 +242,12 @@ def test_int_mode_failed_startup_retries_on_the_timer():
     assert falls == [1] * 8 + [(4, 0, 1)]
 
 
-class _PhyBench(Elaboratable):
-    """The emulator driven by a bare 8-bit SpiPhy (half period MIN_HALF) and a CS_N signal."""
-
-    def __init__(self):
-        self.emu = Bmp390Emulator()
-        self.phy = SpiPhy(8)
-        self.cs_n = Signal(init=1)
-
-    def elaborate(self, platform):
-        m = Module()
-        m.submodules.emu, m.submodules.phy = self.emu, self.phy
-        m.d.comb += [self.emu.sclk.eq(self.phy.sclk), self.emu.mosi.eq(self.phy.mosi),
-                     self.emu.cs_n.eq(self.cs_n), self.phy.miso.eq(self.emu.miso),
-                     self.phy.half.eq(MIN_HALF)]
-        return m
-
-
 def _phy_run(push, transactions):
-    b = _PhyBench()
-    sim = Simulator(b)
-    sim.add_clock(1e-8)
-    out = {"bytes": [], "int": []}
-
-    async def main(ctx):
-        for s in push:
-            ctx.set(b.emu.samples.payload, s)
-            ctx.set(b.emu.samples.valid, 1)
-            await ctx.tick()
-        ctx.set(b.emu.samples.valid, 0)
-        await ctx.tick().repeat(4)
-        for words in transactions:
-            out["int"].append(ctx.get(b.emu.int_pin))
-            ctx.set(b.cs_n, 0)
-            await ctx.tick().repeat(6)
-            got = []
-            for tx in words:
-                ctx.set(b.phy.start, 1)
-                ctx.set(b.phy.tx, tx)
-                await ctx.tick()
-                ctx.set(b.phy.start, 0)
-                await ctx.tick().until(b.phy.done)
-                got.append(ctx.get(b.phy.rx))
-            await ctx.tick().repeat(4)
-            ctx.set(b.cs_n, 1)
-            await ctx.tick().repeat(8)
-            out["bytes"].append(got)
-        out["int"].append(ctx.get(b.emu.int_pin))
-        out.update({n: ctx.get(getattr(b.emu, n)) for n in ("served", "underruns")})
-
-    sim.add_testbench(main)
-    sim.run()
+    out = run_emulator_transactions(Bmp390Emulator(), 8, push, transactions, ready="int_pin",
+                                    counters=("served", "underruns"))
+    ready = out.pop("ready")
+    out["bytes"] = out.pop("words")
+    out["int"] = [level[0] for level in ready] + [ready[-1][2]]  # before each, after the last
     return out
 
 

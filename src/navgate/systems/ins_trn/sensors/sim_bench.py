@@ -9,6 +9,8 @@ default-configuration run at 100 MHz is in the tests too).
 
 :func:`run_imu_emulated` runs SpiMasterImu against the gateware ADIS16500 emulator instead
 (pins only between the two; the testbench only pushes samples and collects the output).
+:func:`run_emulator_transactions` drives a gateware device emulator (ADIS16500, BMP390) with a
+bare SPI PHY at its minimum half period, transaction by transaction, at the bit level.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from navgate.devices.bench import CycleCounter, spi_slave_testbench, uart_source
 from .adis16500_emulator import Adis16500Emulator
 from .spi_master_baro import SpiMasterBaro
 from .spi_master_imu import SpiMasterImu
+from .spi_phy import MIN_HALF, SpiPhy
 from .uart_rx_lidar import UartRxLidar
 
 
@@ -232,3 +235,65 @@ def run_lidar(stream: tfluna.LidarStream, *, div: int = 0, baud_error: float = 0
     sim.add_testbench(tail)
     sim.run()
     return run
+
+
+class _PhyBench(Elaboratable):
+    """An emulator driven by a bare SpiPhy (half period MIN_HALF) and a CS_N signal."""
+
+    def __init__(self, emulator, width: int):
+        self.emu = emulator
+        self.phy = SpiPhy(width)
+        self.cs_n = Signal(init=1)
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.emu, m.submodules.phy = self.emu, self.phy
+        m.d.comb += [self.emu.sclk.eq(self.phy.sclk), self.emu.mosi.eq(self.phy.mosi),
+                     self.emu.cs_n.eq(self.cs_n), self.phy.miso.eq(self.emu.miso),
+                     self.phy.half.eq(MIN_HALF)]
+        return m
+
+
+def run_emulator_transactions(emulator, width: int, push, transactions, *, ready: str,
+                              counters=()) -> dict:
+    """Push ``push`` into the emulator's ``samples``, then run ``transactions`` (lists of
+    ``width``-bit words sent, CS_N low around each). Returns ``words`` (read, per
+    transaction), ``ready`` (the data-ready output ``ready`` before, during and after each
+    transaction) and the emulator's ``counters`` at the end."""
+    b = _PhyBench(emulator, width)
+    sim = Simulator(b)
+    sim.add_clock(1e-8)
+    out = {"words": [], "ready": []}
+    pin = getattr(b.emu, ready)
+
+    async def main(ctx):
+        for sample in push:
+            ctx.set(b.emu.samples.payload, sample)
+            ctx.set(b.emu.samples.valid, 1)
+            await ctx.tick()
+        ctx.set(b.emu.samples.valid, 0)
+        await ctx.tick().repeat(4)
+        for tx_words in transactions:
+            level = [ctx.get(pin)]
+            ctx.set(b.cs_n, 0)
+            await ctx.tick().repeat(6)
+            level.append(ctx.get(pin))
+            words = []
+            for tx in tx_words:
+                ctx.set(b.phy.start, 1)
+                ctx.set(b.phy.tx, tx)
+                await ctx.tick()
+                ctx.set(b.phy.start, 0)
+                await ctx.tick().until(b.phy.done)
+                words.append(ctx.get(b.phy.rx))
+            await ctx.tick().repeat(4)
+            ctx.set(b.cs_n, 1)
+            await ctx.tick().repeat(8)
+            level.append(ctx.get(pin))
+            out["words"].append(words)
+            out["ready"].append(level)
+        out.update({n: ctx.get(getattr(b.emu, n)) for n in counters})
+
+    sim.add_testbench(main)
+    sim.run()
+    return out
