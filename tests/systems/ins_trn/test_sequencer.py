@@ -92,31 +92,25 @@ def test_sequencer_equals_fp32_engine(setup_and_words):
                                                  for k in range(len(SHADOW_WORDS))])
         log["imu_cycles"] = cycles
         ctx.set(dut.enable, 0)
+        async def update(kind, inputs):
+            """Write an update's inputs, strobe its start; (status, NIS, cycles to update)."""
+            for k, v in inputs.items():
+                ctx.set(getattr(dut, f"{kind}_{k}"), _bits(v))
+            ctx.set(getattr(dut, f"{kind}_start"), 1)
+            await ctx.tick()
+            ctx.set(getattr(dut, f"{kind}_start"), 0)
+            n = 1
+            while not ctx.get(dut.update):
+                await ctx.tick()
+                n += 1
+            await ctx.tick()
+            status, nis = getattr(dut, f"{kind}_status"), getattr(dut, f"{kind}_nis")
+            log.setdefault(kind, []).append((ctx.get(status), ctx.get(nis), n))
+
         for h, r in alt_cases:
-            ctx.set(dut.alt_h_meas, _bits(h))
-            ctx.set(dut.alt_r, _bits(r))
-            ctx.set(dut.alt_gate, _bits(gate1))
-            ctx.set(dut.alt_start, 1)
-            await ctx.tick()
-            ctx.set(dut.alt_start, 0)
-            n = 1
-            while not ctx.get(dut.update):
-                await ctx.tick()
-                n += 1
-            await ctx.tick()
-            log.setdefault("alt", []).append((ctx.get(dut.alt_status), ctx.get(dut.alt_nis), n))
+            await update("alt", {"h_meas": h, "r": r, "gate": gate1})
         for case in (trn, trn_far):  # applied, then rejected by the gate
-            for k, v in case.items():
-                ctx.set(getattr(dut, f"trn_{k}"), _bits(v))
-            ctx.set(dut.trn_start, 1)
-            await ctx.tick()
-            ctx.set(dut.trn_start, 0)
-            n = 1
-            while not ctx.get(dut.update):
-                await ctx.tick()
-                n += 1
-            await ctx.tick()
-            log.setdefault("trn", []).append((ctx.get(dut.trn_status), ctx.get(dut.trn_nis), n))
+            await update("trn", case)
         await wait_idle()
         got = {}
         for name in STATE_REGS:
