@@ -36,44 +36,41 @@ ranger values (the record stream's, written by the PS; docs/seed000-top.md).
 
 from __future__ import annotations
 
+import hashlib
+import os
 import weakref
+from pathlib import Path
 
+import amaranth
 import numpy as np
 from amaranth import Module, Signal
 from amaranth.lib import stream, wiring
+from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware import verify as V
+from navgate.gateware.axi4 import axi4_write_signature
 from navgate.gateware.axi_lite import axi_lite_signature
+from navgate.gateware.native_axi import NativeAxiError, NativeAxiSim
 from navgate.systems.ins_trn.engine import EngineSetup, UpdateOutcome
+from navgate.systems.ins_trn.engines import engine_image
 from navgate.systems.ins_trn.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.fp32_exec import float_to_bits, to_f32
 from navgate.systems.ins_trn.fp32_program import CAL_REGS, N_STATES, NAV_REGS, p_reg
 from navgate.systems.ins_trn.registers import register_map
-from navgate.systems.ins_trn.top import CAL_REGISTER_OF
+from navgate.systems.ins_trn.sensors.adis16500_emulator import SAMPLE_LAYOUT as IMU_SAMPLE
+from navgate.systems.ins_trn.sensors.adis16500_emulator import Adis16500Emulator
+from navgate.systems.ins_trn.sensors.bmp390_emulator import SAMPLE_LAYOUT as BARO_SAMPLE
+from navgate.systems.ins_trn.sensors.bmp390_emulator import Bmp390Emulator
+from navgate.systems.ins_trn.sensors.tfluna_emulator import SAMPLE_LAYOUT as LIDAR_SAMPLE
+from navgate.systems.ins_trn.sensors.tfluna_emulator import TfLunaEmulator
+from navgate.systems.ins_trn.top import CAL_REGISTER_OF, InsTrnTop
 
 __all__ = ["InsTrnSimTop", "FpgaSimEngine", "FpgaSimError"]
 
 
 class FpgaSimError(RuntimeError):
     """The co-simulation failed or answered unexpectedly."""
-
-
-def _baro_layout():
-    from navgate.systems.ins_trn.sensors.bmp390_emulator import SAMPLE_LAYOUT
-
-    return SAMPLE_LAYOUT
-
-
-def _lidar_layout():
-    from navgate.systems.ins_trn.sensors.tfluna_emulator import SAMPLE_LAYOUT
-
-    return SAMPLE_LAYOUT
-
-
-def _sample_layout():
-    from navgate.systems.ins_trn.sensors.adis16500_emulator import SAMPLE_LAYOUT
-
-    return SAMPLE_LAYOUT
 
 
 #: UART bit time of the ranger emulator and LIDAR_CFG.baud_div in the co-simulation (cycles)
@@ -87,39 +84,32 @@ DMA_WORDS = 256
 
 
 class InsTrnSimTop(wiring.Component):
-    """``ins_trn_top`` with an ADIS16500 emulator on its IMU pins (``imu_feed``: the samples),
-    the barometer and ranger lines idle, and the DMA master writing into a 1 KiB memory that
-    stands for DDR (:class:`_DmaMemory`). The AXI4-Lite port is one bit wider than the bank's:
-    reads at :data:`DMA_WINDOW` and above return that memory's words (the PS's view of DDR);
+    """``ins_trn_top`` with the device emulators on its pins (ADIS16500 fed by ``imu_feed``,
+    BMP390 by ``baro_feed``, TF-Luna by ``lidar_feed``) and the DMA master writing into a 1 KiB
+    memory that stands for DDR (:class:`_DmaMemory`). The AXI4-Lite port is one bit wider
+    than the bank's: reads at :data:`DMA_WINDOW` and above return that memory's words (the
+    PS's view of DDR);
     everything else goes to the bank. The window is read-only and the co-simulation's PS never
     writes there (writes are decoded by the bank's 11 address bits)."""
 
     def __init__(self):
-        from navgate.systems.ins_trn.top import InsTrnTop
-
         self.top = InsTrnTop()
         super().__init__({
             "axi": In(axi_lite_signature(register_map().address_width + 1)),
-            "imu_feed": In(stream.Signature(_sample_layout())),
-            "lidar_feed": In(stream.Signature(_lidar_layout())),
-            "baro_feed": In(stream.Signature(_baro_layout())),
+            "imu_feed": In(stream.Signature(IMU_SAMPLE)),
+            "lidar_feed": In(stream.Signature(LIDAR_SAMPLE)),
+            "baro_feed": In(stream.Signature(BARO_SAMPLE)),
             "irq": Out(1),
         })
 
     def elaborate(self, platform):
-        from navgate.systems.ins_trn.sensors.adis16500_emulator import Adis16500Emulator
-
         m = Module()
         m.submodules.top = top = self.top
         m.submodules.imu = emu = Adis16500Emulator()
         m.submodules.ddr = ddr = _DmaMemory()
-        from navgate.systems.ins_trn.sensors.tfluna_emulator import TfLunaEmulator
-
         m.submodules.lidar = lidar = TfLunaEmulator()
         wiring.connect(m, wiring.flipped(self.lidar_feed), lidar.samples)
         m.d.comb += [lidar.cfg_bit_cycles.eq(LIDAR_BIT_CYCLES), top.lidar_rx.eq(lidar.tx)]
-        from navgate.systems.ins_trn.sensors.bmp390_emulator import Bmp390Emulator
-
         m.submodules.baro = baro = Bmp390Emulator()
         wiring.connect(m, wiring.flipped(self.baro_feed), baro.samples)
         m.d.comb += [baro.sclk.eq(top.baro_sclk), baro.mosi.eq(top.baro_mosi),
@@ -171,15 +161,11 @@ class _DmaMemory(wiring.Component):
     at ``raddr`` into ``rdata``, which holds it until the next load."""
 
     def __init__(self):
-        from navgate.gateware.axi4 import axi4_write_signature
-
         bits = (DMA_WORDS - 1).bit_length()
         super().__init__({"axi": In(axi4_write_signature()), "raddr": In(bits),
                           "rload": In(1), "rdata": Out(32)})
 
     def elaborate(self, platform):
-        from amaranth.lib.memory import Memory
-
         m = Module()
         m.submodules.mem = mem = Memory(shape=32, depth=DMA_WORDS, init=[])
         wr = mem.write_port()
@@ -210,14 +196,6 @@ def sim_verilog(top: InsTrnSimTop) -> str:
     """The co-simulation top's Verilog (module ``dut``), emitted once per version of the
     gateware: cached beside the Verilator models, keyed by the contents of every source file
     of the navgate package and the Amaranth version (emitting it takes tens of seconds)."""
-    import hashlib
-    import os
-    from pathlib import Path
-
-    import amaranth
-
-    from navgate.gateware import verify as V
-
     root = Path(__file__).resolve().parents[2]  # the navgate package
     h = hashlib.sha256(amaranth.__version__.encode())
     for path in sorted(root.rglob("*")):
@@ -276,10 +254,10 @@ class FpgaSimEngine(Fp32Engine):
     name = "fpga-sim"
 
     def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
+        if check_pd:
+            raise ValueError("check_pd needs the whole of P after every sample, which the "
+                             "fpga-sim engine does not read back (use the fp32 engine)")
         super().__init__(setup, check_pd=False)
-        from navgate.gateware.native_axi import NativeAxiSim
-        from navgate.systems.ins_trn.engines import engine_image
-
         self.image = engine_image("ins_engines")
         self.addr = self.image.layout.fixed
         self.off = {r.name: r.offset for r in register_map().registers}
@@ -299,8 +277,6 @@ class FpgaSimEngine(Fp32Engine):
         return f"W {self.off[reg]:x} {int(value) & 0xFFFFFFFF:x} f"
 
     def _batch(self, cmds: list[str]) -> list[str]:
-        from navgate.gateware.native_axi import NativeAxiError
-
         try:
             out = self.sim.batch(cmds)
         except NativeAxiError as exc:
@@ -363,8 +339,6 @@ class FpgaSimEngine(Fp32Engine):
                 and words.min(initial=0) >= -32768 and words.max(initial=0) <= 32767):
             raise FpgaSimError("the fpga-sim engine needs the IMU's int16 output words "
                                "(the ideal sensors' float words have no SPI encoding)")
-        from navgate.gateware import verify as V
-
         fmt = self.sim.formats["imu_feed"]
         w = words.astype(np.int64)
         n = w.shape[0]
@@ -421,8 +395,6 @@ class FpgaSimEngine(Fp32Engine):
         """The sample through the BMP390 emulator, the SPI pins, ``spi_master_baro`` (INT
         paced) and ``baro_compensation``: push the ADC words, wait until BARO_SAMPLES counts
         the sample, read BARO_PRESS."""
-        from navgate.gateware import verify as V
-
         packed = V.pack(self.sim.formats["baro_feed"],
                         {"up": [int(uncomp_press)], "ut": [int(uncomp_temp)]})[0]
         self.baro_samples += 1
@@ -435,8 +407,6 @@ class FpgaSimEngine(Fp32Engine):
     def read_ranger(self, dist: int, strength: int) -> tuple[int, int]:
         """The frame through the TF-Luna emulator, the UART pin and ``uart_rx_lidar``: push
         it, wait until LIDAR_FRAMES counts it, read LIDAR_DATA."""
-        from navgate.gateware import verify as V
-
         cmds = []
         if not self.lidar_frames:  # the ranger's receiver is enabled with its first frame
             cmds.append(self._w("LIDAR_CFG", LIDAR_BIT_CYCLES | 1 << 16))
