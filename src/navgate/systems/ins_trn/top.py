@@ -39,7 +39,12 @@ from navgate.gateware.axi4 import axi4_write_signature
 from navgate.gateware.axi_lite import axi_lite_signature
 from navgate.systems.ins_trn.fp32_program import N_STATES, p_reg
 from navgate.systems.ins_trn.registers import register_map
-from navgate.systems.ins_trn.sequencer import SHADOW_WORDS, NavSequencer, job_cycles
+from navgate.systems.ins_trn.sequencer import (
+    IMU_FIELDS,
+    SHADOW_WORDS,
+    NavSequencer,
+    job_cycles,
+)
 
 __all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "SigmaUnit", "CAL_REGISTER_OF"]
 
@@ -284,7 +289,7 @@ class InsTrnTop(wiring.Component):
         seq = ResetInserter(engine_reset)(NavSequencer(self.image))
         m.submodules.sequencer = seq
         raw = sensors.imu.payload
-        for f in ("gx", "gy", "gz", "ax", "ay", "az"):
+        for f in IMU_FIELDS:
             m.d.comb += getattr(seq.imu.payload, f).eq(getattr(raw, f))
         m.d.comb += [seq.imu.valid.eq(sensors.imu.valid), sensors.imu.ready.eq(seq.imu.ready),
                      seq.enable.eq(enable & ~engine_reset)]
@@ -292,7 +297,7 @@ class InsTrnTop(wiring.Component):
                     "RAW_ACCEL_X", "RAW_ACCEL_Y", "RAW_ACCEL_Z")
         raw_hold = [Signal(32, name=f"raw_{k}") for k in range(6)]
         with m.If(sensors.imu.valid & sensors.imu.ready):
-            for k, f in enumerate(("gx", "gy", "gz", "ax", "ay", "az")):
+            for k, f in enumerate(IMU_FIELDS):
                 m.d.sync += raw_hold[k].eq(getattr(raw, f))
         for reg, hold in zip(raw_regs, raw_hold, strict=True):
             m.d.comb += getattr(regs, f"i_{reg}").eq(hold)
