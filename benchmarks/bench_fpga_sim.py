@@ -56,6 +56,7 @@ def main():
         "cycles_per_imu_sample": cycles / max(eng.samples, 1),
         "bus_batches": sim.batches, "bus_commands": sim.commands,
         "update_interrupts": eng.interrupts,
+        "profile_dmas": eng.profile.fifo.dmas, "profile_entries_pushed": eng.profile.pushes,
         "updates_accepted": b.accepted, "updates_rejected": b.rejected,
         "fixes": len(b.fixes),
     }

@@ -1,5 +1,6 @@
 """The whole FPGA in the loop: ``ins_trn_top`` in Verilator (IMU words through an ADIS16500
-emulator onto its SPI pins, the PS through AXI4-Lite registers) equals the fp32 engine bit
+emulator onto its SPI pins, the barometer and the ranger through theirs, the profile through
+the PL's FIFO and DMA, the PS through AXI4-Lite registers) equals the fp32 engine bit
 for bit over a 60 s flight of the default mission with altitude and TRN updates; then the
 top's output registers against their bit-true models, every register of the SystemRDL source
 through the driver, and SLVERR for unmapped offsets."""
@@ -201,11 +202,16 @@ def test_fpga_sim_equals_fp32_60s_flight():
     assert eng.baro_samples == int(np.sum(stream.baro_status == 0)) > 1000
     assert eng.lidar_frames == stream.ranger_range.size > 500
     assert sum(run.accepted.values()) > 10 and eng.interrupts > 10
+    # the correlator's profile came from the PL's FIFO by DMA, once per correlation, and the
+    # FIFO holds every accepted terrain sample (the newest 64)
+    assert eng.profile.fifo.dmas == len(run.fixes) > 5
+    assert eng.profile.pushes == run.profile_counts["accepted"] > 64
     n = round(60.0 * 400)
     assert eng.samples == n
     regs = Registers(register_map(), NativeAxiBus(eng.sim))
     last = list(stream.gyro_words[-1]) + list(stream.accel_words[-1])
     _output_registers(eng, regs, n, last)
+    assert regs.read_fields("PROF_STATUS") == {"busy": 0, "count": 64}
     _directed_updates(engs)
     _error_interrupt(regs, eng.sim)
     _profile_dma(regs, eng.sim)

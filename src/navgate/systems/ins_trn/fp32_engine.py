@@ -30,6 +30,8 @@ from navgate.nav.earth import radii
 from navgate.systems.ins_trn import fp32_program as fp
 from navgate.systems.ins_trn.engine import EngineSetup, PlEngine, UpdateOutcome, nav_from_ned
 from navgate.systems.ins_trn.fp32_exec import Machine, run_samples
+from navgate.systems.ins_trn.pl_profile import PlProfileBuffer, ProfileFifoModel
+from navgate.trn.profile import PROFILE_DEPTH
 
 _PROGRAMS = {}
 
@@ -56,6 +58,8 @@ class Fp32Engine(PlEngine):
 
     def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
         super().__init__(setup)
+        self.profile = PlProfileBuffer(self._profile_fifo(),
+                                       min_spacing_m=setup.profile_spacing_m)
         self.m = Machine(programs(self.compensated))
         self._baro_cache: dict = {}
         self.check_pd = check_pd
@@ -158,6 +162,15 @@ class Fp32Engine(PlEngine):
         return self._update("trn", "trn_gate", "trn_apply", 2, y0=y_ne[0], y1=y_ne[1],
                             r00=cov[0, 0], r01=0.5 * (cov[0, 1] + cov[1, 0]), r11=cov[1, 1],
                             lag=lag_s)
+
+    # -- the altitude profile in the PL ------------------------------------------------------------
+    def _profile_fifo(self):
+        """The PL's profile FIFO: here its model (the fpga-sim engine pushes into the PL and
+        reads back by DMA)."""
+        return ProfileFifoModel(PROFILE_DEPTH)
+
+    def profile_read(self, now: float | None = None):
+        return self.profile.snapshot(now)
 
     # -- sensors through the PL ------------------------------------------------------------------
     pl_sensors = True

@@ -29,9 +29,12 @@ registers:
   ``fp32`` engine), cached until the next engine job.
 
 The result equals the ``fp32`` engine's bit for bit (tests/systems/ins_trn/test_fpga_sim.py).
-Not through the PL in this engine: the altitude profile (kept by the PS, as the ``fp32``
-engine keeps it: the profile manager's DMA is verified on its own), and the barometer and
-ranger values (the record stream's, written by the PS; docs/seed000-top.md).
+- the altitude profile (:mod:`navgate.systems.ins_trn.pl_profile`): every accepted terrain
+  sample pushed into the profile FIFO (PROF_ENTRY_*, PROF_PUSH); for each correlation the
+  newest entries by DMA into the co-simulation's DDR (PROF_ADDR/PROF_COUNT/PROF_CTRL, the
+  update interrupt at the DMA's end), read back from DDR;
+- the barometer through the BMP390 emulator's pins (BARO_PRESS) and the ranger through the
+  TF-Luna emulator's UART (LIDAR_DATA).
 """
 
 from __future__ import annotations
@@ -248,6 +251,41 @@ class _WindowMachine:
         self.cache[name] = v
 
 
+class _DmaProfileFifo:
+    """The PL's profile FIFO through the registers: an accepted entry is pushed with
+    PROF_ENTRY_H/N/E/T and PROF_PUSH; a read starts the DMA of the newest entries into the
+    co-simulation's DDR (PROF_ADDR = 0, PROF_COUNT, PROF_CTRL.start), waits for the update
+    interrupt and reads the words back from DDR (:data:`DMA_WINDOW`)."""
+
+    def __init__(self, engine: FpgaSimEngine):
+        self.e = engine
+        self.dmas = 0  #: profile DMA transfers made
+
+    def push(self, words) -> None:
+        e = self.e
+        e._batch([e._w(reg, w) for reg, w in zip(
+            ("PROF_ENTRY_H", "PROF_ENTRY_N", "PROF_ENTRY_E", "PROF_ENTRY_T"), words,
+            strict=True)] + [e._w("PROF_PUSH", 1)])
+
+    def read(self, count: int) -> np.ndarray:
+        e = self.e
+        if not 0 < count <= DMA_WORDS // 4:
+            raise FpgaSimError(f"profile DMA of {count} entries (1-{DMA_WORDS // 4})")
+        off = e.off
+        cmds = [f"R {off['IRQ_STATUS']:x}", e._w("PROF_ADDR", 0), e._w("PROF_COUNT", count),
+                e._w("PROF_CTRL", 1), "Q 0 100000", f"R {off['IRQ_STATUS']:x}",
+                f"R {off['PROF_STATUS']:x}"]
+        cmds += [f"R {DMA_WINDOW + 4 * k:x}" for k in range(4 * count)]
+        out = e._batch(cmds)
+        irq_status, status = int(out[5], 16), int(out[6], 16)
+        if irq_status != 1 or status & 1:
+            raise FpgaSimError(f"profile DMA of {count} entries: IRQ_STATUS {irq_status:#x} "
+                               f"(update only expected), PROF_STATUS {status:#x}")
+        self.dmas += 1
+        e.interrupts += 1
+        return np.array([int(t, 16) for t in out[7:]], np.uint32).reshape(count, 4)
+
+
 class FpgaSimEngine(Fp32Engine):
     """The whole PL in Verilator behind the PlEngine interface (module docstring)."""
 
@@ -387,6 +425,9 @@ class FpgaSimEngine(Fp32Engine):
         self._count(self.accepted, kind)
         return UpdateOutcome(True, nis,
                              np.array([float(np.uint32(b).view(np.float32)) for b in dx]))
+
+    def _profile_fifo(self):
+        return _DmaProfileFifo(weakref.proxy(self))
 
     def prepare_baro(self, uncomp_press, uncomp_temp) -> None:
         """Nothing ahead of time: every sample goes through the pins when its record comes."""
