@@ -84,3 +84,18 @@ def test_unwritable_output_directory(tmp_path):
     blocker.write_text("x")
     assert_one_line_error(navgate("fly", "--duration", "10", "--out", str(blocker / "sub")),
                           "output directory")
+
+
+def test_hardware_line_reports_the_simulated_pl():
+    """The fly/replay line for a simulated PL's counts (summary "hardware")."""
+    from navgate.cli.common import hardware_line
+
+    line = hardware_line({"simulated_cycles": 322_200_000, "cycles_per_imu_sample": 1342.4,
+                          "update_interrupts": 15040, "profile_dmas": 108,
+                          "profile_entries_pushed": 1045, "baro_samples_through_pins": 15000,
+                          "ranger_frames_through_pins": 6000, "bus_batches": 1,
+                          "bus_commands": 2})
+    assert line.startswith("322.2 M cycles simulated (1,342 per IMU sample)")
+    assert "108 profile DMAs" in line and "6,000 ranger frames" in line
+    assert hardware_line({"engine_cycles": 2_500_000, "engine_cycles_per_imu_sample": 669.0}) \
+        == "2.5 M engine cycles (669 per IMU sample)"

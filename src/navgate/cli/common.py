@@ -478,3 +478,16 @@ def simulation_errors() -> tuple:
     from navgate.systems.ins_trn.rtl_engine import RtlError
 
     return (NativeStreamError, RtlError, NativeAxiError, FpgaSimError)
+
+
+def hardware_line(hw: dict) -> str:
+    """One line of a simulated PL's counts (summary "hardware")."""
+    if "simulated_cycles" in hw:
+        return (f"{hw['simulated_cycles'] / 1e6:.1f} M cycles simulated "
+                f"({hw['cycles_per_imu_sample']:,.0f} per IMU sample), "
+                f"{hw['update_interrupts']:,} update interrupts, "
+                f"{hw['profile_dmas']:,} profile DMAs, "
+                f"{hw['baro_samples_through_pins']:,} barometer samples and "
+                f"{hw['ranger_frames_through_pins']:,} ranger frames through the pins")
+    return (f"{hw['engine_cycles'] / 1e6:.1f} M engine cycles "
+            f"({hw['engine_cycles_per_imu_sample']:,.0f} per IMU sample)")

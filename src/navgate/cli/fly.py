@@ -19,6 +19,7 @@ from navgate.cli.common import (
     check_out_dir,
     consoles,
     default_out_dir,
+    hardware_line,
     non_finite_keys,
     numba_note,
     out_option,
@@ -170,8 +171,13 @@ def _print_table(console, s):
                       f"(out of range at this height above ground): TRN had "
                       f"{s['trn_aided']['fixes_accepted']} accepted fixes", highlight=False)
     console.print(f"wall time {s['wall_time_s']:.1f} s, engine {s.get('engine', 'reference')}")
+    for name, label in (("ins_only", "INS only"), ("trn_aided", "INS + TRN")):
+        hw = s.get(name, {}).get("hardware")
+        if hw:
+            console.print(f"{label}: {hardware_line(hw)}", highlight=False)
     if "fp32_vs_reference_max_position_difference_m" in s:
         console.print(f"fp32 vs reference: max position difference "
                       f"{s['fp32_vs_reference_max_position_difference_m']:.2f} m; engine wall "
                       f"time {s['engine_wall_time_s']:.1f} s vs "
                       f"{s['reference_engine_wall_time_s']:.1f} s")
+

@@ -12,7 +12,13 @@ import time
 
 import click
 
-from navgate.cli.common import CliError, prepare_out_dir, simulation_errors, write_summary
+from navgate.cli.common import (
+    CliError,
+    hardware_line,
+    prepare_out_dir,
+    simulation_errors,
+    write_summary,
+)
 
 
 @click.command()
@@ -96,6 +102,8 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
             s["fixes_attempted"] = len(run.fixes)
             s["fixes_accepted"] = len(applied)
             s["fixes_rejected"] = len(run.fixes) - len(applied)
+        if run.hardware:
+            s["hardware"] = run.hardware
         summary[name] = s
     summary["wall_time_s"] = time.perf_counter() - start
     path = write_summary(out, summary)
@@ -111,6 +119,8 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
             else:
                 click.echo(f"  {name}: final position {r['final_lat_deg']:.6f}, "
                            f"{r['final_lon_deg']:.6f}, {r['final_h_m']:.1f} m")
+            if "hardware" in r:
+                click.echo(f"  {name}: {hardware_line(r['hardware'])}")
     click.echo(f"wrote {path}")
 
 

@@ -26,6 +26,7 @@ from navgate.systems.ins_trn.output_formatter import (
     formatter_bittrue,
 )
 from navgate.systems.ins_trn.registers import ID_VALUE, register_map
+from navgate.systems.ins_trn.sequencer import job_cycles
 from navgate.systems.ins_trn.top import LIDAR_TIMEOUT_BITS, SigmaUnit
 from navgate.trn.dem import Dem
 
@@ -52,7 +53,8 @@ def _fly(duration, seed=1):
     assert a.accepted == b.accepted and a.rejected == b.rejected
     assert [f["applied"] for f in a.fixes] == [f["applied"] for f in b.fixes]
     _same_registers(engs["fp32"], engs["fpga-sim"])
-    return stream, a, engs
+    assert a.hardware == {} and b.hardware
+    return stream, b, engs
 
 
 def _directed_updates(engs):
@@ -204,8 +206,13 @@ def test_fpga_sim_equals_fp32_60s_flight():
     assert sum(run.accepted.values()) > 10 and eng.interrupts > 10
     # the correlator's profile came from the PL's FIFO by DMA, once per correlation, and the
     # FIFO holds every accepted terrain sample (the newest 64)
-    assert eng.profile.fifo.dmas == len(run.fixes) > 5
-    assert eng.profile.pushes == run.profile_counts["accepted"] > 64
+    hw = run.hardware
+    assert hw["profile_dmas"] == len(run.fixes) > 5
+    assert hw["profile_entries_pushed"] == run.profile_counts["accepted"] > 64
+    # the cycles the run reported: at least the sequencer's IMU job per sample
+    imu_job = job_cycles(eng.image, "imu")
+    assert eng.samples * imu_job <= hw["simulated_cycles"] <= eng.cycles
+    assert hw["update_interrupts"] == eng.interrupts
     n = round(60.0 * 400)
     assert eng.samples == n
     regs = Registers(register_map(), NativeAxiBus(eng.sim))

@@ -13,6 +13,7 @@ import pytest
 
 from navgate.systems.ins_trn import flight
 from navgate.systems.ins_trn.engine import make_engine
+from navgate.systems.ins_trn.engines import engine_image
 from navgate.systems.ins_trn.fp32_program import STATE_REGS
 from navgate.systems.ins_trn.navigator import Navigator, engine_setup
 from navgate.trn.dem import Dem
@@ -39,6 +40,9 @@ def _fly_both(duration):
         nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=True)
         runs[name], engs[name] = nav.run(stream), eng
     a, b = runs["fp32"], runs["rtl"]
+    # the run reports the gateware's cycles: at least the propagate program's per sample
+    per_sample = engine_image("ins_engines").cycles("propagate") + 1
+    assert b.hardware["engine_cycles"] >= engs["rtl"].samples * per_sample > 0
     assert np.array_equal(a.nav, b.nav) and np.array_equal(a.sigma, b.sigma)
     assert np.array_equal(a.p_ne, b.p_ne)
     assert a.accepted == b.accepted and a.rejected == b.rejected

@@ -140,6 +140,12 @@ class PlEngine(ABC):
         """(distance word, strength) of the ranger frame as the PL's receiver reports it."""
         raise NotImplementedError(f"the {self.name} engine has no PL ranger path")
 
+    # -- simulation figures ---------------------------------------------------------------------
+    def hardware_stats(self) -> dict:
+        """What a simulated PL counted during the run (cycles, interrupts, DMAs, ...); empty
+        for the models."""
+        return {}
+
     # -- altitude profile buffer ---------------------------------------------------------------
     def profile_push(self, **entry) -> str:
         return self.profile.add(**entry)

@@ -74,6 +74,8 @@ class FlightResult:
             s["baro_samples_invalid"] = run.rejected.get("baro invalid sample", 0)
             s["imu_samples_rejected"] = run.imu_samples_rejected
             s["wall_time_s"] = run.wall_time_s
+            if run.hardware:
+                s["hardware"] = run.hardware
             if name == "trn_aided":
                 applied = [f for f in run.fixes if f["applied"]]
                 reasons = {}

@@ -473,5 +473,15 @@ class FpgaSimEngine(Fp32Engine):
     def cycles(self) -> int:
         return self.sim.cycles
 
+    def hardware_stats(self) -> dict:
+        return {"simulated_cycles": self.sim.cycles,
+                "cycles_per_imu_sample": self.sim.cycles / max(self.samples, 1),
+                "update_interrupts": self.interrupts,
+                "profile_dmas": self.profile.fifo.dmas,
+                "profile_entries_pushed": self.profile.pushes,
+                "baro_samples_through_pins": self.baro_samples,
+                "ranger_frames_through_pins": self.lidar_frames,
+                "bus_batches": self.sim.batches, "bus_commands": self.sim.commands}
+
     def close(self):
         self._finalizer()

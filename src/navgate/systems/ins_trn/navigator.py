@@ -55,6 +55,7 @@ class NavRun:
     imu_samples_rejected: int
     wall_time_s: float
     engine: str = "reference"
+    hardware: dict | None = None  #: the simulated PL's counts (PlEngine.hardware_stats)
 
 
 def make_correlator(cfg, dem, tangent):
@@ -255,7 +256,7 @@ class Navigator:
         return NavRun(self.name, t_log, np.array(self._nav), np.array(self._sigma),
                       np.array(self._p_ne), self.fixes, dict(e.accepted), rejected,
                       dict(e.profile.counts), e.imu_samples_rejected,
-                      _time.perf_counter() - self._start, e.name)
+                      _time.perf_counter() - self._start, e.name, e.hardware_stats())
 
 
 def navigate(stream: RecordStream, cfg, *, engine: str = "reference", dem=None,

@@ -167,5 +167,9 @@ class RtlEngine(Fp32Engine):
         self.m.propagate(gw, aw)
         self.samples += gw.shape[0]
 
+    def hardware_stats(self) -> dict:
+        return {"engine_cycles": self.link.cycles_run,
+                "engine_cycles_per_imu_sample": self.link.cycles_run / max(self.samples, 1)}
+
     def close(self):
         self._finalizer()
