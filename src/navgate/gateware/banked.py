@@ -88,6 +88,8 @@ OVERHEAD = OPERAND_STAGES + 1
 ITERATIVE = {"div": Fp32DivIter, "sqrt": Fp32SqrtIter}
 #: a temporary read by at least this many ops goes to the least-read bank
 SPREAD_FANOUT = 2
+#: how far ahead a waiting op may reserve a write-free cycle (shared port A)
+RESERVE_WINDOW = 64
 
 
 @dataclass(frozen=True)
@@ -104,6 +106,12 @@ class BankedUnits:
     #: recurrence step reused, ~140 LUT each, a new op every INTERVAL cycles) instead of the
     #: pipelined ones (1,290 and 738 LUT, one op per cycle)
     iterative: bool = False
+    #: true-dual-port banks: port A is the write port and read port 0 (one address, shared),
+    #: port B is read port 1. Per bank per cycle: distinct words read + words written <= 2,
+    #: and read port 0 is unavailable in a cycle the bank is written (its address is the
+    #: write address). One address field per bank fewer in the microcode. Needs
+    #: ``read_ports == 2``.
+    shared_write_port: bool = False
 
     def latency(self, unit: str) -> int:
         if self.iterative and unit in ITERATIVE:
@@ -162,6 +170,9 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
     if units.read_ports < 2:
         raise ScheduleError("read_ports must be at least 2 (an op may read two words of one "
                             "bank in one cycle)")
+    shared = units.shared_write_port
+    if shared and units.read_ports != 2:
+        raise ScheduleError("shared_write_port (true-dual-port banks) needs read_ports == 2")
     ops = [BSOp(s.index, s.dst, s.kind, s.srcs) for s in _fold_negs(prog)]
     producer = {s.dst: s for s in ops}
     for s in ops:
@@ -196,6 +207,8 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
     nb = units.banks
     load = [0] * nb  # reads of the temporaries placed in each bank
     core_free: dict = {}  # iterative core -> first cycle it accepts a new op
+    nowrite: set = set()  # (cycle, bank) kept free of writes for a waiting op's reads
+    reserved: dict = {}  # op index -> the cycle reserved for it
 
     def bank_of_name(name):
         return bank[name] if name in bank else bank_of[name]
@@ -207,9 +220,37 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
             need.setdefault(b, set()).add(n)
         for b, ns in need.items():
             have = reads.get((c, b), set())
-            if len(have | ns) > units.read_ports:
+            if len(have | ns) > read_limit(c, b):
                 return False
         return True
+
+    def read_limit(c, b):
+        # a shared port A that writes in cycle c reads nothing
+        return units.read_ports - int(shared and (c, b) in writes)
+
+    def write_free(w, b):
+        # the write port is free, and with a shared port A, port B alone serves the reads
+        return ((w, b) not in writes and (w, b) not in nowrite
+                and not (shared and len(reads.get((w, b), ())) > 1))
+
+    def reserve(c, names):
+        # shared port A: an op that cannot read its operands because their bank is written
+        # in cycle c reserves the next cycle in which none of those banks is written yet
+        # (no write may be placed there), so that a stream of writes cannot starve it
+        need: dict = {}
+        for n in set(names):
+            need.setdefault(bank_of_name(n), set()).add(n)
+        full = [b for b, ns in need.items()
+                if len(reads.get((c, b), set()) | ns) > read_limit(c, b)
+                and len(reads.get((c, b), set()) | ns) <= units.read_ports]
+        if not full:
+            return None
+        for c2 in range(c + 1, c + RESERVE_WINDOW):
+            if all((c2, b) not in writes for b in full):
+                for b in full:
+                    nowrite.add((c2, b))
+                return c2
+        return None
 
     def take_reads(c, names):
         for n in names:
@@ -245,7 +286,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                     prefs.append(own)
                     prefs += sorted(range(nb), key=lambda b: (b != own, load[b], b))
                     for b in prefs:
-                        if (w, b) not in writes:
+                        if write_free(w, b):
                             target = b
                             break
                 fits = reads_fit(c, names)
@@ -253,6 +294,10 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                 misc_busy = su == "misc" and ((w, "misc") in writes
                                               or c < core_free.get(s.unit, 0))
                 if not fits or misc_busy or (not dead and target is None):
+                    if shared and not fits and reserved.get(i, -1) < c:
+                        r = reserve(c, names)
+                        if r is not None:
+                            reserved[i] = r
                     skipped.append((h, i))
                     continue
                 take_reads(c, names)
@@ -299,7 +344,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
     for early, reg, tmp in sorted(movs):
         c = max(early, last_read.get(reg, -1) - OPERAND_STAGES - lat_mov)
         while ((c, misc_slot) in issued
-               or (c + OPERAND_STAGES + lat_mov, bank_of[reg]) in writes
+               or not write_free(c + OPERAND_STAGES + lat_mov, bank_of[reg])
                or (c + OPERAND_STAGES + lat_mov, "misc") in writes
                or not reads_fit(c, [tmp])):
             c += 1
@@ -409,11 +454,13 @@ class _BankedFields:
             self.pos[key] = (off, w)
             off += w
 
+        self.shared = units.shared_write_port
         for b in range(nb):
             for r in range(units.read_ports):
                 add(("ra", b, r), lb)
             add(("we", b), 1)
-            add(("wa", b), lb)
+            if not self.shared:  # shared: the write address is port A's (read 0's) field
+                add(("wa", b), lb)
             add(("wsrc", b), self.src_bits)
         for slot, _ in enumerate(units.slots()):
             add(("iss", slot), 1)
@@ -425,6 +472,10 @@ class _BankedFields:
         add(("wmod",), 1)
         self.width = off
         self.aw = lb + max(1, (nb - 1).bit_length())
+
+    def wa(self, b: int) -> tuple:
+        """The field holding bank ``b``'s write address."""
+        return ("ra", b, 0) if self.shared else ("wa", b)
 
 
 @dataclass
@@ -468,6 +519,11 @@ class BankedImage:
             addr = dict(layout.fixed)
             addr.update(layout.temp_addr[key])
             ports: dict = {}  # (cycle, bank) -> {local address: port}
+            if units.shared_write_port:  # port A writes: the reads of that cycle use port B
+                for s in sp.ops:
+                    dst = layout.fixed[s.dst] if s.kind == "mov" else addr.get(s.dst)
+                    if dst is not None:
+                        ports[(s.write, dst >> lb)] = {None: 0}
 
             def put(row, fkey, value, rows=rows):
                 off, w = f.pos[fkey]
@@ -500,7 +556,7 @@ class BankedImage:
                     b = dst >> lb
                     src = sources.index((s.unit, s.inst) if su != "misc" else ("misc", 0))
                     put(s.write, ("we", b), 1)
-                    put(s.write, ("wa", b), dst & ((1 << lb) - 1))
+                    put(s.write, f.wa(b), dst & ((1 << lb) - 1))
                     put(s.write, ("wsrc", b), src)
             rom += rows
         return cls(units, misc_kinds, sources, sched, layout, base, rom, f)
@@ -609,15 +665,27 @@ class BankedMachine(wiring.Component):
             m.submodules[f"bank{b}"] = mem
             wp = mem.write_port()
             wports.append(wp)
+            host_we = self.host_we & ~running & (self.host_waddr[lb:] == b)
+            if u.shared_write_port:
+                # port A: write port and read port 0 on one address (one true-dual-port RAM)
+                addr_a = Signal(lb, name=f"addr_a{b}")
+                m.d.comb += addr_a.eq(Mux(running, fld("ra", b, 0),
+                                          Mux(host_we, self.host_waddr[:lb],
+                                              self.host_raddr[:lb])))
             ports = []
             for r in range(u.read_ports):
                 p = mem.read_port()
-                a = fld("ra", b, r)
                 if r == 0:
-                    a = Mux(running, a, self.host_raddr[:lb])
+                    a = (addr_a if u.shared_write_port
+                         else Mux(running, fld("ra", b, 0), self.host_raddr[:lb]))
+                else:
+                    a = fld("ra", b, r)
                 m.d.comb += p.addr.eq(a)
                 ports.append(p.data)
             rdata.append(ports)
+            waddr = (addr_a if u.shared_write_port
+                     else Mux(running, fld("wa", b), self.host_waddr[:lb]))
+            m.d.comb += [wp.en.eq(fld("we", b) | host_we), wp.addr.eq(waddr)]
         flat_ports = [d for ports in rdata for d in ports]
         with m.Switch(host_bank_q):
             for b in range(nb):
@@ -697,9 +765,6 @@ class BankedMachine(wiring.Component):
                 for k, key in enumerate(img.sources):
                     with m.Case(k):
                         m.d.comb += data.eq(src_res[key])
-            host = self.host_we & ~running & (self.host_waddr[lb:] == b)
-            m.d.comb += [wp.en.eq(fld("we", b) | host),
-                         wp.addr.eq(Mux(running, fld("wa", b), self.host_waddr[:lb])),
-                         wp.data.eq(Mux(running, data, self.host_wdata))]
+            m.d.comb += wp.data.eq(Mux(running, data, self.host_wdata))
         return m
 
