@@ -160,7 +160,6 @@ def _check_ports(img):
     address in its write row."""
     u = img.units
     lb = img.layout.local_bits
-    shared = u.shared_write_port
     for key, sp in img.programs.items():
         base = img.base[key]
         addr = dict(img.layout.fixed)
@@ -183,8 +182,8 @@ def _check_ports(img):
                 assert _field(img, row, img.fields.wa(dst >> lb)) == dst & ((1 << lb) - 1)
         assert max(len(v) for v in reads.values()) <= u.read_ports
         assert max(writes.values()) == 1
-        if shared:
-            for k, v in reads.items():
+        for k, v in reads.items():
+            if u.shared(k[1]):
                 assert len(v) + writes.get(k, 0) <= 2, (key, k)
         for s in sp.ops:
             slot = u.slot_of(s.unit if s.unit in ("mul", "add") else "misc", s.inst)
@@ -194,7 +193,7 @@ def _check_ports(img):
                 b, port = divmod(sel, u.read_ports)
                 assert addr[name] >> lb == b
                 assert _field(img, row, ("ra", b, port)) == addr[name] & ((1 << lb) - 1)
-                if shared and port == 0:
+                if u.shared(b) and port == 0:
                     assert _field(img, row, ("we", b)) == 0, (key, s.issue, b)
 
 
@@ -216,6 +215,11 @@ def test_shared_write_port_limits():
     assert all((s.issue, 0) not in written for s in sp.ops)
     assert sorted(s.issue for s in sp.ops)[:7] == list(range(7))
     assert max(s.issue for s in sp.ops) > 11
+    # only bank 0 true-dual-port: the results go to bank 1 (a write costs a shared bank a
+    # read port), and the products issue back to back again
+    sp = schedule_banked(p, BankedUnits(mul=1, add=1, shared_write_port=(0,)), bank)
+    assert sorted(s.issue for s in sp.ops) == list(range(12))
+    assert {s.bank for s in sp.ops} == {1}
     with pytest.raises(ScheduleError):  # a true-dual-port bank has two ports
         schedule_banked(p, BankedUnits(read_ports=3, shared_write_port=True), bank)
 
@@ -231,10 +235,11 @@ def test_random_program_bit_exact_amaranth(seed):
         else:
             words[r] = int(np.float32(rng.normal() * 2.0 ** rng.integers(-20, 20))
                            .view(np.uint32))
-    # seeds 4 and 5: true-dual-port banks (shared write port / read port 0)
+    # seeds 4 and 5: true-dual-port banks (shared write port / read port 0), all banks or
+    # two of them
     units = BankedUnits(mul=2, add=2, read_ports=2 + (seed % 2 if seed < 4 else 0),
                         misc_bank=seed not in (3, 5), iterative=seed in (3, 5),
-                        shared_write_port=seed >= 4)
+                        shared_write_port={4: True, 5: (0, 2)}.get(seed, False))
     img = BankedImage.build({"rand": prog}, units, regs)
     _check_ports(img)
     init = {img.layout.fixed[r]: w for r, w in words.items()}

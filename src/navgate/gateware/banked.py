@@ -37,6 +37,16 @@ Machine
   units' first stage (xc7 timing).
 * Constraints per cycle: one issue per slot; per bank, at most ``read_ports`` distinct words
   read and one word written.
+* True-dual-port banks (``BankedUnits(shared_write_port=True)``, two ports): port A is the
+  write port and read port 0 on one address (the microcode's read-0 address field is the
+  write address in a cycle that writes the bank), port B is read port 1, so Yosys maps a
+  bank onto one true-dual-port block RAM. Per bank per cycle then: distinct words read +
+  words written <= 2, and a bank written in a cycle is read through port B only. An op
+  that cannot read its operands because their bank is written reserves the next cycle in
+  which that bank is not written yet (no later write may take it), so that a stream of
+  writes cannot starve it. On xc7 a 32-bit true-dual-port bank is one RAMB36E1 (a RAMB18E1
+  has 18-bit ports in that mode), the same block RAM as two simple-dual-port RAMB18E1: the
+  saving is the narrower microcode (docs/seed000-engines.md §7).
 
 Programs and commit rules are those of :mod:`navgate.gateware.scheduled` (SSA ops, commit
 map read at program start, outputs): a committed temporary placed in its register's bank and
@@ -110,8 +120,13 @@ class BankedUnits:
     #: port B is read port 1. Per bank per cycle: distinct words read + words written <= 2,
     #: and read port 0 is unavailable in a cycle the bank is written (its address is the
     #: write address). One address field per bank fewer in the microcode. Needs
-    #: ``read_ports == 2``.
-    shared_write_port: bool = False
+    #: ``read_ports == 2``. ``True``: every bank; a tuple of bank numbers: those banks.
+    shared_write_port: bool | tuple = False
+
+    def shared(self, bank: int) -> bool:
+        """Bank ``bank`` has a shared port A (write port = read port 0)."""
+        sw = self.shared_write_port
+        return bool(sw) if isinstance(sw, bool) else bank in sw
 
     def latency(self, unit: str) -> int:
         if self.iterative and unit in ITERATIVE:
@@ -170,8 +185,8 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
     if units.read_ports < 2:
         raise ScheduleError("read_ports must be at least 2 (an op may read two words of one "
                             "bank in one cycle)")
-    shared = units.shared_write_port
-    if shared and units.read_ports != 2:
+    shared = units.shared
+    if any(shared(b) for b in range(units.banks)) and units.read_ports != 2:
         raise ScheduleError("shared_write_port (true-dual-port banks) needs read_ports == 2")
     ops = [BSOp(s.index, s.dst, s.kind, s.srcs) for s in _fold_negs(prog)]
     producer = {s.dst: s for s in ops}
@@ -226,12 +241,12 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
 
     def read_limit(c, b):
         # a shared port A that writes in cycle c reads nothing
-        return units.read_ports - int(shared and (c, b) in writes)
+        return units.read_ports - int(shared(b) and (c, b) in writes)
 
     def write_free(w, b):
         # the write port is free, and with a shared port A, port B alone serves the reads
         return ((w, b) not in writes and (w, b) not in nowrite
-                and not (shared and len(reads.get((w, b), ())) > 1))
+                and not (shared(b) and len(reads.get((w, b), ())) > 1))
 
     def reserve(c, names):
         # shared port A: an op that cannot read its operands because their bank is written
@@ -285,6 +300,12 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                         prefs += sorted(range(nb), key=lambda b: (load[b], b))
                     prefs.append(own)
                     prefs += sorted(range(nb), key=lambda b: (b != own, load[b], b))
+                    # a write costs a shared bank a read port: the other banks first (after
+                    # the bank of the register a temporary is committed to)
+                    head = prefs[:1] if s.dst in commit_to else []
+                    rest = prefs[1:] if head else prefs
+                    prefs = (head + [b for b in rest if not shared(b)]
+                             + [b for b in rest if shared(b)])
                     for b in prefs:
                         if write_free(w, b):
                             target = b
@@ -294,7 +315,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                 misc_busy = su == "misc" and ((w, "misc") in writes
                                               or c < core_free.get(s.unit, 0))
                 if not fits or misc_busy or (not dead and target is None):
-                    if shared and not fits and reserved.get(i, -1) < c:
+                    if not fits and reserved.get(i, -1) < c:
                         r = reserve(c, names)
                         if r is not None:
                             reserved[i] = r
@@ -454,12 +475,12 @@ class _BankedFields:
             self.pos[key] = (off, w)
             off += w
 
-        self.shared = units.shared_write_port
+        self.shared = units.shared
         for b in range(nb):
             for r in range(units.read_ports):
                 add(("ra", b, r), lb)
             add(("we", b), 1)
-            if not self.shared:  # shared: the write address is port A's (read 0's) field
+            if not self.shared(b):  # shared: the write address is port A's (read 0's) field
                 add(("wa", b), lb)
             add(("wsrc", b), self.src_bits)
         for slot, _ in enumerate(units.slots()):
@@ -475,7 +496,7 @@ class _BankedFields:
 
     def wa(self, b: int) -> tuple:
         """The field holding bank ``b``'s write address."""
-        return ("ra", b, 0) if self.shared else ("wa", b)
+        return ("ra", b, 0) if self.shared(b) else ("wa", b)
 
 
 @dataclass
@@ -519,11 +540,10 @@ class BankedImage:
             addr = dict(layout.fixed)
             addr.update(layout.temp_addr[key])
             ports: dict = {}  # (cycle, bank) -> {local address: port}
-            if units.shared_write_port:  # port A writes: the reads of that cycle use port B
-                for s in sp.ops:
-                    dst = layout.fixed[s.dst] if s.kind == "mov" else addr.get(s.dst)
-                    if dst is not None:
-                        ports[(s.write, dst >> lb)] = {None: 0}
+            for s in sp.ops:  # a shared port A writes: the reads of that cycle use port B
+                dst = layout.fixed[s.dst] if s.kind == "mov" else addr.get(s.dst)
+                if dst is not None and units.shared(dst >> lb):
+                    ports[(s.write, dst >> lb)] = {None: 0}
 
             def put(row, fkey, value, rows=rows):
                 off, w = f.pos[fkey]
@@ -666,7 +686,8 @@ class BankedMachine(wiring.Component):
             wp = mem.write_port()
             wports.append(wp)
             host_we = self.host_we & ~running & (self.host_waddr[lb:] == b)
-            if u.shared_write_port:
+            shared = u.shared(b)
+            if shared:
                 # port A: write port and read port 0 on one address (one true-dual-port RAM)
                 addr_a = Signal(lb, name=f"addr_a{b}")
                 m.d.comb += addr_a.eq(Mux(running, fld("ra", b, 0),
@@ -676,14 +697,14 @@ class BankedMachine(wiring.Component):
             for r in range(u.read_ports):
                 p = mem.read_port()
                 if r == 0:
-                    a = (addr_a if u.shared_write_port
+                    a = (addr_a if shared
                          else Mux(running, fld("ra", b, 0), self.host_raddr[:lb]))
                 else:
                     a = fld("ra", b, r)
                 m.d.comb += p.addr.eq(a)
                 ports.append(p.data)
             rdata.append(ports)
-            waddr = (addr_a if u.shared_write_port
+            waddr = (addr_a if shared
                      else Mux(running, fld("wa", b), self.host_waddr[:lb]))
             m.d.comb += [wp.en.eq(fld("we", b) | host_we), wp.addr.eq(waddr)]
         flat_ports = [d for ports in rdata for d in ports]
