@@ -685,28 +685,26 @@ class BankedMachine(wiring.Component):
             m.submodules[f"bank{b}"] = mem
             wp = mem.write_port()
             wports.append(wp)
-            host_we = self.host_we & ~running & (self.host_waddr[lb:] == b)
-            shared = u.shared(b)
-            if shared:
+            if u.shared(b):
                 # port A: write port and read port 0 on one address (one true-dual-port RAM)
+                host_we = self.host_we & ~running & (self.host_waddr[lb:] == b)
                 addr_a = Signal(lb, name=f"addr_a{b}")
-                m.d.comb += addr_a.eq(Mux(running, fld("ra", b, 0),
-                                          Mux(host_we, self.host_waddr[:lb],
-                                              self.host_raddr[:lb])))
+                m.d.comb += [addr_a.eq(Mux(running, fld("ra", b, 0),
+                                           Mux(host_we, self.host_waddr[:lb],
+                                               self.host_raddr[:lb]))),
+                             wp.en.eq(fld("we", b) | host_we), wp.addr.eq(addr_a)]
             ports = []
             for r in range(u.read_ports):
                 p = mem.read_port()
-                if r == 0:
-                    a = (addr_a if shared
-                         else Mux(running, fld("ra", b, 0), self.host_raddr[:lb]))
+                if r == 0 and u.shared(b):
+                    a = addr_a
                 else:
                     a = fld("ra", b, r)
+                    if r == 0:
+                        a = Mux(running, a, self.host_raddr[:lb])
                 m.d.comb += p.addr.eq(a)
                 ports.append(p.data)
             rdata.append(ports)
-            waddr = (addr_a if shared
-                     else Mux(running, fld("wa", b), self.host_waddr[:lb]))
-            m.d.comb += [wp.en.eq(fld("we", b) | host_we), wp.addr.eq(waddr)]
         flat_ports = [d for ports in rdata for d in ports]
         with m.Switch(host_bank_q):
             for b in range(nb):
@@ -786,6 +784,10 @@ class BankedMachine(wiring.Component):
                 for k, key in enumerate(img.sources):
                     with m.Case(k):
                         m.d.comb += data.eq(src_res[key])
+            if not u.shared(b):
+                host = self.host_we & ~running & (self.host_waddr[lb:] == b)
+                m.d.comb += [wp.en.eq(fld("we", b) | host),
+                             wp.addr.eq(Mux(running, fld("wa", b), self.host_waddr[:lb]))]
             m.d.comb += wp.data.eq(Mux(running, data, self.host_wdata))
         return m
 
