@@ -146,10 +146,22 @@ def test_unknown_operand_rejected():
                         BankedUnits(read_ports=1), {"x": 0, "y": 0})
 
 
+def _field(img, row, key):
+    off, w = img.fields.pos[key]
+    return img.rom[row] >> off & ((1 << w) - 1)
+
+
 def _check_ports(img):
+    """Every schedule within the ports (one issue per slot; per bank per cycle at most
+    ``read_ports`` distinct words read and one written; with a shared port A, reads +
+    writes <= 2), and the microcode: every operand of every op selects a bank port whose
+    address field holds the operand's address in its issue row, never port 0 of a bank the
+    row writes when port A is shared, and every write sets the bank's write enable and
+    address in its write row."""
     u = img.units
     lb = img.layout.local_bits
     for key, sp in img.programs.items():
+        base = img.base[key]
         addr = dict(img.layout.fixed)
         addr.update(img.layout.temp_addr[key])
         reads: dict = {}
@@ -165,11 +177,54 @@ def _check_ports(img):
             if dst is not None:
                 k = (s.write, dst >> lb)
                 writes[k] = writes.get(k, 0) + 1
+                row = base + s.write
+                assert _field(img, row, ("we", dst >> lb)) == 1
+                assert _field(img, row, img.fields.wa(dst >> lb)) == dst & ((1 << lb) - 1)
         assert max(len(v) for v in reads.values()) <= u.read_ports
         assert max(writes.values()) == 1
+        for k, v in reads.items():
+            if u.shared(k[1]):
+                assert len(v) + writes.get(k, 0) <= 2, (key, k)
+        for s in sp.ops:
+            slot = u.slot_of(s.unit if s.unit in ("mul", "add") else "misc", s.inst)
+            row = base + s.issue
+            for j, (name, _) in enumerate(s.srcs):
+                sel = _field(img, row, ("sel", slot, j))
+                b, port = divmod(sel, u.read_ports)
+                assert addr[name] >> lb == b
+                assert _field(img, row, ("ra", b, port)) == addr[name] & ((1 << lb) - 1)
+                if u.shared(b) and port == 0:
+                    assert _field(img, row, ("we", b)) == 0, (key, s.issue, b)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_shared_write_port_limits():
+    # twelve products, each of two words of bank 0 (24 distinct words): one per cycle on
+    # the single multiplier. Separate write port: issues 0..11 back to back. True-dual-port
+    # banks (shared_write_port): the results are written from cycle 7 on, into bank 0 (the
+    # multiplier's own bank) while its port is free there; a cycle that writes bank 0
+    # leaves it one read port, so no product issues in a cycle that writes bank 0
+    words = [f"w{i}" for i in range(24)]
+    ops = [Op(f"t{i}", "mul", (words[2 * i], words[2 * i + 1])) for i in range(12)]
+    p = Prog("s", ops, outputs={f"o{i}": f"t{i}" for i in range(12)})
+    bank = {w: 0 for w in words}
+    sp = schedule_banked(p, BankedUnits(mul=1, add=1), bank)
+    assert sorted(s.issue for s in sp.ops) == list(range(12))
+    sp = schedule_banked(p, BankedUnits(mul=1, add=1, shared_write_port=True), bank)
+    written = {(s.write, s.bank) for s in sp.ops}
+    assert any(b == 0 for _, b in written)
+    assert all((s.issue, 0) not in written for s in sp.ops)
+    assert sorted(s.issue for s in sp.ops)[:7] == list(range(7))
+    assert max(s.issue for s in sp.ops) > 11
+    # only bank 0 true-dual-port: the results go to bank 1 (a write costs a shared bank a
+    # read port), and the products issue back to back again
+    sp = schedule_banked(p, BankedUnits(mul=1, add=1, shared_write_port=(0,)), bank)
+    assert sorted(s.issue for s in sp.ops) == list(range(12))
+    assert {s.bank for s in sp.ops} == {1}
+    with pytest.raises(ScheduleError):  # a true-dual-port bank has two ports
+        schedule_banked(p, BankedUnits(read_ports=3, shared_write_port=True), bank)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
 def test_random_program_bit_exact_amaranth(seed):
     rng = np.random.default_rng(seed)
     prog, regs = _random_program(rng, n_ops=160)
@@ -180,8 +235,11 @@ def test_random_program_bit_exact_amaranth(seed):
         else:
             words[r] = int(np.float32(rng.normal() * 2.0 ** rng.integers(-20, 20))
                            .view(np.uint32))
-    units = BankedUnits(mul=2, add=2, read_ports=2 + seed % 2, misc_bank=seed != 3,
-                        iterative=seed == 3)
+    # seeds 4 and 5: true-dual-port banks (shared write port / read port 0), all banks or
+    # two of them
+    units = BankedUnits(mul=2, add=2, read_ports=2 + (seed % 2 if seed < 4 else 0),
+                        misc_bank=seed not in (3, 5), iterative=seed in (3, 5),
+                        shared_write_port={4: True, 5: (0, 2)}.get(seed, False))
     img = BankedImage.build({"rand": prog}, units, regs)
     _check_ports(img)
     init = {img.layout.fixed[r]: w for r, w in words.items()}
@@ -217,3 +275,25 @@ def test_engine_image_respects_ports():
     from navgate.systems.ins_trn.engines import engine_image
 
     _check_ports(engine_image("ins_engines"))
+
+
+def test_engine_image_shared_write_port_respects_ports():
+    from dataclasses import replace
+
+    from navgate.systems.ins_trn.engines import ENGINE_UNITS, engine_image
+
+    img = engine_image("ins_engines", replace(ENGINE_UNITS, shared_write_port=True))
+    _check_ports(img)
+    # one address field per bank fewer: 8 banks x 8 bits
+    assert img.fields.width == engine_image("ins_engines").fields.width - 8 * 8
+    # exact cycles (docs/seed000-engines.md §7): every bank true-dual-port is port-bound
+    # (2-D update 143 + 1 + 439 + 1 = 584 > 450); bank 0 alone keeps it at 444
+    assert {k: img.cycles(k) for k in img.programs} == {
+        "propagate": 732, "alt_gate": 55, "alt_apply": 265, "trn_gate": 143,
+        "trn_apply": 439}
+    one = engine_image("ins_engines", replace(ENGINE_UNITS, shared_write_port=(0,)))
+    _check_ports(one)
+    assert {k: one.cycles(k) for k in one.programs} == {
+        "propagate": 642, "alt_gate": 55, "alt_apply": 246, "trn_gate": 142,
+        "trn_apply": 300}
+    assert one.fields.width == img.fields.width + 7 * 8

@@ -37,6 +37,16 @@ Machine
   units' first stage (xc7 timing).
 * Constraints per cycle: one issue per slot; per bank, at most ``read_ports`` distinct words
   read and one word written.
+* True-dual-port banks (``BankedUnits(shared_write_port=True)``, two ports): port A is the
+  write port and read port 0 on one address (the microcode's read-0 address field is the
+  write address in a cycle that writes the bank), port B is read port 1, so Yosys maps a
+  bank onto one true-dual-port block RAM. Per bank per cycle then: distinct words read +
+  words written <= 2, and a bank written in a cycle is read through port B only. An op
+  that cannot read its operands because their bank is written reserves the next cycle in
+  which that bank is not written yet (no later write may take it), so that a stream of
+  writes cannot starve it. On xc7 a 32-bit true-dual-port bank is one RAMB36E1 (a RAMB18E1
+  has 18-bit ports in that mode), the same block RAM as two simple-dual-port RAMB18E1: the
+  saving is the narrower microcode (docs/seed000-engines.md §7).
 
 Programs and commit rules are those of :mod:`navgate.gateware.scheduled` (SSA ops, commit
 map read at program start, outputs): a committed temporary placed in its register's bank and
@@ -88,6 +98,8 @@ OVERHEAD = OPERAND_STAGES + 1
 ITERATIVE = {"div": Fp32DivIter, "sqrt": Fp32SqrtIter}
 #: a temporary read by at least this many ops goes to the least-read bank
 SPREAD_FANOUT = 2
+#: how far ahead a waiting op may reserve a write-free cycle (shared port A)
+RESERVE_WINDOW = 64
 
 
 @dataclass(frozen=True)
@@ -104,6 +116,17 @@ class BankedUnits:
     #: recurrence step reused, ~140 LUT each, a new op every INTERVAL cycles) instead of the
     #: pipelined ones (1,290 and 738 LUT, one op per cycle)
     iterative: bool = False
+    #: true-dual-port banks: port A is the write port and read port 0 (one address, shared),
+    #: port B is read port 1. Per bank per cycle: distinct words read + words written <= 2,
+    #: and read port 0 is unavailable in a cycle the bank is written (its address is the
+    #: write address). One address field per bank fewer in the microcode. Needs
+    #: ``read_ports == 2``. ``True``: every bank; a tuple of bank numbers: those banks.
+    shared_write_port: bool | tuple = False
+
+    def shared(self, bank: int) -> bool:
+        """Bank ``bank`` has a shared port A (write port = read port 0)."""
+        sw = self.shared_write_port
+        return bool(sw) if isinstance(sw, bool) else bank in sw
 
     def latency(self, unit: str) -> int:
         if self.iterative and unit in ITERATIVE:
@@ -162,6 +185,9 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
     if units.read_ports < 2:
         raise ScheduleError("read_ports must be at least 2 (an op may read two words of one "
                             "bank in one cycle)")
+    shared = units.shared
+    if any(shared(b) for b in range(units.banks)) and units.read_ports != 2:
+        raise ScheduleError("shared_write_port (true-dual-port banks) needs read_ports == 2")
     ops = [BSOp(s.index, s.dst, s.kind, s.srcs) for s in _fold_negs(prog)]
     producer = {s.dst: s for s in ops}
     for s in ops:
@@ -196,6 +222,8 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
     nb = units.banks
     load = [0] * nb  # reads of the temporaries placed in each bank
     core_free: dict = {}  # iterative core -> first cycle it accepts a new op
+    nowrite: set = set()  # (cycle, bank) kept free of writes for a waiting op's reads
+    reserved: dict = {}  # op index -> the cycle reserved for it
 
     def bank_of_name(name):
         return bank[name] if name in bank else bank_of[name]
@@ -207,9 +235,37 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
             need.setdefault(b, set()).add(n)
         for b, ns in need.items():
             have = reads.get((c, b), set())
-            if len(have | ns) > units.read_ports:
+            if len(have | ns) > read_limit(c, b):
                 return False
         return True
+
+    def read_limit(c, b):
+        # a shared port A that writes in cycle c reads nothing
+        return units.read_ports - int(shared(b) and (c, b) in writes)
+
+    def write_free(w, b):
+        # the write port is free, and with a shared port A, port B alone serves the reads
+        return ((w, b) not in writes and (w, b) not in nowrite
+                and not (shared(b) and len(reads.get((w, b), ())) > 1))
+
+    def reserve(c, names):
+        # shared port A: an op that cannot read its operands because their bank is written
+        # in cycle c reserves the next cycle in which none of those banks is written yet
+        # (no write may be placed there), so that a stream of writes cannot starve it
+        need: dict = {}
+        for n in set(names):
+            need.setdefault(bank_of_name(n), set()).add(n)
+        full = [b for b, ns in need.items()
+                if len(reads.get((c, b), set()) | ns) > read_limit(c, b)
+                and len(reads.get((c, b), set()) | ns) <= units.read_ports]
+        if not full:
+            return None
+        for c2 in range(c + 1, c + RESERVE_WINDOW):
+            if all((c2, b) not in writes for b in full):
+                for b in full:
+                    nowrite.add((c2, b))
+                return c2
+        return None
 
     def take_reads(c, names):
         for n in names:
@@ -244,8 +300,14 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                         prefs += sorted(range(nb), key=lambda b: (load[b], b))
                     prefs.append(own)
                     prefs += sorted(range(nb), key=lambda b: (b != own, load[b], b))
+                    # a write costs a shared bank a read port: the other banks first (after
+                    # the bank of the register a temporary is committed to)
+                    head = prefs[:1] if s.dst in commit_to else []
+                    rest = prefs[1:] if head else prefs
+                    prefs = (head + [b for b in rest if not shared(b)]
+                             + [b for b in rest if shared(b)])
                     for b in prefs:
-                        if (w, b) not in writes:
+                        if write_free(w, b):
                             target = b
                             break
                 fits = reads_fit(c, names)
@@ -253,6 +315,10 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                 misc_busy = su == "misc" and ((w, "misc") in writes
                                               or c < core_free.get(s.unit, 0))
                 if not fits or misc_busy or (not dead and target is None):
+                    if not fits and reserved.get(i, -1) < c:
+                        r = reserve(c, names)
+                        if r is not None:
+                            reserved[i] = r
                     skipped.append((h, i))
                     continue
                 take_reads(c, names)
@@ -299,7 +365,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
     for early, reg, tmp in sorted(movs):
         c = max(early, last_read.get(reg, -1) - OPERAND_STAGES - lat_mov)
         while ((c, misc_slot) in issued
-               or (c + OPERAND_STAGES + lat_mov, bank_of[reg]) in writes
+               or not write_free(c + OPERAND_STAGES + lat_mov, bank_of[reg])
                or (c + OPERAND_STAGES + lat_mov, "misc") in writes
                or not reads_fit(c, [tmp])):
             c += 1
@@ -409,11 +475,13 @@ class _BankedFields:
             self.pos[key] = (off, w)
             off += w
 
+        self.shared = units.shared
         for b in range(nb):
             for r in range(units.read_ports):
                 add(("ra", b, r), lb)
             add(("we", b), 1)
-            add(("wa", b), lb)
+            if not self.shared(b):  # shared: the write address is port A's (read 0's) field
+                add(("wa", b), lb)
             add(("wsrc", b), self.src_bits)
         for slot, _ in enumerate(units.slots()):
             add(("iss", slot), 1)
@@ -425,6 +493,10 @@ class _BankedFields:
         add(("wmod",), 1)
         self.width = off
         self.aw = lb + max(1, (nb - 1).bit_length())
+
+    def wa(self, b: int) -> tuple:
+        """The field holding bank ``b``'s write address."""
+        return ("ra", b, 0) if self.shared(b) else ("wa", b)
 
 
 @dataclass
@@ -468,6 +540,10 @@ class BankedImage:
             addr = dict(layout.fixed)
             addr.update(layout.temp_addr[key])
             ports: dict = {}  # (cycle, bank) -> {local address: port}
+            for s in sp.ops:  # a shared port A writes: the reads of that cycle use port B
+                dst = layout.fixed[s.dst] if s.kind == "mov" else addr.get(s.dst)
+                if dst is not None and units.shared(dst >> lb):
+                    ports[(s.write, dst >> lb)] = {None: 0}
 
             def put(row, fkey, value, rows=rows):
                 off, w = f.pos[fkey]
@@ -500,7 +576,7 @@ class BankedImage:
                     b = dst >> lb
                     src = sources.index((s.unit, s.inst) if su != "misc" else ("misc", 0))
                     put(s.write, ("we", b), 1)
-                    put(s.write, ("wa", b), dst & ((1 << lb) - 1))
+                    put(s.write, f.wa(b), dst & ((1 << lb) - 1))
                     put(s.write, ("wsrc", b), src)
             rom += rows
         return cls(units, misc_kinds, sources, sched, layout, base, rom, f)
@@ -609,12 +685,23 @@ class BankedMachine(wiring.Component):
             m.submodules[f"bank{b}"] = mem
             wp = mem.write_port()
             wports.append(wp)
+            if u.shared(b):
+                # port A: write port and read port 0 on one address (one true-dual-port RAM)
+                host_we = self.host_we & ~running & (self.host_waddr[lb:] == b)
+                addr_a = Signal(lb, name=f"addr_a{b}")
+                m.d.comb += [addr_a.eq(Mux(running, fld("ra", b, 0),
+                                           Mux(host_we, self.host_waddr[:lb],
+                                               self.host_raddr[:lb]))),
+                             wp.en.eq(fld("we", b) | host_we), wp.addr.eq(addr_a)]
             ports = []
             for r in range(u.read_ports):
                 p = mem.read_port()
-                a = fld("ra", b, r)
-                if r == 0:
-                    a = Mux(running, a, self.host_raddr[:lb])
+                if r == 0 and u.shared(b):
+                    a = addr_a
+                else:
+                    a = fld("ra", b, r)
+                    if r == 0:
+                        a = Mux(running, a, self.host_raddr[:lb])
                 m.d.comb += p.addr.eq(a)
                 ports.append(p.data)
             rdata.append(ports)
@@ -697,9 +784,10 @@ class BankedMachine(wiring.Component):
                 for k, key in enumerate(img.sources):
                     with m.Case(k):
                         m.d.comb += data.eq(src_res[key])
-            host = self.host_we & ~running & (self.host_waddr[lb:] == b)
-            m.d.comb += [wp.en.eq(fld("we", b) | host),
-                         wp.addr.eq(Mux(running, fld("wa", b), self.host_waddr[:lb])),
-                         wp.data.eq(Mux(running, data, self.host_wdata))]
+            if not u.shared(b):
+                host = self.host_we & ~running & (self.host_waddr[lb:] == b)
+                m.d.comb += [wp.en.eq(fld("we", b) | host),
+                             wp.addr.eq(Mux(running, fld("wa", b), self.host_waddr[:lb]))]
+            m.d.comb += wp.data.eq(Mux(running, data, self.host_wdata))
         return m
 

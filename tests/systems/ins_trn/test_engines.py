@@ -189,6 +189,34 @@ def test_ins_engines_bit_exact_verilator():
         [CYCLES[k] + 1 for k, _ in calls]
 
 
+@pytest.mark.slow
+def test_ins_engines_true_dual_port_banks_bit_exact_verilator():
+    """The true-dual-port bank option (every bank's write port and read port 0 on one
+    address; docs/seed000-engines.md §7) on ins_engines in Verilator: every program on
+    random registers bit-exact, and every run's cycles those of its schedule."""
+    from dataclasses import replace
+
+    from navgate.gateware import verify as V
+    from navgate.gateware.scheduled import ScheduledMachineStream
+    from navgate.systems.ins_trn.engines import ENGINE_UNITS, command_vectors, stream_model
+
+    img = engine_image("ins_engines", replace(ENGINE_UNITS, shared_write_port=True))
+    rng = np.random.default_rng(6)
+    names = [n for n in img.layout.fixed if not n.startswith("c:")]
+    regs = random_registers(rng, names)
+    calls = [("propagate", random_registers(rng, IMU_WORDS)), ("alt_gate", {}),
+             ("alt_apply", {}), ("trn_gate", {}), ("trn_apply", {}),
+             ("propagate", random_registers(rng, IMU_WORDS))]
+    vec = command_vectors(img, regs, calls)
+    res = V.verify(ScheduledMachineStream(img), stream_model(img), vec, backend="verilator",
+                   name="ins_engines_tdp", keep_outputs=True)
+    res.assert_ok()
+    runs = np.flatnonzero(vec["cmd"] == 2)
+    assert [int(res.outputs["cycles"][k]) for k in runs] == \
+        [img.cycles(k) + 1 for k, _ in calls]
+    assert img.cycles("trn_apply") > CYCLES["trn_apply"]  # port-bound (§7)
+
+
 def test_split_halves_compose_to_propagate():
     """ins_mechanization then covariance_propagator (each from the same starting state, the
     exported temporaries passed on) give the propagate program's result bit for bit."""
