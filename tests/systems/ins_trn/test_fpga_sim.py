@@ -130,24 +130,29 @@ def _error_interrupt(regs: Registers, sim):
     assert regs.read_fields("STATUS") == {"running": 1, "error": 0}
 
 
-def _profile_dma(regs: Registers, sim):
-    """The PS pushes 70 profile entries (the FIFO keeps the newest 64) and takes the newest 40
-    by DMA into the co-simulation's DDR: the words read back are the entries, oldest first, in
-    the seed's 128-bit format; the DMA's end raises the update interrupt."""
-    from navgate.systems.ins_trn.fpga_sim import DMA_WINDOW
+def _profile_dma(regs: Registers, eng):
+    """The timestamp correlator latches the INS position words and the IMU sample count when a
+    ranger frame arrives; the PS pushes 70 terrain heights (the FIFO keeps the newest 64) and
+    takes the newest 40 by DMA into the co-simulation's DDR: the words read back are the
+    entries, oldest first, in the seed's 128-bit format; the DMA's end raises the update
+    interrupt."""
+    from navgate.systems.ins_trn.fpga_sim import DMA_WINDOW, LIDAR_TEMP_WORD
     from navgate.systems.ins_trn.profile_manager import pack_entry
 
+    sim = eng.sim
+    frames = regs.read("LIDAR_FRAMES")
+    sim.push("lidar_feed", {"dist": 1234, "strength": 2000, "temp": LIDAR_TEMP_WORD})
+    sim.poll(eng.off["LIDAR_FRAMES"], 0xFFFFFFFF, frames + 1, limit=20_000)
+    pn, pe = (float_to_bits(eng.m.get(n)) for n in ("pN", "pE"))
+    assert regs.read("PROF_SAMPLE_N") == pn and regs.read("PROF_SAMPLE_E") == pe
+    assert regs.read("PROF_SAMPLE_T") == eng.samples
     rng = np.random.default_rng(11)
     entries = []
     with sim.deferred():
-        for k in range(70):
-            h, n, e = (float_to_bits(np.float32(v)) for v in rng.uniform(-5e3, 5e3, 3))
-            t = int(rng.integers(0, 1 << 24))
-            entries.append(pack_entry(h, n, e, t, k % 5 != 0))
+        for _ in range(70):
+            h = float_to_bits(np.float32(rng.uniform(-5e2, 5e3)))
+            entries.append(pack_entry(h, pn, pe, eng.samples, 1))
             regs.write("PROF_ENTRY_H", h)
-            regs.write("PROF_ENTRY_N", n)
-            regs.write("PROF_ENTRY_E", e)
-            regs.write("PROF_ENTRY_T", time_ms=t, valid=int(k % 5 != 0))
             regs.write("PROF_PUSH", push=1)
     assert regs.read_fields("PROF_STATUS") == {"busy": 0, "count": 64}
     regs.read("IRQ_STATUS")
@@ -220,8 +225,8 @@ def test_fpga_sim_equals_fp32_60s_flight():
     _output_registers(eng, regs, n, last)
     assert regs.read_fields("PROF_STATUS") == {"busy": 0, "count": 64}
     _directed_updates(engs)
+    _profile_dma(regs, eng)
     _error_interrupt(regs, eng.sim)
-    _profile_dma(regs, eng.sim)
     _every_register(regs)
     eng.close()
 

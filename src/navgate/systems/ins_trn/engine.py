@@ -53,6 +53,7 @@ class EngineSetup:
     bias_g0: np.ndarray
     reference: LocalTangent  #: the reference point of the NED position (the TRN map frame)
     profile_spacing_m: float = 30.0
+    t0: float = 0.0  #: the time of IMU sample count 0 (s; the profile's time base)
 
 
 @dataclass

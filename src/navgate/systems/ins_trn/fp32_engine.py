@@ -29,7 +29,7 @@ from navgate.nav.calibration import calibration_to_fp32
 from navgate.nav.earth import radii
 from navgate.systems.ins_trn import fp32_program as fp
 from navgate.systems.ins_trn.engine import EngineSetup, PlEngine, UpdateOutcome, nav_from_ned
-from navgate.systems.ins_trn.fp32_exec import Machine, run_samples
+from navgate.systems.ins_trn.fp32_exec import Machine, float_to_bits, run_samples
 from navgate.systems.ins_trn.pl_profile import PlProfileBuffer, ProfileFifoModel
 from navgate.trn.profile import PROFILE_DEPTH
 
@@ -58,7 +58,7 @@ class Fp32Engine(PlEngine):
 
     def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
         super().__init__(setup)
-        self.profile = PlProfileBuffer(self._profile_fifo(),
+        self.profile = PlProfileBuffer(self._profile_fifo(), self.sample_time,
                                        min_spacing_m=setup.profile_spacing_m)
         self.m = Machine(programs(self.compensated))
         self._baro_cache: dict = {}
@@ -169,8 +169,21 @@ class Fp32Engine(PlEngine):
         reads back by DMA)."""
         return ProfileFifoModel(PROFILE_DEPTH)
 
+    def sample_time(self, k: int) -> float:
+        """The time (s) of IMU sample count k: ``t0 + k dt``, the record stream's stamps."""
+        return self.setup.t0 + int(k) * (1.0 / float(self.setup.rate_hz))
+
+    def correlated_sample(self) -> tuple:
+        """What the PL's timestamp correlator latches at a ranger frame: the pN and pE words
+        and the IMU samples propagated (the profile entry's position and time)."""
+        g = self.m.get
+        return float_to_bits(g("pN")), float_to_bits(g("pE")), self.samples
+
+    def profile_push(self, **entry) -> str:
+        return self.profile.add(sample=self.correlated_sample(), **entry)
+
     def profile_read(self, now: float | None = None):
-        return self.profile.snapshot(now)
+        return self.profile.snapshot(self.samples)
 
     # -- sensors through the PL ------------------------------------------------------------------
     pl_sensors = True

@@ -30,7 +30,8 @@ registers:
 
 The result equals the ``fp32`` engine's bit for bit (tests/systems/ins_trn/test_fpga_sim.py).
 - the altitude profile (:mod:`navgate.systems.ins_trn.pl_profile`): every accepted terrain
-  sample pushed into the profile FIFO (PROF_ENTRY_*, PROF_PUSH); for each correlation the
+  height pushed into the profile FIFO with the position and time the PL's timestamp
+  correlator latched at its ranger frame (PROF_ENTRY_H, PROF_PUSH); for each correlation the
   newest entries by DMA into the co-simulation's DDR (PROF_ADDR/PROF_COUNT/PROF_CTRL, the
   update interrupt at the DMA's end), read back from DDR;
 - the barometer through the BMP390 emulator's pins (BARO_PRESS) and the ranger through the
@@ -60,6 +61,7 @@ from navgate.systems.ins_trn.engines import engine_image
 from navgate.systems.ins_trn.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.fp32_exec import float_to_bits, to_f32
 from navgate.systems.ins_trn.fp32_program import CAL_REGS, N_STATES, NAV_REGS, p_reg
+from navgate.systems.ins_trn.pl_profile import VALID_BIT
 from navgate.systems.ins_trn.registers import register_map
 from navgate.systems.ins_trn.sensors.adis16500_emulator import SAMPLE_LAYOUT as IMU_SAMPLE
 from navgate.systems.ins_trn.sensors.adis16500_emulator import Adis16500Emulator
@@ -252,8 +254,10 @@ class _WindowMachine:
 
 
 class _DmaProfileFifo:
-    """The PL's profile FIFO through the registers: an accepted entry is pushed with
-    PROF_ENTRY_H/N/E/T and PROF_PUSH; a read starts the DMA of the newest entries into the
+    """The PL's profile FIFO through the registers: an accepted sample is pushed with
+    PROF_ENTRY_H and PROF_PUSH (the PL's timestamp correlator supplies the position and time
+    it latched at the ranger frame; they are read back from PROF_SAMPLE_N/E/T and must be
+    the words the PS's model expects); a read starts the DMA of the newest entries into the
     co-simulation's DDR (PROF_ADDR = 0, PROF_COUNT, PROF_CTRL.start), waits for the update
     interrupt and reads the words back from DDR (:data:`DMA_WINDOW`)."""
 
@@ -263,9 +267,13 @@ class _DmaProfileFifo:
 
     def push(self, words) -> None:
         e = self.e
-        e._batch([e._w(reg, w) for reg, w in zip(
-            ("PROF_ENTRY_H", "PROF_ENTRY_N", "PROF_ENTRY_E", "PROF_ENTRY_T"), words,
-            strict=True)] + [e._w("PROF_PUSH", 1)])
+        out = e._batch([f"R {e.off[r]:x}" for r in ("PROF_SAMPLE_N", "PROF_SAMPLE_E",
+                                                     "PROF_SAMPLE_T")]
+                       + [e._w("PROF_ENTRY_H", words[0]), e._w("PROF_PUSH", 1)])
+        latched = (int(out[0], 16), int(out[1], 16), int(out[2], 16) | VALID_BIT)
+        if latched != tuple(words[1:]):
+            raise FpgaSimError(f"timestamp correlator latched {latched}, the PS expected "
+                               f"{tuple(words[1:])}")
 
     def read(self, count: int) -> np.ndarray:
         e = self.e

@@ -82,7 +82,7 @@ def engine_setup(header: dict, cfg) -> EngineSetup:
                        np.array(ini["p0"], float), np.array(ini["bias_a"], float),
                        np.array(ini["bias_g"], float),
                        LocalTangent(ref["lat_rad"], ref["lon_rad"], ref["h_m"]),
-                       cfg.profile_spacing_m)
+                       cfg.profile_spacing_m, float(header["t0"]))
 
 
 class Navigator:

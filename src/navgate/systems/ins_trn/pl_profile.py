@@ -2,28 +2,31 @@
 the float32 engines sees it.
 
 Seed 000 keeps the terrain profile in the PL's ``altitude_profile_manager`` (64 entries of
-128 bits: float32 h_terrain, pos_n, pos_e, a 24-bit millisecond time stamp and a valid bit;
+128 bits: float32 h_terrain, pos_n, pos_e, a 24-bit time stamp and a valid bit;
 :mod:`navgate.systems.ins_trn.profile_manager`) and the PS takes it by DMA when it
 correlates. The reference engine keeps a float64 :class:`navgate.trn.profile.ProfileBuffer`;
 the float32 engines (``fp32``, ``rtl``, ``fpga-sim``) keep the profile where the PL keeps it,
 in the PL's entry format:
 
+- **timestamp correlator.** When a ranger frame arrives, the PL latches the INS position
+  (the state's float32 ``pN``/``pE`` words) and the time (the count of IMU samples
+  propagated, k; the time is ``t0 + k dt``, the frame's record time) (PROF_SAMPLE_*).
 - **push.** The navigator's profile checks (validity, tilt, spacing, restart after a gap) and
   the terrain height stay on the PS (:class:`ProfileBuffer` ``add``, unchanged); an accepted
-  sample goes into the PL FIFO as its four words (:func:`entry_words`: the float64 values
-  rounded to float32, the time to whole milliseconds).
+  sample goes into the FIFO as its terrain height rounded to float32 with the correlator's
+  position and time (:func:`entry_words`; PROF_ENTRY_H, PROF_PUSH).
 - **read.** A correlation takes the newest ``min(entries since the last restart, 64)``
   entries from the FIFO (the ``fpga-sim`` engine by DMA into DDR; the ``fp32`` engine from
   its model of the FIFO, :class:`ProfileFifoModel`) and decodes them
-  (:func:`decode_entries`: time stamps unwrapped against the correlation time).
-- **shift.** The PL FIFO's entries never change, so a TRN correction cannot move them as the
+  (:func:`decode_entries`: time stamps unwrapped against the current sample count).
+- **shift.** The FIFO's entries never change, so a TRN correction cannot move them as the
   float64 buffer does; the PS records every applied correction (position and velocity
   change, time, and how many entries were in the FIFO then) and applies the corrections,
   in order, to each entry they postdate when it reads the profile: an entry stored at t
   moves by ``d - d_v (t_fix - t)`` per correction, the float64 buffer's rule.
 
 The result is one profile for every float32 engine, bit for bit, whether it came through the
-co-simulated PL's DMA or from the model (tests/systems/ins_trn/test_fpga_sim.py).
+co-simulated PL's correlator and DMA or from the model (tests/systems/ins_trn/test_fpga_sim.py).
 """
 
 from __future__ import annotations
@@ -34,28 +37,30 @@ import numpy as np
 
 from navgate.trn.profile import ACCEPTED, ProfileBuffer, ProfileSnapshot
 
-#: the time stamp's range (24-bit milliseconds; it wraps after 4.66 h)
-TIME_WRAP_MS = 1 << 24
+#: the time stamp's range (24 bits of IMU samples: 11.6 h at 400 Hz)
+TIME_WRAP = 1 << 24
 VALID_BIT = 1 << 24
 
 
-def entry_words(h_terrain: float, pos_n: float, pos_e: float, time_s: float) -> tuple:
+def entry_words(h_terrain: float, sample: tuple) -> tuple:
     """The four 32-bit words of a valid entry (profile_manager.PROFILE_ENTRY): the float32
-    bit patterns of h_terrain, pos_n, pos_e (round to nearest) and ``time_ms | valid << 24``."""
-    f = np.array([h_terrain, pos_n, pos_e], np.float64).astype(np.float32).view(np.uint32)
-    time_ms = int(round(float(time_s) * 1000.0)) % TIME_WRAP_MS
-    return int(f[0]), int(f[1]), int(f[2]), time_ms | VALID_BIT
+    bit pattern of h_terrain (round to nearest) and the correlator's ``sample`` (pos_n and
+    pos_e words, IMU sample count k) as ``k | valid << 24``."""
+    h = int(np.array([h_terrain], np.float64).astype(np.float32).view(np.uint32)[0])
+    pos_n, pos_e, k = sample
+    return h, int(pos_n), int(pos_e), (int(k) % TIME_WRAP) | VALID_BIT
 
 
-def decode_entries(words, now_s: float):
+def decode_entries(words, now_samples: int, time_of):
     """(h_terrain, pos_n, pos_e, time_s) float64 arrays from (n, 4) entry words, oldest
-    first; each time stamp is the latest time at or before ``now_s`` with its 24-bit
-    millisecond value."""
+    first; each time stamp is the latest sample count at or before ``now_samples`` with its
+    24 bits, turned into seconds by ``time_of(k)``."""
     w = np.asarray(words, np.uint64).reshape(-1, 4).astype(np.uint32)
     fl = w[:, :3].view(np.float32).astype(np.float64)
-    now_ms = int(round(float(now_s) * 1000.0))
-    age_ms = (now_ms - (w[:, 3].astype(np.int64) & (TIME_WRAP_MS - 1))) % TIME_WRAP_MS
-    return fl[:, 0].copy(), fl[:, 1].copy(), fl[:, 2].copy(), (now_ms - age_ms) / 1000.0
+    now = int(now_samples)
+    age = (now - (w[:, 3].astype(np.int64) & (TIME_WRAP - 1))) % TIME_WRAP
+    t = np.array([time_of(now - int(a)) for a in age], np.float64)
+    return fl[:, 0].copy(), fl[:, 1].copy(), fl[:, 2].copy(), t
 
 
 class ProfileFifoModel:
@@ -75,21 +80,24 @@ class ProfileFifoModel:
 
 class PlProfileBuffer(ProfileBuffer):
     """The profile checks of :class:`ProfileBuffer` with the entries in a PL FIFO (``fifo``:
-    ``push(words)``, ``read(count) -> (count, 4) words``)."""
+    ``push(words)``, ``read(count) -> (count, 4) words``); ``time_of(k)``: the time (s) of
+    IMU sample count k."""
 
-    def __init__(self, fifo, *, min_spacing_m: float = 30.0, depth: int = 64):
+    def __init__(self, fifo, time_of, *, min_spacing_m: float = 30.0, depth: int = 64):
         super().__init__(depth=depth, min_spacing_m=min_spacing_m)
         self.fifo = fifo
+        self.time_of = time_of
         self.pushes = 0  #: entries pushed into the FIFO since the start
         self.first = 0  #: push index of the oldest entry of the current profile
         self.shifts: list = []  #: (pushes then, d_n, d_e, d_vn, d_ve, t) per applied fix
 
-    def add(self, **sample) -> str:
-        status = super().add(**sample)
+    def add(self, *, sample: tuple, **checks) -> str:
+        """Offer a ranger sample (``checks``: :meth:`ProfileBuffer.add`'s arguments) with the
+        correlator's ``sample`` (pos_n word, pos_e word, IMU sample count)."""
+        status = super().add(**checks)
         if status == ACCEPTED:
             i = (self.write_ptr - 1) % self.depth
-            self.fifo.push(entry_words(self.h_terrain[i], self.pos_n[i], self.pos_e[i],
-                                       self.time[i]))
+            self.fifo.push(entry_words(self.h_terrain[i], sample))
             self.pushes += 1
         return status
 
@@ -106,14 +114,12 @@ class PlProfileBuffer(ProfileBuffer):
     def count(self) -> int:
         return min(self.pushes - self.first, self.depth)
 
-    def snapshot(self, now: float | None = None) -> ProfileSnapshot:
+    def snapshot(self, now_samples: int) -> ProfileSnapshot:
         """The current profile read from the FIFO, corrected by the fixes applied since each
-        entry was stored (``now``: the correlation time, for the time stamps' wrap; default
-        the newest entry's time)."""
+        entry was stored (``now_samples``: the IMU samples propagated so far, for the time
+        stamps' wrap)."""
         n = self.count
-        if now is None:
-            now = self._last_time if self._last_time is not None else 0.0
-        h, pn, pe, t = decode_entries(self.fifo.read(n), now)
+        h, pn, pe, t = decode_entries(self.fifo.read(n), now_samples, self.time_of)
         index = np.arange(self.pushes - n, self.pushes)
         self.shifts = [s for s in self.shifts if s[0] > self.pushes - n]
         for pushes, dn, de, dvn, dve, t_fix in self.shifts:

@@ -10,10 +10,17 @@ Entry layout (:data:`PROFILE_ENTRY`, little-endian in memory, one entry = four 3
     word 0  h_terrain   float32, m
     word 1  pos_n       float32, m (NED about the reference point)
     word 2  pos_e       float32, m
-    word 3  time[23:0]  milliseconds (wraps after 4.66 h), valid[24], reserved[31:25] = 0
+    word 3  time[23:0]  IMU samples propagated (ENG_STATUS.propagations; wraps after
+                        11.6 h at 400 Hz), valid[24], reserved[31:25] = 0
 
-The validity checks and the terrain-height arithmetic happen before the FIFO (they are the
-navigator's profile program); this block stores what it is given and moves it.
+:class:`TimestampCorrelator` (the seed's ``timestamp_correlator``) pairs each ranger frame
+with the INS position and the time at its arrival; in ``ins_trn_top`` an entry is the PS's
+terrain height (PROF_ENTRY_H) with the correlator's position and time (PROF_SAMPLE_*). The
+time stamp counts IMU samples rather than milliseconds: a flight's result must not depend on
+the hardware timer (the co-simulation compresses idle time between samples), and the sample
+count is the time base the navigation state is referenced to (t = t0 + k dt, exactly the
+record's time stamp). The validity checks and the terrain-height arithmetic happen on the PS
+(the navigator's profile checks, docs/seed000-top.md); the FIFO stores what it is given.
 
 DMA: a start pulse (PROF_CTRL.start) snapshots the newest ``min(PROF_COUNT, fill)`` entries
 and writes them oldest first, contiguously from PROF_ADDR (16-byte aligned), over an AXI4
@@ -41,10 +48,32 @@ PROFILE_ENTRY = data.StructLayout({
 })
 
 
-def pack_entry(h_terrain: int, pos_n: int, pos_e: int, time_ms: int, valid: int) -> int:
+def pack_entry(h_terrain: int, pos_n: int, pos_e: int, time: int, valid: int) -> int:
     """The 128-bit entry (float32 fields as bit patterns) as an integer, word 0 lowest."""
-    return (h_terrain | pos_n << 32 | pos_e << 64 | (time_ms & 0xFFFFFF) << 96
+    return (h_terrain | pos_n << 32 | pos_e << 64 | (time & 0xFFFFFF) << 96
             | (valid & 1) << 120)
+
+
+class TimestampCorrelator(wiring.Component):
+    """Seed 000 ``timestamp_correlator``: on each ranger ``frame`` pulse, latches the INS
+    position (the state's ``pN``/``pE`` words) and the time (IMU samples propagated) at that
+    moment into ``sample_n``/``sample_e``/``sample_t``, which the next profile entry carries."""
+
+    LATENCY = 1  #: frame -> latched sample
+    THROUGHPUT = 1
+
+    def __init__(self):
+        super().__init__({
+            "frame": In(1), "pos_n": In(32), "pos_e": In(32), "samples": In(24),
+            "sample_n": Out(32), "sample_e": Out(32), "sample_t": Out(24),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        with m.If(self.frame):
+            m.d.sync += [self.sample_n.eq(self.pos_n), self.sample_e.eq(self.pos_e),
+                         self.sample_t.eq(self.samples)]
+        return m
 
 
 class AltitudeProfileManager(wiring.Component):

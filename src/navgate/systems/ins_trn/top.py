@@ -10,7 +10,9 @@ Reference: seed 000 "Module Hierarchy" and "Data Flow". The blocks and how they 
     BMP390 pins -> spi_master_baro (INT-paced or timed) -> baro_compensation -> BARO_PRESS
     TF-Luna RX -> uart_rx_lidar -> LIDAR_DATA (the PS turns both into the altitude update and
         the terrain profile; docs/seed000-top.md)
-    altitude_profile_manager (64 x 128-bit FIFO, DMA to DDR over an AXI4 write master)
+    altitude_profile_manager: timestamp_correlator (each ranger frame's INS position and IMU
+        sample count) + the PS's terrain height (PROF_ENTRY_H, PROF_PUSH) -> 64 x 128-bit
+        FIFO -> DMA to DDR over an AXI4 write master
     interrupt_gen -> irq (IRQ_F2P); status LEDs
 
 One clock domain (``sync``, 100 MHz): the engines meet the seed's time budget at 100 MHz
@@ -229,7 +231,10 @@ class InsTrnTop(wiring.Component):
             REGISTER_OF,
             NavOutputFormatter,
         )
-        from navgate.systems.ins_trn.profile_manager import AltitudeProfileManager
+        from navgate.systems.ins_trn.profile_manager import (
+            AltitudeProfileManager,
+            TimestampCorrelator,
+        )
         from navgate.systems.ins_trn.sensors.sensor_subsystem import SensorSubsystem
 
         m = Module()
@@ -357,14 +362,20 @@ class InsTrnTop(wiring.Component):
         # ------------------------------------------------------------ profile DMA
         prof = AltitudeProfileManager()
         m.submodules.profile = prof
+        corr = TimestampCorrelator()  # the ranger frame's INS position and time
+        m.submodules.correlator = corr
         wiring.connect(m, prof.axi, wiring.flipped(self.dma))
         m.d.comb += [
+            corr.frame.eq(sensors.lidar.valid), corr.pos_n.eq(shadow["pN"]),
+            corr.pos_e.eq(shadow["pE"]), corr.samples.eq(seq.propagations),
+            regs.i_PROF_SAMPLE_N.eq(corr.sample_n), regs.i_PROF_SAMPLE_E.eq(corr.sample_e),
+            regs.i_PROF_SAMPLE_T.eq(corr.sample_t),
             prof.entry.valid.eq(_bits(regs.p_PROF_PUSH, "PROF_PUSH", "push")),
             prof.entry.payload.h_terrain.eq(regs.o_PROF_ENTRY_H),
-            prof.entry.payload.pos_n.eq(regs.o_PROF_ENTRY_N),
-            prof.entry.payload.pos_e.eq(regs.o_PROF_ENTRY_E),
-            prof.entry.payload.time.eq(_bits(regs.o_PROF_ENTRY_T, "PROF_ENTRY_T", "time_ms")),
-            prof.entry.payload.valid.eq(_bits(regs.o_PROF_ENTRY_T, "PROF_ENTRY_T", "valid")),
+            prof.entry.payload.pos_n.eq(corr.sample_n),
+            prof.entry.payload.pos_e.eq(corr.sample_e),
+            prof.entry.payload.time.eq(corr.sample_t),
+            prof.entry.payload.valid.eq(1),
             prof.dma_start.eq(_bits(regs.p_PROF_CTRL, "PROF_CTRL", "start")),
             prof.dma_address.eq(regs.o_PROF_ADDR),
             prof.dma_count.eq(_bits(regs.o_PROF_COUNT, "PROF_COUNT", "count")),
