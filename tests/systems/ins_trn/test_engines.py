@@ -166,15 +166,15 @@ def test_update_programs_bit_exact_more_seeds():
         _check(regs, calls)
 
 
-def test_ins_engines_bit_exact_verilator():
-    """The emitted Verilog of ins_engines (command-stream wrapper) in Verilator through the
-    harness: every program on random registers, every register and output read back."""
+def _verilator_run(img, seed: int, name: str):
+    """Every program of ``img`` on random registers through the emitted Verilog in Verilator
+    (the harness: every register and output read back and compared); the calls' run cycles
+    as measured and as scheduled."""
     from navgate.gateware import verify as V
     from navgate.gateware.scheduled import ScheduledMachineStream
     from navgate.systems.ins_trn.engines import command_vectors, stream_model
 
-    img = engine_image("ins_engines")
-    rng = np.random.default_rng(5)
+    rng = np.random.default_rng(seed)
     names = [n for n in img.layout.fixed if not n.startswith("c:")]
     regs = random_registers(rng, names)
     calls = [("propagate", random_registers(rng, IMU_WORDS)), ("alt_gate", {}),
@@ -182,11 +182,17 @@ def test_ins_engines_bit_exact_verilator():
              ("propagate", random_registers(rng, IMU_WORDS))]
     vec = command_vectors(img, regs, calls)
     res = V.verify(ScheduledMachineStream(img), stream_model(img), vec, backend="verilator",
-                   name="ins_engines", keep_outputs=True)
+                   name=name, keep_outputs=True)
     res.assert_ok()
     runs = np.flatnonzero(vec["cmd"] == 2)
-    assert [int(res.outputs["cycles"][k]) for k in runs] == \
-        [CYCLES[k] + 1 for k, _ in calls]
+    return [int(res.outputs["cycles"][k]) for k in runs], [k for k, _ in calls]
+
+
+def test_ins_engines_bit_exact_verilator():
+    """The emitted Verilog of ins_engines (command-stream wrapper) in Verilator through the
+    harness: every program on random registers, every register and output read back."""
+    cycles, keys = _verilator_run(engine_image("ins_engines"), 5, "ins_engines")
+    assert cycles == [CYCLES[k] + 1 for k in keys]
 
 
 @pytest.mark.slow
@@ -196,24 +202,11 @@ def test_ins_engines_true_dual_port_banks_bit_exact_verilator():
     random registers bit-exact, and every run's cycles those of its schedule."""
     from dataclasses import replace
 
-    from navgate.gateware import verify as V
-    from navgate.gateware.scheduled import ScheduledMachineStream
-    from navgate.systems.ins_trn.engines import ENGINE_UNITS, command_vectors, stream_model
+    from navgate.systems.ins_trn.engines import ENGINE_UNITS
 
     img = engine_image("ins_engines", replace(ENGINE_UNITS, shared_write_port=True))
-    rng = np.random.default_rng(6)
-    names = [n for n in img.layout.fixed if not n.startswith("c:")]
-    regs = random_registers(rng, names)
-    calls = [("propagate", random_registers(rng, IMU_WORDS)), ("alt_gate", {}),
-             ("alt_apply", {}), ("trn_gate", {}), ("trn_apply", {}),
-             ("propagate", random_registers(rng, IMU_WORDS))]
-    vec = command_vectors(img, regs, calls)
-    res = V.verify(ScheduledMachineStream(img), stream_model(img), vec, backend="verilator",
-                   name="ins_engines_tdp", keep_outputs=True)
-    res.assert_ok()
-    runs = np.flatnonzero(vec["cmd"] == 2)
-    assert [int(res.outputs["cycles"][k]) for k in runs] == \
-        [img.cycles(k) + 1 for k, _ in calls]
+    cycles, keys = _verilator_run(img, 6, "ins_engines_tdp")
+    assert cycles == [img.cycles(k) + 1 for k in keys]
     assert img.cycles("trn_apply") > CYCLES["trn_apply"]  # port-bound (§7)
 
 
