@@ -18,6 +18,7 @@ from navgate.systems.ins_trn import flight
 from navgate.systems.ins_trn.engine import make_engine
 from navgate.systems.ins_trn.fp32_exec import float_to_bits
 from navgate.systems.ins_trn.fp32_program import N_STATES, STATE_REGS, p_reg
+from navgate.systems.ins_trn.fpga_sim import FpgaSimError
 from navgate.systems.ins_trn.navigator import Navigator, engine_setup
 from navgate.systems.ins_trn.output_formatter import (
     OUT_WORDS,
@@ -166,6 +167,13 @@ def _profile_dma(regs: Registers, eng):
     words = [regs.bus.read(DMA_WINDOW + 0x40 + 4 * k) for k in range(40 * 4)]
     got = [sum(words[4 * j + i] << (32 * i) for i in range(4)) for j in range(40)]
     assert got == entries[-40:]
+    # the PS's checks: a latch that is not the model's, a DMA of no or too many entries
+    fifo = eng.profile.fifo
+    with pytest.raises(FpgaSimError, match="timestamp correlator latched"):
+        fifo.push((0, pn ^ 1, pe, eng.samples | 1 << 24))
+    for count in (0, 65):
+        with pytest.raises(FpgaSimError, match="profile DMA of"):
+            fifo.read(count)
 
 
 def _every_register(regs: Registers):
