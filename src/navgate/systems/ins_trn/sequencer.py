@@ -161,35 +161,24 @@ class NavSequencer(wiring.Component):
         m.d.sync += [self.update.eq(0), self.shadow_valid.eq(0)]
 
         # write lists: (register address, source) per job and step
-        sources_imu = [getattr(imu_words, f) for f in IMU_FIELDS]
+        writes_of = {
+            "imu": [(a[r], getattr(imu_words, f))
+                    for r, f in zip(IMU_REGS, IMU_FIELDS, strict=True)],
+            "alt": [(a[r], getattr(self, f"alt_{r}")) for r in ALT_INPUTS],
+            "trn": [(a[r], getattr(self, f"trn_{r}")) for r in TRN_INPUTS],
+            "cal": [(a[r], getattr(self, r)) for r in CAL_INPUTS],
+        }
         waddr = Signal(img.fields.aw)
         wdata = Signal(32)
         n_writes = Signal(range(len(CAL_INPUTS) + 1))
         with m.Switch(job):
-            with m.Case(JOBS.index("imu")):
-                m.d.comb += n_writes.eq(len(IMU_REGS))
-                with m.Switch(step):
-                    for k, (r, src) in enumerate(zip(IMU_REGS, sources_imu, strict=True)):
-                        with m.Case(k):
-                            m.d.comb += [waddr.eq(a[r]), wdata.eq(src)]
-            with m.Case(JOBS.index("alt")):
-                m.d.comb += n_writes.eq(len(ALT_INPUTS))
-                with m.Switch(step):
-                    for k, r in enumerate(ALT_INPUTS):
-                        with m.Case(k):
-                            m.d.comb += [waddr.eq(a[r]), wdata.eq(getattr(self, f"alt_{r}"))]
-            with m.Case(JOBS.index("trn")):
-                m.d.comb += n_writes.eq(len(TRN_INPUTS))
-                with m.Switch(step):
-                    for k, r in enumerate(TRN_INPUTS):
-                        with m.Case(k):
-                            m.d.comb += [waddr.eq(a[r]), wdata.eq(getattr(self, f"trn_{r}"))]
-            with m.Case(JOBS.index("cal")):
-                m.d.comb += n_writes.eq(len(CAL_INPUTS))
-                with m.Switch(step):
-                    for k, r in enumerate(CAL_INPUTS):
-                        with m.Case(k):
-                            m.d.comb += [waddr.eq(a[r]), wdata.eq(getattr(self, r))]
+            for name, writes in writes_of.items():
+                with m.Case(JOBS.index(name)):
+                    m.d.comb += n_writes.eq(len(writes))
+                    with m.Switch(step):
+                        for k, (addr, src) in enumerate(writes):
+                            with m.Case(k):
+                                m.d.comb += [waddr.eq(addr), wdata.eq(src)]
             with m.Default():
                 m.d.comb += [n_writes.eq(1), waddr.eq(self.eng_addr),
                              wdata.eq(self.eng_wdata)]
