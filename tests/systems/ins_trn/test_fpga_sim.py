@@ -7,19 +7,14 @@ through the driver, and SLVERR for unmapped offsets."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from navgate.hw.regmap import Registers
 from navgate.numerics.fp32 import fp32_add, fp32_sqrt
-from navgate.systems.ins_trn import flight
-from navgate.systems.ins_trn.engine import make_engine
 from navgate.systems.ins_trn.fp32_exec import float_to_bits
-from navgate.systems.ins_trn.fp32_program import N_STATES, STATE_REGS, p_reg
+from navgate.systems.ins_trn.fp32_program import N_STATES, p_reg
 from navgate.systems.ins_trn.fpga_sim import FpgaSimError
-from navgate.systems.ins_trn.navigator import Navigator, engine_setup
 from navgate.systems.ins_trn.output_formatter import (
     OUT_WORDS,
     REGISTER_OF,
@@ -29,55 +24,6 @@ from navgate.systems.ins_trn.output_formatter import (
 from navgate.systems.ins_trn.registers import ID_VALUE, register_map
 from navgate.systems.ins_trn.sequencer import job_cycles
 from navgate.systems.ins_trn.top import LIDAR_TIMEOUT_BITS, SigmaUnit
-from navgate.trn.dem import Dem
-
-
-def _same_registers(a, b):
-    diff = [n for n in STATE_REGS
-            if float_to_bits(a.m.get(n)) != float_to_bits(b.m.get(n))
-            and not (math.isnan(a.m.get(n)) and math.isnan(b.m.get(n)))]
-    assert not diff, diff[:8]
-
-
-def _fly(duration, seed=1):
-    dem = Dem.default()
-    cfg = flight.FlightConfig(duration_s=duration, seed=seed)
-    _, _, stream = flight.record_stream(dem, cfg)
-    runs, engs = {}, {}
-    for name in ("fp32", "fpga-sim"):
-        eng = make_engine(name, engine_setup(stream.header, cfg))
-        nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=True)
-        runs[name], engs[name] = nav.run(stream), eng
-    a, b = runs["fp32"], runs["fpga-sim"]
-    assert np.array_equal(a.nav, b.nav) and np.array_equal(a.sigma, b.sigma)
-    assert np.array_equal(a.p_ne, b.p_ne)
-    assert a.accepted == b.accepted and a.rejected == b.rejected
-    assert [f["applied"] for f in a.fixes] == [f["applied"] for f in b.fixes]
-    _same_registers(engs["fp32"], engs["fpga-sim"])
-    assert a.hardware == {} and b.hardware
-    return stream, b, engs
-
-
-def _directed_updates(engs):
-    """Applied, rejected by the gate, singular S: outcomes and every register equal."""
-    cases = [((3.0, -2.0), np.diag([25.0, 25.0]), 0.05),
-             ((5000.0, 4000.0), np.diag([1.0, 1.0]), 0.0),
-             ((1.0, 1.0), np.full((2, 2), 1e12), 0.0)]
-    reasons = []
-    for y, cov, lag in cases:
-        a = engs["fp32"].update_trn(np.array(y), cov, lag)
-        b = engs["fpga-sim"].update_trn(np.array(y), cov, lag)
-        assert a.accepted == b.accepted and a.reason == b.reason
-        assert float_to_bits(a.nis) == float_to_bits(b.nis) or (
-            math.isnan(a.nis) and math.isnan(b.nis))
-        assert np.array_equal(a.correction, b.correction)
-        reasons.append(a.reason if not a.accepted else "applied")
-        _same_registers(engs["fp32"], engs["fpga-sim"])
-    assert reasons[0] == "applied" and "gate" in reasons[1] and "positive" in reasons[2]
-    # the integrity monitor's covariance inflation (PS writes through the window)
-    for eng in engs.values():
-        eng.inflate_p_horizontal(np.array([[400.0, 10.0], [10.0, 300.0]]))
-    _same_registers(engs["fp32"], engs["fpga-sim"])
 
 
 def _output_registers(eng, regs: Registers, n_samples: int, last_words):
@@ -207,11 +153,11 @@ def _every_register(regs: Registers):
             regs.bus.write(off, 0)
 
 
-def test_fpga_sim_equals_fp32_60s_flight():
+def test_fpga_sim_equals_fp32_60s_flight(against_fp32):
     """Issue 12's target: 60 s of the default mission with the whole FPGA in the loop."""
     from navgate.gateware.native_axi import NativeAxiBus
 
-    stream, run, engs = _fly(60.0)
+    stream, _, run, engs = against_fp32.fly("fpga-sim", 60.0)
     eng = engs["fpga-sim"]
     # every valid barometer record and every ranger record went through the pins
     assert eng.baro_samples == int(np.sum(stream.baro_status == 0)) > 1000
@@ -232,7 +178,7 @@ def test_fpga_sim_equals_fp32_60s_flight():
     last = list(stream.gyro_words[-1]) + list(stream.accel_words[-1])
     _output_registers(eng, regs, n, last)
     assert regs.read_fields("PROF_STATUS") == {"busy": 0, "count": 64}
-    _directed_updates(engs)
+    against_fp32.directed_updates(engs, "fpga-sim")
     _profile_dma(regs, eng)
     _error_interrupt(regs, eng.sim)
     _every_register(regs)
@@ -240,8 +186,8 @@ def test_fpga_sim_equals_fp32_60s_flight():
 
 
 @pytest.mark.slow
-def test_fpga_sim_equals_fp32_whole_default_flight():
+def test_fpga_sim_equals_fp32_whole_default_flight(against_fp32):
     """The whole 10-minute default flight through the whole FPGA, bit for bit."""
-    _, run, engs = _fly(600.0, seed=0)
+    _, _, run, engs = against_fp32.fly("fpga-sim", 600.0, seed=0)
     assert sum(run.accepted.values()) > 100
     engs["fpga-sim"].close()
