@@ -151,8 +151,7 @@ class PlEngine(ABC):
     def profile_push(self, **entry) -> str:
         return self.profile.add(**entry)
 
-    def profile_read(self, now: float | None = None):
-        """The profile, oldest first (``now``: the correlation time)."""
+    def profile_read(self):
         return self.profile.snapshot()
 
     def profile_shift(self, d_north, d_east, d_vnorth, d_veast, now):

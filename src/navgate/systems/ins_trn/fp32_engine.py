@@ -182,7 +182,9 @@ class Fp32Engine(PlEngine):
     def profile_push(self, **entry) -> str:
         return self.profile.add(sample=self.correlated_sample(), **entry)
 
-    def profile_read(self, now: float | None = None):
+    def profile_read(self):
+        """The profile as the PL's FIFO holds it now (time stamps against the samples
+        propagated so far)."""
         return self.profile.snapshot(self.samples)
 
     # -- sensors through the PL ------------------------------------------------------------------

@@ -182,7 +182,7 @@ class Navigator:
         e = self.engine
         p2 = e.read_p_horizontal()
         sigma_max = math.sqrt(max(np.linalg.eigvalsh(p2).max(), 0.0))
-        result = self.correlator.correlate(e.profile_read(now=t), sigma_max, prior_cov=p2)
+        result = self.correlator.correlate(e.profile_read(), sigma_max, prior_cov=p2)
         row = result.as_row()
         row["applied"] = False
         row["nis"] = math.nan
