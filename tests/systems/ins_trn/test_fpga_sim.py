@@ -18,12 +18,13 @@ from navgate.systems.ins_trn.fpga_sim import FpgaSimError
 from navgate.systems.ins_trn.output_formatter import (
     OUT_WORDS,
     REGISTER_OF,
+    SIGMA_GROUPS,
     STATE_WORDS,
     formatter_bittrue,
 )
 from navgate.systems.ins_trn.registers import ID_VALUE, register_map
 from navgate.systems.ins_trn.sequencer import job_cycles
-from navgate.systems.ins_trn.top import LIDAR_TIMEOUT_BITS, SigmaUnit
+from navgate.systems.ins_trn.top import LIDAR_TIMEOUT_BITS
 
 
 def _output_registers(eng, regs: Registers, n_samples: int, last_words):
@@ -37,7 +38,7 @@ def _output_registers(eng, regs: Registers, n_samples: int, last_words):
     diag = [float_to_bits(eng.m.get(p_reg(i, i))) for i in range(N_STATES)]
     for k in range(N_STATES):
         assert regs.read(f"COV_DIAG_{k}") == diag[k]
-    for reg, group in zip(("COV_POS", "COV_VEL", "COV_ATT"), SigmaUnit.GROUPS, strict=True):
+    for reg, group in zip(("COV_POS", "COV_VEL", "COV_ATT"), SIGMA_GROUPS, strict=True):
         acc = np.uint32(diag[group[0]])
         for k in group[1:]:
             acc = fp32_add(acc, np.uint32(diag[k]))

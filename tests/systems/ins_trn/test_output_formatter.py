@@ -321,7 +321,12 @@ def gateware_vectors(n, seed):
     specials = np.array([0x7FC00000, 0x7F800000, 0xFF800000, 0x00000001, 0x80000000],
                         dtype=np.uint32)
     sl = slice(len(directed) + 2 * k, len(directed) + 2 * k + k // 4)
-    for name in F.IN_FIELDS:
+    # P's diagonal words: variances over many decades, some negative (the square root's
+    # NaN), then special words among them as among the state words
+    for name in F.COV_FIELDS:
+        var = 10.0 ** rng.uniform(-12, 6, len(q)) * np.where(rng.random(len(q)) < 0.03, -1, 1)
+        words[name] = np.float32(var).view(np.uint32)
+    for name in F.IN_FIELDS + F.COV_FIELDS:
         hit = rng.random(sl.stop - sl.start) < 0.05
         seg = words[name][sl]
         words[name][sl] = np.where(hit, rng.choice(specials, len(seg)), seg)
@@ -330,14 +335,31 @@ def gateware_vectors(n, seed):
 
 def model(v):
     o = F.formatter_bittrue({k: np.asarray(v[k]).astype(np.uint32) for k in F.IN_FIELDS})
-    return {k: o[k] for k in F.OUT_WORDS + ("flags",)}
+    o.update(F.sigma_bittrue({k: np.asarray(v[k]).astype(np.uint32) for k in F.COV_FIELDS}))
+    return {k: o[k] for k in F.OUT_WORDS + F.SIGMA_WORDS + ("flags",)}
+
+
+def test_sigma_model_directed():
+    """COV_POS/VEL/ATT: sqrt((a + b) + c) in float32: exact squares give exact roots, a
+    negative sum the canonical NaN, +inf stays +inf, subnormal words flush to zero."""
+    def words(vals):
+        return {f"diag{k}": np.float32([v]).view(np.uint32) for k, v in vals.items()}
+
+    base = {0: 9.0, 1: 16.0, 3: 1.0, 4: 4.0, 5: 4.0, 6: 0.25, 7: 0.0, 8: 0.0}
+    got = F.sigma_bittrue(words(base))
+    assert [float(np.uint32(got[w][0]).view(np.float32)) for w in F.SIGMA_WORDS] == \
+        [5.0, 3.0, 0.5]
+    got = F.sigma_bittrue(words({**base, 0: -30.0, 3: np.inf, 6: 1e-40, 7: 1e-40, 8: 1e-40}))
+    assert int(got["sigma_pos"][0]) == 0x7FC00000
+    assert int(got["sigma_vel"][0]) == 0x7F800000
+    assert int(got["sigma_att"][0]) == 0
 
 
 def test_gateware_latency_and_cycles_exact():
     vec = gateware_vectors(30, 20)
     res = verify(F.NavOutputFormatter(), model, vec, seed=1)
     res.assert_ok()
-    assert res.latency == F.NavOutputFormatter.LATENCY == 105
+    assert res.latency == F.NavOutputFormatter.LATENCY == 106
     # one vector every LATENCY cycles at full rate (accept in the cycle the output leaves)
     assert res.cycles == 30 * F.NavOutputFormatter.LATENCY + 1
 
@@ -349,6 +371,7 @@ def test_gateware_matches_model_amaranth(n):
     assert np.count_nonzero(bt["flags"] & F.FLAG_GIMBAL) >= 2
     assert np.count_nonzero(bt["flags"] & F.FLAG_INVALID) > 20
     assert np.count_nonzero(bt["flags"] & F.FLAG_NON_UNIT) > 20
+    assert all(np.count_nonzero(bt[w] == 0x7FC00000) > 5 for w in F.SIGMA_WORDS)
     res = verify(F.NavOutputFormatter(), model, vec, seed=2, valid_prob=0.7, ready_prob=0.6)
     res.assert_ok()
     assert res.n_vectors == n
@@ -368,4 +391,4 @@ def test_block_is_registered():
 
     assert BLOCKS["nav_output_formatter"][0] == \
         "navgate.systems.ins_trn.output_formatter:NavOutputFormatter"
-    assert math.isclose(float(F.NavOutputFormatter.THROUGHPUT), 1 / 105)
+    assert math.isclose(float(F.NavOutputFormatter.THROUGHPUT), 1 / 106)

@@ -86,11 +86,20 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.cordic import CordicAtan2Iterative
 from navgate.gateware.fp32 import Fp32Add, Fp32FromFixed, Fp32Mul
+from navgate.gateware.fp32.sqrt_iter import Fp32SqrtIter
 from navgate.numerics.cordic import cordic_error_bound, cordic_gain, cordic_vectoring
-from navgate.numerics.fp32 import QNAN, fp32_add, fp32_from_fixed, fp32_mul, fp32_sub
+from navgate.numerics.fp32 import (
+    QNAN,
+    fp32_add,
+    fp32_from_fixed,
+    fp32_mul,
+    fp32_sqrt,
+    fp32_sub,
+)
 
 __all__ = [
     "STATE_WORDS", "IN_FIELDS", "PASS_THROUGH", "OUT_WORDS", "REGISTER_OF",
+    "COV_FIELDS", "SIGMA_GROUPS", "SIGMA_WORDS", "SIGMA_REGISTER_OF", "sigma_bittrue",
     "FLAG_INVALID", "FLAG_NON_UNIT", "FLAG_GIMBAL", "FLAG_NONFINITE",
     "reference_format", "reference_euler", "formatter_bittrue",
     "euler_error_bound", "rotation_error_bound", "NavOutputFormatter",
@@ -105,6 +114,14 @@ OUT_WORDS = ("pos_n", "pos_e", "pos_d", "vel_n", "vel_e", "vel_d",
              "quat_w", "quat_x", "quat_y", "quat_z", "roll", "pitch", "yaw")
 #: output word -> register of registers.rdl
 REGISTER_OF = {w: w.upper() for w in OUT_WORDS}
+
+#: COV_POS/VEL/ATT: square roots of sums of P's diagonal words (position N+E, velocity,
+#: attitude), summed in the order (a + b) + c on the formatter's adder
+SIGMA_GROUPS = ((0, 1), (3, 4, 5), (6, 7, 8))
+#: the diagonal words of P the sigmas read (stream input fields ``diag<k>``)
+COV_FIELDS = tuple(f"diag{k}" for g in SIGMA_GROUPS for k in g)
+SIGMA_WORDS = ("sigma_pos", "sigma_vel", "sigma_att")
+SIGMA_REGISTER_OF = {"sigma_pos": "COV_POS", "sigma_vel": "COV_VEL", "sigma_att": "COV_ATT"}
 
 FLAG_INVALID = 1  #: NaN/inf/|q_i| >= 2 quaternion word, or |q| outside [0.5, 1.5]: NaN angles
 FLAG_NON_UNIT = 2  #: |q| outside [1 - 2^-12, 1 + 2^-12] (angles are those of q/|q|)
@@ -205,6 +222,20 @@ def formatter_bittrue(words) -> dict:
     out["flags"] = flags
     out.update(t_plus=t_plus, t_minus=t_minus, alpha=alpha, m_plus=m_plus, m_minus=m_minus,
                m3=m3)
+    return out
+
+
+def sigma_bittrue(words) -> dict:
+    """COV_POS/VEL/ATT in float32 (FTZ, RNE): ``words`` maps :data:`COV_FIELDS` to float32
+    bit patterns; returns :data:`SIGMA_WORDS` (uint32 arrays): ``fp32_sqrt`` of the group's
+    words summed as (a + b) + c. A negative sum gives the canonical NaN, as the square root
+    does."""
+    out = {}
+    for name, group in zip(SIGMA_WORDS, SIGMA_GROUPS, strict=True):
+        acc = _bits(words, f"diag{group[0]}")
+        for k in group[1:]:
+            acc = fp32_add(acc, _bits(words, f"diag{k}"))
+        out[name] = np.asarray(fp32_sqrt(acc), dtype=np.uint32)
     return out
 
 
@@ -348,8 +379,8 @@ def rotation_error_bound(norm=1.0) -> float:
 
 
 # --- gateware ----------------------------------------------------------------------------
-IN_LAYOUT = data.StructLayout({name: unsigned(32) for name in IN_FIELDS})
-OUT_LAYOUT = data.StructLayout({**{name: unsigned(32) for name in OUT_WORDS},
+IN_LAYOUT = data.StructLayout({name: unsigned(32) for name in IN_FIELDS + COV_FIELDS})
+OUT_LAYOUT = data.StructLayout({**{name: unsigned(32) for name in OUT_WORDS + SIGMA_WORDS},
                                 "flags": unsigned(4)})
 
 #: adder schedule: cycle t (from the first busy cycle) -> (a, b, subtract, destination).
@@ -359,23 +390,33 @@ ADD_ISSUE = {
     0: ("q0", "magic", 0, "k0"), 1: ("magic", "q2", 1, "kx"), 2: ("q3", "magic", 0, "k3"),
     3: ("q1", "magic", 0, "ky"), 4: ("ref_alt", "h", 1, "pos_d"),
     5: ("q2", "magic", 0, "kx"), 6: ("magic", "q1", 1, "ky"),
+    # the sigmas' sums: first terms, then the third terms once the first sums are written
+    7: ("diag0", "diag1", 0, "s_pos"), 8: ("diag3", "diag4", 0, "s_vel"),
+    9: ("diag6", "diag7", 0, "s_att"),
+    8 + Fp32Add.LATENCY + 1: ("s_vel", "diag5", 0, "s_vel"),
+    9 + Fp32Add.LATENCY + 1: ("s_att", "diag8", 0, "s_att"),
 }
+#: sigma sums: cycle from which each is written (its square root may issue)
+SUM_READY = (7 + Fp32Add.LATENCY + 1, 8 + 2 * (Fp32Add.LATENCY + 1),
+             9 + 2 * (Fp32Add.LATENCY + 1))
 #: first vectoring: the cycle after the first four conversions are written
 K_READY = 3 + Fp32Add.LATENCY + 1
 
 
 class NavOutputFormatter(wiring.Component):
-    """Seed 000 ``nav_output_formatter``: {IN_FIELDS} (float32 words) -> {OUT_WORDS, flags}.
+    """Seed 000 ``nav_output_formatter``: {IN_FIELDS, COV_FIELDS} (float32 words) ->
+    {OUT_WORDS, SIGMA_WORDS, flags}.
 
-    One float32 adder (7 operations: REF_ALT - h and six Q2.21 conversions), one iterative
-    CORDIC (three vectorings), one fixed -> float32 converter and one float32 multiplier
-    (x pi, x 2 pi), on a fixed schedule; one vector at a time. ``LATENCY`` = 105 cycles from
-    the accepted input to the valid output; ``THROUGHPUT`` = 1/105 (the next input is
-    accepted in the cycle the output is taken).
+    One float32 adder (12 operations: REF_ALT - h, six Q2.21 conversions and the five sums of
+    the sigmas), one iterative CORDIC (three vectorings), one fixed -> float32 converter, one
+    float32 multiplier (x pi, x 2 pi) and one iterative square root (the three sigmas), on a
+    fixed schedule; one vector at a time. ``LATENCY`` = 106 cycles from the accepted input to
+    the valid output; ``THROUGHPUT`` = 1/106 (the next input is accepted in the cycle the
+    output is taken).
     """
 
-    LATENCY = 105
-    THROUGHPUT = Fraction(1, 105)
+    LATENCY = 106
+    THROUGHPUT = Fraction(1, 106)
 
     def __init__(self):
         super().__init__({"i": In(stream.Signature(IN_LAYOUT)),
@@ -388,8 +429,9 @@ class NavOutputFormatter(wiring.Component):
             width=WIDTH, iterations=ITERATIONS, angle_bits=ANGLE_BITS, guard_bits=GUARD)
         m.submodules.tof = tof = Fp32FromFixed(width=ANGLE_BITS, frac_bits=ANGLE_BITS - 1)
         m.submodules.mul = mul = Fp32Mul()
+        m.submodules.sqrt = sq = Fp32SqrtIter()
         m.d.comb += [add.o.ready.eq(1), cor.o.ready.eq(1), tof.o.ready.eq(1),
-                     mul.o.ready.eq(1)]
+                     mul.o.ready.eq(1), sq.o.ready.eq(1)]
 
         x = Signal(IN_LAYOUT, reset_less=True)  # the state words, held until the next input
         pos_d = Signal(32, reset_less=True)
@@ -399,7 +441,7 @@ class NavOutputFormatter(wiring.Component):
         flags = Signal(4, reset_less=True)
         busy = Signal()
         o_valid = Signal()
-        t = Signal(4)  # adder-phase cycle counter (stops at 15)
+        t = Signal(5)  # adder-phase cycle counter (stops at 31)
         accept = Signal()
         m.d.comb += [
             self.i.ready.eq(~busy & (~o_valid | self.o.ready)),
@@ -413,9 +455,13 @@ class NavOutputFormatter(wiring.Component):
         ]
         for name, src in PASS_THROUGH.items():
             m.d.comb += getattr(self.o.payload, name).eq(getattr(x, src))
+        sums = {n: Signal(32, name=n, reset_less=True) for n in ("s_pos", "s_vel", "s_att")}
+        sigma = [Signal(32, name=n, reset_less=True) for n in SIGMA_WORDS]
+        for name, sig in zip(SIGMA_WORDS, sigma, strict=True):
+            m.d.comb += getattr(self.o.payload, name).eq(sig)
         with m.If(self.o.ready):
             m.d.sync += o_valid.eq(0)
-        with m.If(busy & (t != 15)):
+        with m.If(busy & (t != 31)):
             m.d.sync += t.eq(t + 1)
 
         bad = Signal()  # a conversion left [4, 8): NaN, inf or |q_i| >= 2
@@ -424,17 +470,21 @@ class NavOutputFormatter(wiring.Component):
         g_up = Signal()
         g_down = Signal()
 
-        # ---- float32 adder: REF_ALT - h and the Q2.21 conversions ----------------------
+        # ---- float32 adder: REF_ALT - h, the Q2.21 conversions, the sigmas' sums --------
         r = add.o.payload.r
         magic = Const(MAGIC_BITS, 32)
+
+        def operand(name):
+            return magic if name == "magic" else sums[name] if name in sums else getattr(x, name)
+
         with m.If(busy):
             with m.Switch(t):
                 for cyc, (a, b, sub, _dst) in ADD_ISSUE.items():
                     with m.Case(cyc):
                         m.d.comb += [
                             add.i.valid.eq(1),
-                            add.i.payload.a.eq(magic if a == "magic" else getattr(x, a)),
-                            add.i.payload.b.eq(magic if b == "magic" else getattr(x, b)),
+                            add.i.payload.a.eq(operand(a)),
+                            add.i.payload.b.eq(operand(b)),
                             add.i.payload.sub.eq(sub),
                         ]
         kregs = {n: Signal(signed(23), name=n, reset_less=True) for n in ("k0", "k3", "kx", "ky")}
@@ -444,6 +494,8 @@ class NavOutputFormatter(wiring.Component):
                     with m.Case(cyc + Fp32Add.LATENCY):
                         if dst == "pos_d":
                             m.d.sync += pos_d.eq(r)
+                        elif dst in sums:
+                            m.d.sync += sums[dst].eq(r)
                         else:
                             m.d.sync += kregs[dst].eq(r[0:23] ^ (1 << 22))
                             with m.If(r[23:31] != MAGIC_EXP):
@@ -493,6 +545,24 @@ class NavOutputFormatter(wiring.Component):
                         non_unit.eq((mag < UNIT_LO) | (mag > UNIT_HI)),
                     ]
 
+        # ---- sigmas: the three square roots, each once its sum is written ---------------
+        si = Signal(2)  # square roots issued
+        so = Signal(2)  # square roots received
+        sum_ready = Signal()
+        with m.Switch(si):
+            for k, (name, ready) in enumerate(zip(sums, SUM_READY, strict=True)):
+                with m.Case(k):
+                    m.d.comb += [sum_ready.eq(t >= ready), sq.i.payload.eq(sums[name])]
+        m.d.comb += sq.i.valid.eq(busy & (si != 3) & sum_ready)
+        with m.If(sq.i.valid & sq.i.ready):
+            m.d.sync += si.eq(si + 1)
+        with m.If(sq.o.valid):
+            m.d.sync += so.eq(so + 1)
+            with m.Switch(so):
+                for k, sig in enumerate(sigma):
+                    with m.Case(k):
+                        m.d.sync += sig.eq(sq.o.payload)
+
         # ---- angles -> float32 radians: yaw, roll after the second vectoring, pitch -----
         ci = Signal(2)  # conversions issued
         mr = Signal(2)  # products received
@@ -522,13 +592,17 @@ class NavOutputFormatter(wiring.Component):
                 with m.Case(1):
                     m.d.sync += roll.eq(prod)
                 with m.Case(2):
-                    m.d.sync += [pitch.eq(prod), busy.eq(0), o_valid.eq(1)]
+                    m.d.sync += pitch.eq(prod)
                     m.d.sync += flags.eq(Cat(invalid, non_unit & ~invalid,
                                              (g_up | g_down) & ~invalid, nonfinite))
                     with m.If(invalid):
                         m.d.sync += [yaw.eq(QNAN), roll.eq(QNAN), pitch.eq(QNAN)]
 
+        # the output is valid once the angles (three products) and the sigmas are in
+        with m.If(busy & (mr == 3) & (so == 3)):
+            m.d.sync += [busy.eq(0), o_valid.eq(1)]
+
         with m.If(accept):
             m.d.sync += [x.eq(self.i.payload), busy.eq(1), t.eq(0), cv.eq(0), cr.eq(0),
-                         ci.eq(0), mr.eq(0), bad.eq(0)]
+                         ci.eq(0), mr.eq(0), bad.eq(0), si.eq(0), so.eq(0)]
         return m

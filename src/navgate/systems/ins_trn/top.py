@@ -28,7 +28,8 @@ Register fields that configure blocks whose ports differ from the map:
 - IMU_CFG.dr_sync selects data-ready pacing of the IMU bursts (the seed's timer otherwise);
 - COV_DIAG_k are the stored diagonal words of P (without their compensation words, which
   are below the words' last bit); COV_POS/VEL/ATT are the square roots of P00 + P11,
-  P33 + P44 + P55 and P66 + P77 + P88 in float32, computed after every read-back.
+  P33 + P44 + P55 and P66 + P77 + P88 in float32, computed by the output formatter (on its
+  adder, with an iterative square root) after every read-back.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ from navgate.systems.ins_trn.sequencer import (
     job_cycles,
 )
 
-__all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "SigmaUnit", "CAL_REGISTER_OF"]
+__all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "CAL_REGISTER_OF"]
 
 #: the top's pin ports (board pins; docs/seed000-top.md)
 PIN_PORTS = ("imu_sclk", "imu_mosi", "imu_miso", "imu_cs_n", "imu_dr",
@@ -96,91 +97,6 @@ def _register_artifacts(out_dir, name: str) -> list:
             export_markdown(RDL_PATH, out_dir / f"{name}_regs.md")]
 
 
-class SigmaUnit(wiring.Component):
-    """COV_POS/VEL/ATT: square roots of sums of P's diagonal words in float32 (one adder, one
-    iterative square root, sequential; started by ``start``, results held until the next
-    start). Sums in the order (a + b) + c."""
-
-    GROUPS = ((0, 1), (3, 4, 5), (6, 7, 8))
-
-    def __init__(self):
-        super().__init__({"start": In(1), "diag": In(32).array(N_STATES),
-                          "sigma": Out(32).array(3), "busy": Out(1)})
-        from navgate.gateware.fp32.add import Fp32Add
-        from navgate.gateware.fp32.sqrt_iter import Fp32SqrtIter
-
-        #: start -> busy low: the start cycle, then per group an issue cycle plus the adder's
-        #: latency per add, and an issue cycle plus the square root's latency
-        self.LATENCY = 1 + sum((len(g) - 1) * (Fp32Add.LATENCY + 1) + Fp32SqrtIter.LATENCY + 1
-                               for g in self.GROUPS)
-        self.THROUGHPUT = 1 / (self.LATENCY + 1)
-
-    def elaborate(self, platform):
-        from navgate.gateware.fp32.add import Fp32Add
-        from navgate.gateware.fp32.sqrt_iter import Fp32SqrtIter
-
-        m = Module()
-        m.submodules.add = add = Fp32Add()
-        m.submodules.sqrt = sq = Fp32SqrtIter()
-        m.d.comb += [add.o.ready.eq(1), sq.o.ready.eq(1)]
-        acc = Signal(32)
-        group = Signal(2)
-        term = Signal(2)
-        busy = Signal()
-        m.d.comb += self.busy.eq(busy)
-        steps = []  # (group, term) -> diag index added at that term
-        for gi, g in enumerate(self.GROUPS):
-            for ti, k in enumerate(g):
-                steps.append((gi, ti, k))
-        with m.FSM():
-            with m.State("IDLE"):
-                with m.If(self.start):
-                    m.d.sync += [group.eq(0), term.eq(1), acc.eq(self.diag[self.GROUPS[0][0]]),
-                                 busy.eq(1)]
-                    m.next = "ADD"
-            with m.State("ADD"):
-                m.d.comb += [add.i.valid.eq(1), add.i.payload.a.eq(acc)]
-                with m.Switch(Cat(term, group)):
-                    for gi, ti, k in steps:
-                        if ti:
-                            with m.Case(ti | gi << 2):
-                                m.d.comb += add.i.payload.b.eq(self.diag[k])
-                m.next = "ADD_WAIT"
-            with m.State("ADD_WAIT"):
-                with m.If(add.o.valid):
-                    m.d.sync += [acc.eq(add.o.payload), term.eq(term + 1)]
-                    last = Signal()
-                    with m.Switch(group):
-                        for gi, g in enumerate(self.GROUPS):
-                            with m.Case(gi):
-                                m.d.comb += last.eq(term == len(g) - 1)
-                    with m.If(last):
-                        m.next = "SQRT"
-                    with m.Else():
-                        m.next = "ADD"
-            with m.State("SQRT"):
-                m.d.comb += [sq.i.valid.eq(1), sq.i.payload.eq(acc)]
-                with m.If(sq.i.ready):
-                    m.next = "SQRT_WAIT"
-            with m.State("SQRT_WAIT"):
-                with m.If(sq.o.valid):
-                    with m.Switch(group):
-                        for gi in range(len(self.GROUPS)):
-                            with m.Case(gi):
-                                m.d.sync += self.sigma[gi].eq(sq.o.payload)
-                    with m.If(group == len(self.GROUPS) - 1):
-                        m.d.sync += busy.eq(0)
-                        m.next = "IDLE"
-                    with m.Else():
-                        m.d.sync += [group.eq(group + 1), term.eq(1)]
-                        with m.Switch(group):
-                            for gi, g in enumerate(self.GROUPS[1:]):
-                                with m.Case(gi):
-                                    m.d.sync += acc.eq(self.diag[g[0]])
-                        m.next = "ADD"
-        return m
-
-
 class InsTrnTop(wiring.Component):
     """Seed 000's PL (module docstring): AXI4-Lite slave ``axi``, DMA master ``dma``,
     interrupt ``irq``, sensor pins and four status LEDs, in the ``sync`` domain."""
@@ -224,12 +140,14 @@ class InsTrnTop(wiring.Component):
         from navgate.gateware.axi_lite import AxiLiteRegisterBank
         from navgate.systems.ins_trn.interrupts import InterruptGenerator
         from navgate.systems.ins_trn.output_formatter import (
-            IN_FIELDS as FMT_IN,
-        )
-        from navgate.systems.ins_trn.output_formatter import (
+            COV_FIELDS,
             OUT_WORDS,
             REGISTER_OF,
+            SIGMA_REGISTER_OF,
             NavOutputFormatter,
+        )
+        from navgate.systems.ins_trn.output_formatter import (
+            IN_FIELDS as FMT_IN,
         )
         from navgate.systems.ins_trn.profile_manager import (
             AltitudeProfileManager,
@@ -346,18 +264,15 @@ class InsTrnTop(wiring.Component):
         for f in FMT_IN:
             src = regs.o_REF_ALT if f == "ref_alt" else shadow[f]
             m.d.comb += getattr(fmt.i.payload, f).eq(src)
+        for f in COV_FIELDS:  # diag<k>: P's diagonal word k, for COV_POS/VEL/ATT
+            k = int(f.removeprefix("diag"))
+            m.d.comb += getattr(fmt.i.payload, f).eq(shadow[p_reg(k, k)])
         m.d.comb += [fmt.i.valid.eq(fmt_pending), fmt.o.ready.eq(1)]
         for w in OUT_WORDS:
             m.d.comb += getattr(regs, f"i_{REGISTER_OF[w]}").eq(getattr(fmt.o.payload, w))
+        for w, reg in SIGMA_REGISTER_OF.items():
+            m.d.comb += getattr(regs, f"i_{reg}").eq(getattr(fmt.o.payload, w))
         m.d.comb += regs.i_NAV_FLAGS.eq(fmt.o.payload.flags)
-
-        sig = SigmaUnit()
-        m.submodules.sigma = sig
-        m.d.comb += sig.start.eq(seq.shadow_valid)
-        for i in range(N_STATES):
-            m.d.comb += sig.diag[i].eq(shadow[p_reg(i, i)])
-        m.d.comb += [regs.i_COV_POS.eq(sig.sigma[0]), regs.i_COV_VEL.eq(sig.sigma[1]),
-                     regs.i_COV_ATT.eq(sig.sigma[2])]
 
         # ------------------------------------------------------------ profile DMA
         prof = AltitudeProfileManager()
