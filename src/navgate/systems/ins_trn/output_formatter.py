@@ -96,6 +96,7 @@ from navgate.numerics.fp32 import (
     fp32_sqrt,
     fp32_sub,
 )
+from navgate.systems.ins_trn.shared_units import unit_members, unit_port
 
 __all__ = [
     "STATE_WORDS", "IN_FIELDS", "PASS_THROUGH", "OUT_WORDS", "REGISTER_OF",
@@ -418,17 +419,25 @@ class NavOutputFormatter(wiring.Component):
     LATENCY = 106
     THROUGHPUT = Fraction(1, 106)
 
-    def __init__(self):
+    def __init__(self, shared_units: bool = False):
+        #: True: the adder and multiplier are outside (ports ``add_i/add_o/mul_i/mul_o`` of
+        #: :mod:`navgate.systems.ins_trn.shared_units`; results taken LATENCY cycles after
+        #: their issue, as from its own cores)
+        self.shared_units = shared_units
         super().__init__({"i": In(stream.Signature(IN_LAYOUT)),
-                          "o": Out(stream.Signature(OUT_LAYOUT))})
+                          "o": Out(stream.Signature(OUT_LAYOUT)),
+                          **(unit_members() if shared_units else {})})
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.add = add = Fp32Add()
+        if self.shared_units:
+            add, mul = unit_port(self, "add"), unit_port(self, "mul")
+        else:
+            m.submodules.add = add = Fp32Add()
+            m.submodules.mul = mul = Fp32Mul()
         m.submodules.cordic = cor = CordicAtan2Iterative(
             width=WIDTH, iterations=ITERATIONS, angle_bits=ANGLE_BITS, guard_bits=GUARD)
         m.submodules.tof = tof = Fp32FromFixed(width=ANGLE_BITS, frac_bits=ANGLE_BITS - 1)
-        m.submodules.mul = mul = Fp32Mul()
         m.submodules.sqrt = sq = Fp32SqrtIter()
         m.d.comb += [add.o.ready.eq(1), cor.o.ready.eq(1), tof.o.ready.eq(1),
                      mul.o.ready.eq(1), sq.o.ready.eq(1)]

@@ -154,6 +154,12 @@ class InsTrnTop(wiring.Component):
             TimestampCorrelator,
         )
         from navgate.systems.ins_trn.sensors.sensor_subsystem import SensorSubsystem
+        from navgate.systems.ins_trn.shared_units import (
+            SHARED_CORES,
+            arbitrate,
+            share_units,
+            unit_port,
+        )
 
         m = Module()
         regs = AxiLiteRegisterBank(register_map())
@@ -165,7 +171,7 @@ class InsTrnTop(wiring.Component):
         engine_reset = _bits(ctrl, "CTRL", "reset")
 
         # ------------------------------------------------------------ sensors
-        sensors = SensorSubsystem(self.tick_cycles, calibrate=False,
+        sensors = SensorSubsystem(self.tick_cycles, calibrate=False, shared_baro_units=True,
                                   lidar_timeout_bits=LIDAR_TIMEOUT_BITS)
         m.submodules.sensors = sensors
         # the last barometer sample and ranger frame, for the PS
@@ -254,20 +260,29 @@ class InsTrnTop(wiring.Component):
             m.d.comb += getattr(regs, f"i_COV_DIAG_{i}").eq(shadow[p_reg(i, i)])
 
         # ------------------------------------------------------------ outputs
-        fmt = NavOutputFormatter()
+        # the formatter and baro_compensation share one adder and one multiplier
+        # (shared_units.py), a whole vector at a time: the compensation starts only while the
+        # formatter is idle with nothing pending, the formatter only while the compensation
+        # is idle; a grant, once used, lasts until the compensation is done
+        fmt = NavOutputFormatter(shared_units=True)
         m.submodules.formatter = fmt
         fmt_pending = Signal()
         with m.If(seq.shadow_valid):
             m.d.sync += fmt_pending.eq(1)
-        with m.Elif(fmt.i.ready):
+        with m.Elif(fmt.i.valid & fmt.i.ready):
             m.d.sync += fmt_pending.eq(0)
+        fmt_valid, baro_grant = arbitrate(m, fmt.i.ready, fmt_pending, sensors.baro_busy)
+        m.d.comb += sensors.baro_grant.eq(baro_grant)
+        share_units(m, {u: unit_port(fmt, u) for u in SHARED_CORES},
+                    {u: unit_port(sensors, u, "baro_") for u in SHARED_CORES},
+                    sensors.baro_busy)
         for f in FMT_IN:
             src = regs.o_REF_ALT if f == "ref_alt" else shadow[f]
             m.d.comb += getattr(fmt.i.payload, f).eq(src)
         for f in COV_FIELDS:  # diag<k>: P's diagonal word k, for COV_POS/VEL/ATT
             k = int(f.removeprefix("diag"))
             m.d.comb += getattr(fmt.i.payload, f).eq(shadow[p_reg(k, k)])
-        m.d.comb += [fmt.i.valid.eq(fmt_pending), fmt.o.ready.eq(1)]
+        m.d.comb += [fmt.i.valid.eq(fmt_valid), fmt.o.ready.eq(1)]
         for w in OUT_WORDS:
             m.d.comb += getattr(regs, f"i_{REGISTER_OF[w]}").eq(getattr(fmt.o.payload, w))
         for w, reg in SIGMA_REGISTER_OF.items():

@@ -20,6 +20,7 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.devices import bmp390
 
+from ..shared_units import unit_members
 from .fp32_engine import Fp32Engine, Program
 
 IN_LAYOUT = data.StructLayout({"up": unsigned(24), "ut": unsigned(24),
@@ -30,17 +31,21 @@ OUT_LAYOUT = data.StructLayout({"p": unsigned(32), "t": unsigned(32)})
 class BaroCompensation(wiring.Component):
     """BMP390 compensation in float32: {up, ut, nvm} -> {p (Pa), t (degC)} float32."""
 
-    def __init__(self):
+    def __init__(self, shared_units: bool = False):
         self.program = Program(bmp390.FP32_PROGRAM, bmp390.FP32_INPUTS, bmp390.FP32_OUTPUTS,
                                consts=bmp390.FP32_CONSTANTS)
         self.LATENCY = self.program.latency
         self.THROUGHPUT = Fraction(1, self.program.cycles)
+        #: True: the adder and multiplier are outside (:mod:`..shared_units`); a sample is
+        #: taken only while ``grant`` is high, and ``busy`` covers the whole computation
+        self.shared_units = shared_units
+        shared = ({"grant": In(1), "busy": Out(1), **unit_members()} if shared_units else {})
         super().__init__({"i": In(stream.Signature(IN_LAYOUT)),
-                          "o": Out(stream.Signature(OUT_LAYOUT))})
+                          "o": Out(stream.Signature(OUT_LAYOUT)), **shared})
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.engine = eng = Fp32Engine(self.program)
+        m.submodules.engine = eng = Fp32Engine(self.program, shared_units=self.shared_units)
         ip = self.i.payload
         m.d.comb += [eng.i.payload.up.eq(ip.up), eng.i.payload.ut.eq(ip.ut)]
         for name, off, signed_, size in bmp390.NVM_FIELDS:
@@ -48,7 +53,16 @@ class BaroCompensation(wiring.Component):
             m.d.comb += getattr(eng.i.payload, f"n_{name}").eq(
                 raw.as_signed() if signed_ else raw)
         m.d.comb += [self.o.payload.p.eq(eng.o.payload.p), self.o.payload.t.eq(eng.o.payload.t),
-                     eng.i.valid.eq(self.i.valid), self.i.ready.eq(eng.i.ready),
                      self.o.valid.eq(eng.o.valid), eng.o.ready.eq(self.o.ready),
                      eng.par_we.eq(0)]
+        if self.shared_units:
+            m.d.comb += [eng.i.valid.eq(self.i.valid & self.grant),
+                         self.i.ready.eq(eng.i.ready & self.grant), self.busy.eq(eng.busy)]
+            for unit in ("add", "mul"):
+                wiring.connect(m, getattr(eng, f"{unit}_i"),
+                               wiring.flipped(getattr(self, f"{unit}_i")))
+                wiring.connect(m, wiring.flipped(getattr(self, f"{unit}_o")),
+                               getattr(eng, f"{unit}_o"))
+        else:
+            m.d.comb += [eng.i.valid.eq(self.i.valid), self.i.ready.eq(eng.i.ready)]
         return m

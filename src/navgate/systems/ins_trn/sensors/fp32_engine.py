@@ -28,6 +28,7 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32FromInt, Fp32Mul
+from navgate.systems.ins_trn.shared_units import unit_members, unit_port
 
 OPS = {"i2f": 0, "add": 1, "sub": 2, "mul": 3}
 
@@ -87,8 +88,12 @@ class Fp32Engine(wiring.Component):
     patterns, or two's complement integers for ``i2f`` sources).
     """
 
-    def __init__(self, program: Program):
+    def __init__(self, program: Program, shared_units: bool = False):
         self.prog = program
+        #: True: the adder and multiplier are outside (ports ``add_i/add_o/mul_i/mul_o`` of
+        #: :mod:`navgate.systems.ins_trn.shared_units`); ``busy`` is high from the cycle
+        #: after an input is taken until the output has been taken
+        self.shared_units = shared_units
         self.LATENCY = program.latency
         self.THROUGHPUT = Fraction(1, program.cycles)
         pbits = max(1, (max(1, len(program.params)) - 1).bit_length())
@@ -98,14 +103,19 @@ class Fp32Engine(wiring.Component):
             "o": Out(stream.Signature(data.StructLayout(
                 {n: unsigned(32) for n in program.outputs}))),
             "par_we": In(1), "par_addr": In(pbits), "par_data": In(32), "par_ready": Out(1),
+            "busy": Out(1),
+            **(unit_members() if shared_units else {}),
         })
 
     def elaborate(self, platform):
         m = Module()
         p = self.prog
         ab = p.addr_bits
-        m.submodules.add = add = Fp32Add()
-        m.submodules.mul = mul = Fp32Mul()
+        if self.shared_units:
+            add, mul = unit_port(self, "add"), unit_port(self, "mul")
+        else:
+            m.submodules.add = add = Fp32Add()
+            m.submodules.mul = mul = Fp32Mul()
         m.submodules.cvt = cvt = Fp32FromInt(32)
         m.submodules.rf = rf = Memory(shape=unsigned(32), depth=p.depth, init=p.init)
         ra = rf.read_port(domain="comb")
@@ -140,7 +150,8 @@ class Fp32Engine(wiring.Component):
         m.d.comb += [getattr(self.o.payload, n).eq(r) for n, r in zip(p.outputs, out_regs,
                                                                          strict=True)]
         last_pc = len(words) - 1
-        with m.FSM():
+        with m.FSM() as fsm:
+            m.d.comb += self.busy.eq(~fsm.ongoing("IDLE"))
             with m.State("IDLE"):
                 m.d.comb += self.par_ready.eq(1)
                 with m.If(self.par_we):

@@ -37,6 +37,7 @@ from amaranth.hdl import Cat, Module, Signal, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from ..shared_units import unit_members
 from .baro_compensation import OUT_LAYOUT as BARO_LAYOUT
 from .baro_compensation import BaroCompensation
 from .imu_calibration import IN_FIELDS, ImuCalibrationBlock
@@ -54,8 +55,11 @@ class SensorSubsystem(wiring.Component):
     """Seed 000 sensor_subsystem: IMU/baro/lidar interfaces, calibration, compensation."""
 
     def __init__(self, tick_cycles: int = 100, cal=None, calibrate: bool = True,
-                 lidar_timeout_bits: int = 2304):
+                 lidar_timeout_bits: int = 2304, shared_baro_units: bool = False):
         self.tick_cycles = tick_cycles
+        #: True: baro_compensation's adder and multiplier are outside (ports ``baro_add_i``
+        #: ... of :mod:`navgate.systems.ins_trn.shared_units`, ``baro_grant``, ``baro_busy``)
+        self.shared_baro_units = shared_baro_units
         self.cal = cal
         self.calibrate = calibrate
         #: the ranger's silence timeout in bit times (2304: 20 ms at 115200 baud, for the
@@ -85,13 +89,22 @@ class SensorSubsystem(wiring.Component):
             "imu_samples": Out(32), "imu_errors": Out(32), "baro_samples": Out(32),
             "baro_errors": Out(32), "lidar_frames": Out(16), "lidar_errors": Out(16),
             "sensor_error": Out(3),
+            **({"baro_grant": In(1), "baro_busy": Out(1), **unit_members("baro_")}
+               if shared_baro_units else {}),
         })
 
     def elaborate(self, platform):
         m = Module()
         m.submodules.imu_if = imu = SpiMasterImu(self.tick_cycles)
         m.submodules.baro_if = baro = SpiMasterBaro(self.tick_cycles)
-        m.submodules.baro_comp = comp = BaroCompensation()
+        m.submodules.baro_comp = comp = BaroCompensation(shared_units=self.shared_baro_units)
+        if self.shared_baro_units:
+            m.d.comb += [comp.grant.eq(self.baro_grant), self.baro_busy.eq(comp.busy)]
+            for unit in ("add", "mul"):
+                wiring.connect(m, getattr(comp, f"{unit}_i"),
+                               wiring.flipped(getattr(self, f"baro_{unit}_i")))
+                wiring.connect(m, wiring.flipped(getattr(self, f"baro_{unit}_o")),
+                               getattr(comp, f"{unit}_o"))
         m.submodules.lidar_if = lidar = UartRxLidar(timeout_bits=self.lidar_timeout_bits)
 
         m.d.comb += [

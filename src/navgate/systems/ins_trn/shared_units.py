@@ -1,0 +1,82 @@
+"""One float32 adder and one float32 multiplier shared by two blocks of ``ins_trn_top``.
+
+The output formatter (``nav_output_formatter``: REF_ALT - h, the quaternion conversions, the
+sigmas' sums, the angles times pi) and the barometer compensation (``baro_compensation``: the
+BMP390 formulas in float32) each need an adder and a multiplier for about a hundred cycles
+per sample, at 400 Hz and 25 Hz. Built with ``shared_units=True``, each block has ports to an
+adder and a multiplier instead of its own (:func:`unit_members`, :func:`unit_port`); the top
+(:func:`share_units`) gives the units to one block at a time, for a whole vector: a block
+that has work waits until the other is idle (at most its ~500 or ~106 cycles). Results do not
+change, only when they appear. This saves one ``Fp32Add``, one ``Fp32Mul`` and its two DSP48E1
+(docs/seed000-top.md, Resources).
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+from amaranth import Mux
+from amaranth.lib import stream
+from amaranth.lib.wiring import In, Out
+
+from navgate.gateware.fp32 import Fp32Add, Fp32Mul
+
+__all__ = ["SHARED_CORES", "unit_members", "unit_port", "share_units", "arbitrate"]
+
+#: the shared units: port name -> core
+SHARED_CORES = {"add": Fp32Add, "mul": Fp32Mul}
+
+
+def unit_members(prefix: str = "") -> dict:
+    """Signature members of a block that drives the shared units: ``<prefix>add_i`` (the
+    adder's input stream, driven by the block), ``<prefix>add_o`` (its output), the same for
+    ``mul``."""
+    members = {}
+    for name, core in SHARED_CORES.items():
+        members[f"{prefix}{name}_i"] = Out(stream.Signature(core.IN_LAYOUT))
+        members[f"{prefix}{name}_o"] = In(stream.Signature(core.OUT_LAYOUT))
+    return members
+
+
+def unit_port(component, name: str, prefix: str = ""):
+    """An object with ``i`` and ``o`` like the core's own, made of the block's ports."""
+    return SimpleNamespace(i=getattr(component, f"{prefix}{name}_i"),
+                           o=getattr(component, f"{prefix}{name}_o"))
+
+
+def share_units(m, first: dict, second: dict, second_owns):
+    """Instantiate the shared units in ``m`` and connect them to the blocks ``first`` and
+    ``second`` (each a dict unit name -> an object with ``i``/``o``, from :func:`unit_port`).
+    ``second_owns`` (a signal) routes the inputs from ``second``, else from ``first``. The
+    results' ``valid`` goes to the owner only: ownership may change only while both blocks
+    are idle with no operation in flight (the arbitration's rule), so every result belongs to
+    the block that owns the units when it appears."""
+    for name, core in SHARED_CORES.items():
+        unit = core()
+        m.submodules[f"shared_{name}"] = unit
+        a, b = first[name], second[name]
+        m.d.comb += [
+            unit.i.valid.eq(Mux(second_owns, b.i.valid, a.i.valid)),
+            unit.i.payload.eq(Mux(second_owns, b.i.payload.as_value(), a.i.payload.as_value())),
+            a.i.ready.eq(unit.i.ready & ~second_owns), b.i.ready.eq(unit.i.ready & second_owns),
+            unit.o.ready.eq(1),
+        ]
+        m.d.comb += [a.o.valid.eq(unit.o.valid & ~second_owns),
+                     b.o.valid.eq(unit.o.valid & second_owns)]
+        for port in (a, b):
+            m.d.comb += port.o.payload.eq(unit.o.payload)
+
+
+def arbitrate(m, first_ready, first_request, second_busy):
+    """The rule by which ``first`` (the formatter: ``first_request`` = a vector waiting,
+    ``first_ready`` = idle) and ``second`` (the compensation: ``second_busy``) take turns.
+    Returns (``first_valid``, ``second_grant``): the first block's input valid, and the grant
+    that lets the second take an input. A grant lasts while the second is busy, so a vector
+    it has started is never interrupted; the first block starts only while the second is
+    idle; when both want to start in the same cycle, the first wins."""
+    from amaranth import Signal
+
+    first_valid, second_grant = Signal(), Signal()
+    m.d.comb += [first_valid.eq(first_request & ~second_busy),
+                 second_grant.eq(second_busy | (first_ready & ~first_request))]
+    return first_valid, second_grant
