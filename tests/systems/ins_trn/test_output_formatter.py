@@ -392,3 +392,21 @@ def test_block_is_registered():
     assert BLOCKS["nav_output_formatter"][0] == \
         "navgate.systems.ins_trn.output_formatter:NavOutputFormatter"
     assert math.isclose(float(F.NavOutputFormatter.THROUGHPUT), 1 / 106)
+
+
+def test_angle_conversion_as_integer_equals_the_model():
+    """The gateware converts binary angles as integers and multiplies by pi * 2^-31
+    (PI_BITS_INT): equal, word for word, to the model's fixed-point conversion times pi,
+    over random angles and the extremes."""
+    from navgate.numerics.fp32 import fp32_from_fixed, fp32_from_int, fp32_mul
+
+    rng = np.random.default_rng(8)
+    a = np.concatenate([rng.integers(-2**31, 2**31, 500_000),
+                        rng.integers(-2**12, 2**12, 20_000),
+                        [0, 1, -1, 2**31 - 1, -2**31, 2**30, -2**30, 2**29]]).astype(np.int64)
+    fixed = fp32_from_fixed(a, F.ANGLE_BITS - 1, F.ANGLE_BITS)
+    as_int = fp32_from_int(a, F.ANGLE_BITS)
+    for model_const, hw_const in ((F.PI_BITS, F.PI_BITS_INT), (F.TWO_PI_BITS, F.TWO_PI_BITS_INT)):
+        want = fp32_mul(fixed, np.uint32(model_const))
+        got = fp32_mul(as_int, np.uint32(hw_const))
+        assert np.array_equal(want, got)

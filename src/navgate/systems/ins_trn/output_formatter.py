@@ -85,7 +85,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.cordic import CordicAtan2Iterative
-from navgate.gateware.fp32 import Fp32Add, Fp32FromFixed, Fp32Mul
+from navgate.gateware.fp32 import Fp32Add, Fp32FromInt, Fp32Mul
 from navgate.gateware.fp32.sqrt_iter import Fp32SqrtIter
 from navgate.numerics.cordic import cordic_error_bound, cordic_gain, cordic_vectoring
 from navgate.numerics.fp32 import (
@@ -143,6 +143,13 @@ SAT = (1 << (WIDTH - 1)) - 1  #: third vectoring's inputs are clamped to this
 PI_BITS = 0x40490FDB  #: float32(pi)
 TWO_PI_BITS = PI_BITS + (1 << 23)  #: float32(pi) * 2 (exponent + 1), exact
 PI_F32 = float(np.array([PI_BITS], dtype=np.uint32).view(np.float32)[0])
+#: the gateware converts the binary angle as an integer (``fp32_from_int``, exactly
+#: 2^31 times ``fp32_from_fixed(angle, 31, 32)``: the same 24-bit rounding, the exponent 31
+#: higher) and multiplies by pi * 2^-31 (exponent 31 lower, exact): the same real product,
+#: so the same rounded result (every product is far from the subnormal range); the converter
+#: is then the barometer compensation's integer converter, shared (shared_units.py)
+PI_BITS_INT = PI_BITS - (31 << 23)
+TWO_PI_BITS_INT = TWO_PI_BITS - (31 << 23)
 HALF_QUARTER = QUARTER >> 1  #: 45 deg
 GAIN = cordic_gain(ITERATIONS)
 #: m3 ~ NORM_SCALE * |q| (two gains, sqrt(2) of M+^2 + M-^2 = 2 |q|^2, 2^FRAC)
@@ -437,7 +444,10 @@ class NavOutputFormatter(wiring.Component):
             m.submodules.mul = mul = Fp32Mul()
         m.submodules.cordic = cor = CordicAtan2Iterative(
             width=WIDTH, iterations=ITERATIONS, angle_bits=ANGLE_BITS, guard_bits=GUARD)
-        m.submodules.tof = tof = Fp32FromFixed(width=ANGLE_BITS, frac_bits=ANGLE_BITS - 1)
+        if self.shared_units:
+            tof = unit_port(self, "cvt")
+        else:
+            m.submodules.tof = tof = Fp32FromInt(ANGLE_BITS)
         m.submodules.sqrt = sq = Fp32SqrtIter()
         m.d.comb += [add.o.ready.eq(1), cor.o.ready.eq(1), tof.o.ready.eq(1),
                      mul.o.ready.eq(1), sq.o.ready.eq(1)]
@@ -585,7 +595,7 @@ class NavOutputFormatter(wiring.Component):
             tof.i.payload.x.eq(wide[1:]),
             mul.i.valid.eq(tof.o.valid),
             mul.i.payload.a.eq(tof.o.payload.r),
-            mul.i.payload.b.eq(Mux(mr == 2, TWO_PI_BITS, PI_BITS)),
+            mul.i.payload.b.eq(Mux(mr == 2, TWO_PI_BITS_INT, PI_BITS_INT)),
         ]
         with m.If(tof.i.valid):
             m.d.sync += ci.eq(ci + 1)

@@ -7,34 +7,42 @@ per sample, at 400 Hz and 25 Hz. Built with ``shared_units=True``, each block ha
 adder and a multiplier instead of its own (:func:`unit_members`, :func:`unit_port`); the top
 (:func:`share_units`) gives the units to one block at a time, for a whole vector: a block
 that has work waits until the other is idle (at most its ~500 or ~106 cycles). Results do not
-change, only when they appear. This saves one ``Fp32Add``, one ``Fp32Mul`` and its two DSP48E1
-(docs/seed000-top.md, Resources).
+change, only when they appear. This saves one ``Fp32Add``, one ``Fp32Mul`` (and its two
+DSP48E1) and one integer -> float32 converter (docs/seed000-top.md, Resources).
 """
 
 from __future__ import annotations
 
+from functools import partial
 from types import SimpleNamespace
 
 from amaranth import Mux
-from amaranth.lib import stream
+from amaranth.hdl import signed, unsigned
+from amaranth.lib import data, stream
 from amaranth.lib.wiring import In, Out
 
-from navgate.gateware.fp32 import Fp32Add, Fp32Mul
+from navgate.gateware.fp32 import Fp32Add, Fp32FromInt, Fp32Mul
 
 __all__ = ["SHARED_CORES", "unit_members", "unit_port", "share_units", "arbitrate"]
 
-#: the shared units: port name -> core
-SHARED_CORES = {"add": Fp32Add, "mul": Fp32Mul}
+#: the shared units: port name -> (core, input layout, output layout) (the formatter
+#: converts its angles as integers, output_formatter.PI_BITS_INT)
+SHARED_CORES = {
+    "add": (Fp32Add, Fp32Add.IN_LAYOUT, Fp32Add.OUT_LAYOUT),
+    "mul": (Fp32Mul, Fp32Mul.IN_LAYOUT, Fp32Mul.OUT_LAYOUT),
+    "cvt": (partial(Fp32FromInt, 32), data.StructLayout({"x": signed(32)}),
+            data.StructLayout({"r": unsigned(32)})),
+}
 
 
 def unit_members(prefix: str = "") -> dict:
     """Signature members of a block that drives the shared units: ``<prefix>add_i`` (the
     adder's input stream, driven by the block), ``<prefix>add_o`` (its output), the same for
-    ``mul``."""
+    ``mul`` and ``cvt``."""
     members = {}
-    for name, core in SHARED_CORES.items():
-        members[f"{prefix}{name}_i"] = Out(stream.Signature(core.IN_LAYOUT))
-        members[f"{prefix}{name}_o"] = In(stream.Signature(core.OUT_LAYOUT))
+    for name, (_core, in_layout, out_layout) in SHARED_CORES.items():
+        members[f"{prefix}{name}_i"] = Out(stream.Signature(in_layout))
+        members[f"{prefix}{name}_o"] = In(stream.Signature(out_layout))
     return members
 
 
@@ -51,8 +59,10 @@ def share_units(m, first: dict, second: dict, second_owns):
     results' ``valid`` goes to the owner only: ownership may change only while both blocks
     are idle with no operation in flight (the arbitration's rule), so every result belongs to
     the block that owns the units when it appears."""
-    for name, core in SHARED_CORES.items():
+    for name, (core, in_layout, out_layout) in SHARED_CORES.items():
         unit = core()
+        if (unit.i.payload.shape(), unit.o.payload.shape()) != (in_layout, out_layout):
+            raise TypeError(f"shared unit {name}: the core's layouts are not SHARED_CORES'")
         m.submodules[f"shared_{name}"] = unit
         a, b = first[name], second[name]
         m.d.comb += [

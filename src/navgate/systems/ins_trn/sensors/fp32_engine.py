@@ -90,7 +90,7 @@ class Fp32Engine(wiring.Component):
 
     def __init__(self, program: Program, shared_units: bool = False):
         self.prog = program
-        #: True: the adder and multiplier are outside (ports ``add_i/add_o/mul_i/mul_o`` of
+        #: True: the adder, multiplier and converter are outside (ports ``add_i/add_o`` ... of
         #: :mod:`navgate.systems.ins_trn.shared_units`); ``busy`` is high from the cycle
         #: after an input is taken until the output has been taken
         self.shared_units = shared_units
@@ -112,11 +112,11 @@ class Fp32Engine(wiring.Component):
         p = self.prog
         ab = p.addr_bits
         if self.shared_units:
-            add, mul = unit_port(self, "add"), unit_port(self, "mul")
+            add, mul, cvt = (unit_port(self, u) for u in ("add", "mul", "cvt"))
         else:
             m.submodules.add = add = Fp32Add()
             m.submodules.mul = mul = Fp32Mul()
-        m.submodules.cvt = cvt = Fp32FromInt(32)
+            m.submodules.cvt = cvt = Fp32FromInt(32)
         m.submodules.rf = rf = Memory(shape=unsigned(32), depth=p.depth, init=p.init)
         ra = rf.read_port(domain="comb")
         rb = rf.read_port(domain="comb")
@@ -150,8 +150,8 @@ class Fp32Engine(wiring.Component):
         m.d.comb += [getattr(self.o.payload, n).eq(r) for n, r in zip(p.outputs, out_regs,
                                                                          strict=True)]
         last_pc = len(words) - 1
-        with m.FSM() as fsm:
-            m.d.comb += self.busy.eq(~fsm.ongoing("IDLE"))
+        m.d.comb += self.busy.eq(~self.par_ready)  # par_ready: the IDLE state
+        with m.FSM():
             with m.State("IDLE"):
                 m.d.comb += self.par_ready.eq(1)
                 with m.If(self.par_we):
