@@ -45,6 +45,8 @@ error or overrun.
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 from amaranth import C, Cat, Module, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.memory import Memory
@@ -99,7 +101,8 @@ class AltitudeProfileManager(wiring.Component):
     """
 
     LATENCY = 1  #: an accepted entry is counted in ``fill`` one cycle later
-    THROUGHPUT = ENTRY_WORDS  #: one entry every four cycles (``entry.ready`` low in between)
+    #: entries per cycle: one every four cycles (``entry.ready`` low for three after each)
+    THROUGHPUT = Fraction(1, ENTRY_WORDS)
 
     def __init__(self):
         super().__init__({
