@@ -29,7 +29,7 @@ BLOCKS: dict[str, tuple[str, str]] = {
                      "seed 000 AXI4-Lite register bank from its SystemRDL map (+ C header, docs)"),
     "altitude_profile_manager": (
         "navgate.systems.ins_trn.profile_manager:AltitudeProfileManager",
-        "seed 000 altitude profile FIFO (64 x 128 bit) with AXI4 burst DMA to DDR"),
+        "seed 000 altitude profile FIFO (64 x 128 bit, one RAMB18) with AXI4 burst DMA to DDR"),
     "tinykalman_top": ("navgate.systems.tinykalman.top:TinyKalmanTop",
                        "seed 001 TinyKalman chip, TinyTapeout user module (10 MHz, 100 Hz loop)"),
     "mpu6500_spi": ("navgate.systems.tinykalman.spi:Mpu6500Spi",

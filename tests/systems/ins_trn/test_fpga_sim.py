@@ -123,6 +123,36 @@ def _profile_dma(regs: Registers, eng):
             fifo.read(count)
 
 
+def _push_too_soon(regs: Registers, sim):
+    """The FIFO writes an entry into block RAM one word a cycle, so it takes one push every
+    four cycles: PROF_PUSH written twice with nothing between (the driver at full speed puts
+    the two strobes three cycles apart) stores one entry and raises the error interrupt;
+    with PROF_ENTRY_H between, both are stored (the DMA of the newest three shows which)."""
+    from navgate.systems.ins_trn.fpga_sim import DMA_WINDOW
+
+    heights = [float_to_bits(np.float32(h)) for h in (101.5, 202.5, 303.5)]
+    regs.read("IRQ_STATUS")
+    with sim.deferred():
+        regs.write("PROF_ENTRY_H", heights[0])
+        regs.write("PROF_PUSH", push=1)
+        regs.write("PROF_ENTRY_H", heights[1])
+        regs.write("PROF_PUSH", push=1)
+        regs.write("PROF_ENTRY_H", heights[2])
+        regs.write("PROF_PUSH", push=1)
+        regs.write("PROF_PUSH", push=1)  # too soon: not stored
+    assert regs.read_fields("IRQ_STATUS") == {"update": 0, "error": 1}
+    assert regs.read_fields("STATUS")["error"] == 1
+    regs.write("IRQ_ENABLE", update=1, error=0)
+    regs.write("PROF_ADDR", 0x40)
+    regs.write("PROF_COUNT", 3)
+    regs.write("PROF_CTRL", start=1)
+    sim.wait("irq", limit=10_000)
+    assert regs.read_fields("IRQ_STATUS") == {"update": 1, "error": 0}
+    assert [regs.bus.read(DMA_WINDOW + 0x40 + 16 * k) for k in range(3)] == heights
+    regs.write("CTRL", enable=1, reset=1)
+    regs.write("CTRL", enable=1, reset=0)
+    assert regs.read_fields("STATUS") == {"running": 1, "error": 0}
+
 def _every_register(regs: Registers):
     """Every register of the map read (OKAY) and every software-writable one written and read
     back through the driver; write-1 strobes read 0; unmapped offsets answer SLVERR."""
@@ -182,6 +212,7 @@ def test_fpga_sim_equals_fp32_60s_flight(against_fp32):
     against_fp32.directed_updates(engs, "fpga-sim")
     _profile_dma(regs, eng)
     _error_interrupt(regs, eng.sim)
+    _push_too_soon(regs, eng.sim)
     _every_register(regs)
     eng.close()
 

@@ -2,10 +2,11 @@
 
 Loaded inside the simulator by :func:`navgate.gateware.verify.run_cocotb`; the job file named
 by ``NAVGATE_PROFILE_JOB`` gives the seed, the number of rounds and where to write the
-status. Each round pushes a random number of entries, starts a DMA of a random count to a
-random 16-byte-aligned address, waits for ``done`` and compares the RAM with the newest
-entries; the AXI RAM model answers with random back-pressure, and a monitor checks every
-burst against the Zynq HP-port rules (at most 16 beats, INCR, 4-byte beats, no 4 KB crossing).
+status. Each round pushes a random number of entries (each held on the stream until it is
+taken), starts a DMA of a random count to a random 16-byte-aligned address, waits for
+``done`` and compares the RAM with the newest entries; the AXI RAM model answers with
+random back-pressure, and a monitor checks every burst against the Zynq HP-port rules (at
+most 16 beats, INCR, 4-byte beats, no 4 KB crossing).
 """
 
 import json
@@ -62,7 +63,12 @@ async def profile_dma(dut):
             entry = rng.getrandbits(121)  # h, pos_n, pos_e, time, valid; reserved zero
             dut.entry__payload.value = entry
             dut.entry__valid.value = 1
-            await RisingEdge(dut.clk)
+            while True:  # held until the stream takes it (one entry every four cycles)
+                await ReadOnly()
+                ready = int(dut.entry__ready.value)
+                await RisingEdge(dut.clk)
+                if ready:
+                    break
             dut.entry__valid.value = 0
             pushed.append(entry)
             for _ in range(rng.randrange(3)):

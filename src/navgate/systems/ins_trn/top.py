@@ -295,12 +295,19 @@ class InsTrnTop(wiring.Component):
         corr = TimestampCorrelator()  # the ranger frame's INS position and time
         m.submodules.correlator = corr
         wiring.connect(m, prof.axi, wiring.flipped(self.dma))
+        # the FIFO takes one entry every four cycles (block RAM, one 32-bit word a cycle); a
+        # PROF_PUSH sooner than that (the PS writing PROF_PUSH twice within three cycles,
+        # without PROF_ENTRY_H between) is not stored and raises the error interrupt
+        push = Signal()
+        push_lost = Signal()
+        m.d.comb += [push.eq(_bits(regs.p_PROF_PUSH, "PROF_PUSH", "push")),
+                     push_lost.eq(push & ~prof.entry.ready)]
         m.d.comb += [
             corr.frame.eq(sensors.lidar.valid), corr.pos_n.eq(shadow["pN"]),
             corr.pos_e.eq(shadow["pE"]), corr.samples.eq(seq.propagations),
             regs.i_PROF_SAMPLE_N.eq(corr.sample_n), regs.i_PROF_SAMPLE_E.eq(corr.sample_e),
             regs.i_PROF_SAMPLE_T.eq(corr.sample_t),
-            prof.entry.valid.eq(_bits(regs.p_PROF_PUSH, "PROF_PUSH", "push")),
+            prof.entry.valid.eq(push),
             prof.entry.payload.h_terrain.eq(regs.o_PROF_ENTRY_H),
             prof.entry.payload.pos_n.eq(corr.sample_n),
             prof.entry.payload.pos_e.eq(corr.sample_e),
@@ -323,7 +330,7 @@ class InsTrnTop(wiring.Component):
         m.d.sync += sensor_error.eq(live_error)
         error_event = Signal()
         m.d.comb += error_event.eq((live_error & ~sensor_error).any()
-                                   | (prof.done & prof.error))
+                                   | (prof.done & prof.error) | push_lost)
         sticky_error = Signal()
         with m.If(engine_reset):
             m.d.sync += sticky_error.eq(0)
