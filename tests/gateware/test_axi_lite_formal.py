@@ -100,6 +100,7 @@ def prove(component, workdir: Path, depth: int = 8) -> str:
     script = "\n".join([
         "read_rtlil formal.il",
         "prep -top formal_top",
+        "memory_map",
         "async2sync",
         "chformal -lower",
         "flatten",
