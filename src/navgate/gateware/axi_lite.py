@@ -18,6 +18,23 @@ handshake. The slave
 Throughput: one write every 3 cycles and one read every 2 cycles at most, ample for a
 control bank. Latency: B two cycles after the later of AW and W; R one cycle after AR.
 
+Read path (what the LUTs go to; figures of seed 000's map in docs/seed000-registers.md):
+
+* the read multiplexer is one tree of 2:1 multiplexers per data bit, keyed on the word
+  address bits from the least significant, over the registers that have a source for that
+  bit; unmapped offsets are don't-cares (a subtree over a single source, or over one source
+  repeated, is a wire) because the response register's synchronous reset zeroes the data of
+  an unmapped read (a per-register comparator and a 121-way AND-OR, what a ``case``
+  statement becomes, cost about twice as much);
+* the plain 32-bit software registers (no side effect, reset value 0: :func:`ram_registers`)
+  are read from a copy in a distributed-RAM memory (one word per register, written with the
+  same byte strobes as the flip-flops), which is one source per bit in the tree instead of
+  one per register. The RAM index is a linear function of the word address (XORs of at most
+  three address bits, :func:`ram_index`). A reset does not clear a RAM, so a flag per
+  register records whether it was written since reset: an unwritten one reads 0 (its reset
+  value), and the first write after reset writes the bytes its strobe leaves out as 0. The
+  flip-flops stay the registers' fabric outputs.
+
 The fabric side has, per register (``NAME`` as in the map): ``i_NAME`` (32-bit input) for
 bits the fabric drives, ``o_NAME`` (32-bit output) for the stored software-writable bits,
 ``p_NAME`` (one-cycle write-1 strobe mask) for ``singlepulse`` fields and ``set_NAME``
@@ -56,7 +73,8 @@ class AxiLiteRegisterBank(wiring.Component):
 
     LATENCY = 2
     THROUGHPUT = 1 / 3
-    #: mirror the plain 32-bit registers in distributed RAM from this many on
+    #: read the plain 32-bit registers from a distributed-RAM copy when the map has at least
+    #: this many (a 64-deep copy costs 12 RAM64M, 48 LUTs of distributed RAM)
     RAM_MIN = 8
 
     def __init__(self, regmap: RegisterMap):
@@ -93,7 +111,10 @@ class AxiLiteRegisterBank(wiring.Component):
         axi = self.axi
         regmap = self.regmap
         word_bits = regmap.address_width - 2
-        mirrored = ram_registers(regmap) if len(ram_registers(regmap)) >= self.RAM_MIN else ()
+        mirrored = ram_registers(regmap)
+        rows = ram_index(tuple(r.offset >> 2 for r in mirrored), word_bits) if mirrored else None
+        if len(mirrored) < self.RAM_MIN or rows is None:
+            mirrored = ()
         mirrored_names = {r.name for r in mirrored}
 
         storage = {}
@@ -204,7 +225,6 @@ class AxiLiteRegisterBank(wiring.Component):
         unwritten_r = None
         if mirrored:
             words = [r.offset >> 2 for r in mirrored]
-            rows = ram_index(tuple(words), word_bits)
             ram = Memory(shape=32, depth=1 << len(rows), init=[])
             m.submodules.read_copy = ram
             wp = ram.write_port(granularity=8)
@@ -277,36 +297,40 @@ def ram_registers(regmap: RegisterMap) -> tuple:
 
 
 @cache
-def ram_index(words: tuple[int, ...], nbits: int) -> tuple[int, ...]:
+def ram_index(words: tuple[int, ...], nbits: int) -> tuple[int, ...] | None:
     """A linear index of ``words``: one row (a mask of word-address bits, whose parity is
     one index bit) per index bit, ``ceil(log2(len(words)))`` rows, distinct indices for
-    all ``words``. Rows of one address bit are preferred, then XORs of two, then of three
-    (each a wire or one small LUT). Depth-first search, pruned when a class of words that
-    share the index so far cannot be split by the rows left."""
+    all ``words``; None if none is found. Rows of one address bit are preferred, then XORs
+    of two, then of three (each a wire or one small LUT). Depth-first search, pruned when a
+    class of words that share the index so far cannot be split by the rows left, and
+    bounded (a map it gives up on is read without the RAM copy)."""
     n = max(1, math.ceil(math.log2(len(words))))
     for terms in (1, 2, 3):
         candidates = [sum(1 << i for i in c) for k in range(1, terms + 1)
                       for c in itertools.combinations(range(nbits), k)]
-        found = _search(tuple(words), candidates, n, 0, ())
+        budget = [20_000]
+        found = _search(words, candidates, n, 0, (), budget)
         if found is not None:
             return found
-    raise ValueError(f"no linear index of {len(words)} words in {n} bits")
+    return None
 
 
-def _search(classes_words, candidates, n, start, rows):
+def _search(words, candidates, n, start, rows, budget):
     if len(rows) == n:
         return rows
     left = n - len(rows) - 1
     for i in range(start, len(candidates)):
-        row = candidates[i]
-        trial = rows + (row,)
-        seen = {}
-        for w in classes_words:
+        budget[0] -= 1
+        if budget[0] < 0:
+            return None
+        trial = rows + (candidates[i],)
+        sizes: dict[tuple, int] = {}
+        for w in words:
             key = tuple(bin(w & r).count("1") & 1 for r in trial)
-            seen[key] = seen.get(key, 0) + 1
-        if max(seen.values()) > (1 << left):
+            sizes[key] = sizes.get(key, 0) + 1
+        if max(sizes.values()) > (1 << left):
             continue
-        found = _search(classes_words, candidates, n, i + 1, trial)
+        found = _search(words, candidates, n, i + 1, trial, budget)
         if found is not None:
             return found
     return None
