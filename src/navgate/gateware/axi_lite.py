@@ -18,6 +18,23 @@ handshake. The slave
 Throughput: one write every 3 cycles and one read every 2 cycles at most, ample for a
 control bank. Latency: B two cycles after the later of AW and W; R one cycle after AR.
 
+Read path (what the LUTs go to; figures of seed 000's map in docs/seed000-registers.md):
+
+* the read multiplexer is one tree of 2:1 multiplexers per data bit, keyed on the word
+  address bits from the least significant, over the registers that have a source for that
+  bit; unmapped offsets are don't-cares (a subtree over a single source, or over one source
+  repeated, is a wire) because the response register's synchronous reset zeroes the data of
+  an unmapped read (a comparator per register and an AND-OR over all registers, what a
+  ``case`` statement becomes, cost 1.7 times as many LUTs for seed 000's map);
+* the plain 32-bit software registers (no side effect, reset value 0: :func:`ram_registers`)
+  are read from a copy in a distributed-RAM memory (one word per register, written with the
+  same byte strobes as the flip-flops), which is one source per bit in the tree instead of
+  one per register. The RAM index is a linear function of the word address (XORs of at most
+  three address bits, :func:`ram_index`). A reset does not clear a RAM, so a flag per
+  register records whether it was written since reset: an unwritten one reads 0 (its reset
+  value), and the first write after reset writes the bytes its strobe leaves out as 0. The
+  flip-flops stay the registers' fabric outputs.
+
 The fabric side has, per register (``NAME`` as in the map): ``i_NAME`` (32-bit input) for
 bits the fabric drives, ``o_NAME`` (32-bit output) for the stored software-writable bits,
 ``p_NAME`` (one-cycle write-1 strobe mask) for ``singlepulse`` fields and ``set_NAME``
@@ -27,8 +44,13 @@ bits the fabric drives, ``o_NAME`` (32-bit output) for the stored software-writa
 
 from __future__ import annotations
 
-from amaranth import Cat, Const, Module, Signal
+import itertools
+import math
+from functools import cache
+
+from amaranth import Cat, Const, Module, Mux, Signal
 from amaranth.lib import wiring
+from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from navgate.hw.regmap import OKAY, SLVERR, RegisterMap
@@ -51,6 +73,9 @@ class AxiLiteRegisterBank(wiring.Component):
 
     LATENCY = 2
     THROUGHPUT = 1 / 3
+    #: read the plain 32-bit registers from a distributed-RAM copy when the map has at least
+    #: this many (a 64-deep copy costs 12 RAM64M, 48 LUTs of distributed RAM)
+    RAM_MIN = 8
 
     def __init__(self, regmap: RegisterMap):
         self.regmap = regmap
@@ -86,6 +111,11 @@ class AxiLiteRegisterBank(wiring.Component):
         axi = self.axi
         regmap = self.regmap
         word_bits = regmap.address_width - 2
+        mirrored = ram_registers(regmap)
+        rows = ram_index(tuple(r.offset >> 2 for r in mirrored), word_bits) if mirrored else None
+        if len(mirrored) < self.RAM_MIN or rows is None:
+            mirrored = ()
+        mirrored_names = {r.name for r in mirrored}
 
         storage = {}
         for reg in regmap.registers:
@@ -100,13 +130,17 @@ class AxiLiteRegisterBank(wiring.Component):
         aw_full = self.channel_state["aw_full"]
         aw_word = Signal(word_bits)
         w_full = self.channel_state["w_full"]
-        w_data = Signal(32)
+        w_data = Signal(32)  # the write data with the bytes that wstrb leaves out zeroed
         w_strb = Signal(4)
         m.d.comb += [axi.awready.eq(~aw_full), axi.wready.eq(~w_full)]
         with m.If(axi.awvalid & ~aw_full):
             m.d.sync += [aw_full.eq(1), aw_word.eq(axi.awaddr[2:])]
         with m.If(axi.wvalid & ~w_full):
-            m.d.sync += [w_full.eq(1), w_data.eq(axi.wdata), w_strb.eq(axi.wstrb)]
+            m.d.sync += [w_full.eq(1), w_strb.eq(axi.wstrb)]
+            for lane in range(4):
+                # the zeroing maps onto the flip-flops' synchronous reset
+                m.d.sync += w_data[8 * lane:8 * lane + 8].eq(
+                    Mux(axi.wstrb[lane], axi.wdata[8 * lane:8 * lane + 8], 0))
 
         bvalid = Signal()
         bresp = Signal(2)
@@ -135,17 +169,20 @@ class AxiLiteRegisterBank(wiring.Component):
         m.d.comb += ar_word.eq(axi.araddr[2:])
 
         # ---------------------------------------------------------------- per register
+        written = {}
         for reg in regmap.registers:
             word = reg.offset >> 2
             hit_w = Signal(name=f"hit_w_{reg.name}")
-            hit_r = Signal(name=f"hit_r_{reg.name}")
-            m.d.comb += [hit_w.eq(do_write & (aw_word == word)),
-                         hit_r.eq(do_read & (ar_word == word))]
+            m.d.comb += hit_w.eq(do_write & (aw_word == word))
             if reg.pulse_mask:
                 pulse = getattr(self, f"p_{reg.name}")
                 m.d.sync += pulse.eq(0)
                 with m.If(hit_w):
-                    m.d.sync += pulse.eq(w_data & byte_mask & reg.pulse_mask)
+                    m.d.sync += pulse.eq(w_data & reg.pulse_mask)
+            if reg.name in mirrored_names:
+                written[reg.name] = Signal(name=f"written_{reg.name}")
+                with m.If(hit_w):
+                    m.d.sync += written[reg.name].eq(1)
             if reg.name in storage:
                 value = storage[reg.name]
                 if not (reg.read_clear_mask or reg.hw_set_mask):
@@ -172,6 +209,8 @@ class AxiLiteRegisterBank(wiring.Component):
                         m.d.comb += nxt.eq((value & ~keep) | (w_data & keep))
                 cleared = Signal(32, name=f"clr_{reg.name}")
                 if reg.read_clear_mask:
+                    hit_r = Signal(name=f"hit_r_{reg.name}")
+                    m.d.comb += hit_r.eq(do_read & (ar_word == word))
                     m.d.comb += cleared.eq(nxt & ~Mux1(hit_r, reg.read_clear_mask))
                 else:
                     m.d.comb += cleared.eq(nxt)
@@ -181,20 +220,59 @@ class AxiLiteRegisterBank(wiring.Component):
                 else:
                     m.d.sync += value.eq(cleared)
 
-        # read mux (registered response)
+        # ------------------------------------------- read copy of the mirrored registers
+        ram_data = None
+        unwritten_r = None
+        if mirrored:
+            words = [r.offset >> 2 for r in mirrored]
+            ram = Memory(shape=32, depth=1 << len(rows), init=[])
+            m.submodules.read_copy = ram
+            wp = ram.write_port(granularity=8)
+            rp = ram.read_port(domain="comb")
+            written_w = Signal()
+            m.d.comb += written_w.eq(_as_value(mux_tree(
+                aw_word, {r.offset >> 2: written[r.name] for r in mirrored}, word_bits)))
+            hit_mirrored = Signal()
+            m.d.comb += hit_mirrored.eq(do_write & Cat(*[aw_word == w for w in words]).any())
+            m.d.comb += [
+                wp.addr.eq(index_of(aw_word, rows)),
+                wp.data.eq(w_data),
+                # the first write after reset also writes the bytes it leaves out (as 0)
+                wp.en.eq(hit_mirrored.replicate(4) & (w_strb | (~written_w).replicate(4))),
+                rp.addr.eq(index_of(ar_word, rows)),
+            ]
+            ram_data = [rp.data[b] for b in range(32)]
+            unwritten_r = Signal()
+            leaves = {r.offset >> 2: 0 for r in regmap.registers}
+            leaves.update({r.offset >> 2: ~written[r.name] for r in mirrored})
+            m.d.comb += unwritten_r.eq(_as_value(mux_tree(ar_word, leaves, word_bits)))
+
+        # ------------------------------------------- read multiplexer (registered response)
+        mapped_r = Signal()
+        m.d.comb += mapped_r.eq(Cat(*[ar_word == (r.offset >> 2)
+                                      for r in regmap.registers]).any())
+        read_bits = []
+        for b in range(32):
+            leaves = {}
+            for reg in regmap.registers:
+                word = reg.offset >> 2
+                if reg.name in mirrored_names:
+                    leaves[word] = ram_data[b]
+                elif not (reg.read_mask >> b) & 1:
+                    leaves[word] = 0
+                elif (reg.storage_mask >> b) & 1:
+                    leaves[word] = storage[reg.name][b]
+                elif (reg.hw_input_mask >> b) & 1:
+                    leaves[word] = getattr(self, f"i_{reg.name}")[b]
+                else:
+                    leaves[word] = (reg.constant_value >> b) & 1
+            read_bits.append(_as_value(mux_tree(ar_word, leaves, word_bits)))
+        zero = ~mapped_r if unwritten_r is None else ~mapped_r | unwritten_r
         with m.If(do_read):
-            m.d.sync += [rvalid.eq(1), rdata.eq(0), rresp.eq(SLVERR)]
-            with m.Switch(ar_word):
-                for reg in regmap.registers:
-                    with m.Case(reg.offset >> 2):
-                        parts = Const(reg.constant_value & reg.read_mask, 32)
-                        if reg.name in storage:
-                            parts = parts | (storage[reg.name] & (reg.storage_mask
-                                                                  & reg.read_mask))
-                        if reg.hw_input_mask:
-                            parts = parts | (getattr(self, f"i_{reg.name}")
-                                             & (reg.hw_input_mask & reg.read_mask))
-                        m.d.sync += [rdata.eq(parts), rresp.eq(OKAY)]
+            # unmapped offsets are don't-cares of the multiplexer: the flip-flops'
+            # synchronous reset zeroes them
+            m.d.sync += [rvalid.eq(1), rresp.eq(Mux(mapped_r, OKAY, SLVERR)),
+                         rdata.eq(Mux(zero, 0, Cat(*read_bits)))]
 
         with m.If(do_write):
             m.d.sync += [bvalid.eq(1), bresp.eq(SLVERR), aw_full.eq(0), w_full.eq(0)]
@@ -206,3 +284,100 @@ class AxiLiteRegisterBank(wiring.Component):
 def Mux1(select, mask: int):
     """``mask`` where ``select`` is 1, else 0 (a 32-bit AND with the replicated select)."""
     return select.replicate(32) & Const(mask, 32)
+
+
+def ram_registers(regmap: RegisterMap) -> tuple:
+    """Registers whose read value can come from a distributed-RAM copy: 32 stored bits that
+    software writes and reads, no side effect, reset value 0 (the copy of a register not
+    written since reset reads 0)."""
+    return tuple(r for r in regmap.registers
+                 if r.storage_mask == r.sw_write_mask == r.read_mask == 0xFFFF_FFFF
+                 and not (r.read_clear_mask or r.hw_set_mask or r.pulse_mask)
+                 and r.reset_value == 0)
+
+
+@cache
+def ram_index(words: tuple[int, ...], nbits: int) -> tuple[int, ...] | None:
+    """A linear index of ``words``: one row (a mask of word-address bits, whose parity is
+    one index bit) per index bit, ``ceil(log2(len(words)))`` rows, distinct indices for
+    all ``words``; None if none is found. Rows of one address bit are preferred, then XORs
+    of two, then of three (each a wire or one small LUT). Depth-first search, pruned when a
+    class of words that share the index so far cannot be split by the rows left, and
+    bounded (a map it gives up on is read without the RAM copy)."""
+    n = max(1, math.ceil(math.log2(len(words))))
+    for terms in (1, 2, 3):
+        candidates = [sum(1 << i for i in c) for k in range(1, terms + 1)
+                      for c in itertools.combinations(range(nbits), k)]
+        budget = [20_000]
+        found = _search(words, candidates, n, 0, (), budget)
+        if found is not None:
+            return found
+    return None
+
+
+def _search(words, candidates, n, start, rows, budget):
+    if len(rows) == n:
+        return rows
+    left = n - len(rows) - 1
+    for i in range(start, len(candidates)):
+        budget[0] -= 1
+        if budget[0] < 0:
+            return None
+        trial = rows + (candidates[i],)
+        sizes: dict[tuple, int] = {}
+        for w in words:
+            key = tuple(bin(w & r).count("1") & 1 for r in trial)
+            sizes[key] = sizes.get(key, 0) + 1
+        if max(sizes.values()) > (1 << left):
+            continue
+        found = _search(words, candidates, n, i + 1, trial, budget)
+        if found is not None:
+            return found
+    return None
+
+
+def index_of(word, rows):
+    """The RAM index of ``word`` (a signal) under the linear index ``rows``."""
+    return Cat(*[Cat(*[word[i] for i in range(len(word)) if r >> i & 1]).xor()
+                 for r in rows])
+
+
+def _as_value(leaf):
+    return Const(leaf, 1) if isinstance(leaf, int) else leaf
+
+
+def _mux_group(sel, members: dict):
+    """A multiplexer on the bits of ``sel`` over ``members`` (key -> leaf); keys that are
+    missing are don't-cares. Splits on the highest bit that tells members apart."""
+    leaves = list(members.values())
+    first = leaves[0]
+    if all(leaf is first or (isinstance(leaf, int) and isinstance(first, int) and leaf == first)
+           for leaf in leaves):
+        return first
+    for i in reversed(range(len(sel))):
+        ones = {k: v for k, v in members.items() if k >> i & 1}
+        zeros = {k: v for k, v in members.items() if not k >> i & 1}
+        if ones and zeros:
+            return Mux(sel[i], _as_value(_mux_group(sel, ones)),
+                       _as_value(_mux_group(sel, zeros)))
+    raise AssertionError("distinct keys always differ in a bit")
+
+
+def mux_tree(sel, leaves: dict, nbits: int, step: int = 2):
+    """One bit selected by ``sel`` from ``leaves`` (key -> 1-bit value or 0/1), keys missing
+    from ``leaves`` being don't-cares: a tree of ``2**step``-input multiplexers on ``step``
+    bits of ``sel`` at a time, from the least significant; a group whose members are all
+    the same leaf (or a single one) is that leaf, with no logic."""
+    entries = dict(leaves)
+    lo = 0
+    while lo < nbits and len(entries) > 1:
+        k = min(step, nbits - lo)
+        groups: dict[int, dict] = {}
+        for key, leaf in entries.items():
+            groups.setdefault(key >> k, {})[key & ((1 << k) - 1)] = leaf
+        entries = {g: _mux_group(sel[lo:lo + k], members) for g, members in groups.items()}
+        lo += k
+    if not entries:
+        return 0
+    (leaf,) = entries.values()
+    return leaf
