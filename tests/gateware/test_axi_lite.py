@@ -200,14 +200,21 @@ def test_reset_after_writes_reads_the_reset_values(regmap):
 
     mirrored = ram_registers(regmap)
     assert len(mirrored) >= AxiLiteRegisterBank.RAM_MIN  # the map exercises the RAM copy
-    dut = AxiLiteRegisterBank(regmap)
+    # the fabric's read port of the copy reads what the bus reads, reset included
+    dut = AxiLiteRegisterBank(regmap, fabric_reads=tuple(r.name for r in mirrored))
     top = Module()
     top.domains.sync = cd = ClockDomain()
     top.submodules.dut = dut
     axi = dut.axi
     rng = random.Random(7)
     writable = [r for r in regmap.registers if r.writable]
-    results = {"before": {}, "after": {}, "partial": []}
+    results = {"before": {}, "after": {}, "partial": [], "fabric": []}
+
+    def fabric(ctx, model, phase):
+        for reg in mirrored:
+            ctx.set(dut.fr_word, reg.offset >> 2)
+            results["fabric"].append((phase, reg.name, ctx.get(dut.fr_data),
+                                      model.read(reg.offset)[0]))
 
     async def write(ctx, offset, data, strb=0xF):
         ctx.set(axi.awaddr, offset)
@@ -243,18 +250,21 @@ def test_reset_after_writes_reads_the_reset_values(regmap):
             assert await write(ctx, reg.offset, data) == model.write(reg.offset, data)
         for reg in regmap.registers:
             results["before"][reg.name] = (await read(ctx, reg.offset), model.read(reg.offset))
+        fabric(ctx, model, "before")
         ctx.set(cd.rst, 1)
         await ctx.tick()
         ctx.set(cd.rst, 0)
         model = RegisterFileModel(regmap)
         for reg in regmap.registers:
             results["after"][reg.name] = (await read(ctx, reg.offset), model.read(reg.offset))
+        fabric(ctx, model, "after")
         for reg, strb in zip(mirrored[:5], (0b0001, 0b0010, 0b0100, 0b1000, 0b0000),
                              strict=True):
             data = rng.getrandbits(32)
             await write(ctx, reg.offset, data, strb)
             model.write(reg.offset, data, strb)
             results["partial"].append((await read(ctx, reg.offset), model.read(reg.offset)))
+        fabric(ctx, model, "partial")
 
     sim = Simulator(top)
     sim.add_clock(1e-8)
@@ -268,6 +278,15 @@ def test_reset_after_writes_reads_the_reset_values(regmap):
     assert all(results["after"][r.name][0] == (0, OKAY) for r in mirrored)
     assert all(got == want for got, want in results["partial"]), results["partial"]
     assert [got[0] != 0 for got, _ in results["partial"]][:4].count(True) >= 3
+    bad = [f for f in results["fabric"] if f[2] != f[3]]
+    assert not bad, bad[:5]
+    assert sum(f[2] != 0 for f in results["fabric"] if f[0] == "before") >= len(mirrored) - 1
+
+
+@pytest.mark.filterwarnings("ignore::amaranth.hdl._ir.UnusedElaboratable")
+def test_fabric_reads_need_registers_of_the_ram_copy(regmap):
+    with pytest.raises(ValueError, match="RAM copy.*STATUS"):
+        AxiLiteRegisterBank(regmap, fabric_reads=("TRN_POS_N", "STATUS"))
 
 
 def test_ram_index_gives_distinct_rows_to_the_mirrored_registers(regmap):

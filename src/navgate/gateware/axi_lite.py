@@ -77,9 +77,24 @@ class AxiLiteRegisterBank(wiring.Component):
     #: this many (a 64-deep copy costs 12 RAM64M, 48 LUTs of distributed RAM)
     RAM_MIN = 8
 
-    def __init__(self, regmap: RegisterMap):
+    def __init__(self, regmap: RegisterMap, fabric_reads: tuple[str, ...] = ()):
         self.regmap = regmap
+        #: registers the fabric reads through a second read port of the RAM copy
+        #: (``fr_word`` = word address, ``fr_data`` = the register's value, combinational):
+        #: for a block that reads one of many registers at a time, instead of a multiplexer
+        #: of their ``o_`` outputs (whose flip-flops synthesis then removes if nothing else
+        #: reads them). Each must be a register of the RAM copy.
+        self.fabric_reads = tuple(fabric_reads)
         members = {"axi": In(axi_lite_signature(regmap.address_width))}
+        if self.fabric_reads:
+            mirrored, _rows = _mirror(regmap, self.RAM_MIN)
+            names = {r.name for r in mirrored}
+            missing = [n for n in self.fabric_reads if n not in names]
+            if missing:
+                raise ValueError("fabric reads need registers of the RAM copy (plain 32-bit "
+                                 f"read-write, reset 0): {', '.join(missing)}")
+            members["fr_word"] = In(regmap.address_width - 2)
+            members["fr_data"] = Out(32)
         for reg in regmap.registers:
             if reg.hw_input_mask:
                 members[f"i_{reg.name}"] = In(32)
@@ -111,10 +126,7 @@ class AxiLiteRegisterBank(wiring.Component):
         axi = self.axi
         regmap = self.regmap
         word_bits = regmap.address_width - 2
-        mirrored = ram_registers(regmap)
-        rows = ram_index(tuple(r.offset >> 2 for r in mirrored), word_bits) if mirrored else None
-        if len(mirrored) < self.RAM_MIN or rows is None:
-            mirrored = ()
+        mirrored, rows = _mirror(regmap, self.RAM_MIN)
         mirrored_names = {r.name for r in mirrored}
 
         storage = {}
@@ -246,6 +258,18 @@ class AxiLiteRegisterBank(wiring.Component):
             leaves = {r.offset >> 2: 0 for r in regmap.registers}
             leaves.update({r.offset >> 2: ~written[r.name] for r in mirrored})
             m.d.comb += unwritten_r.eq(_as_value(mux_tree(ar_word, leaves, word_bits)))
+            if self.fabric_reads:
+                # the fabric's read port: the same copy at another address (a register not
+                # written since reset reads 0, as on the bus)
+                fp = ram.read_port(domain="comb")
+                unwritten_f = Signal()
+                m.d.comb += [
+                    fp.addr.eq(index_of(self.fr_word, rows)),
+                    unwritten_f.eq(_as_value(mux_tree(
+                        self.fr_word, {regmap[n].offset >> 2: ~written[n]
+                                       for n in self.fabric_reads}, word_bits))),
+                    self.fr_data.eq(Mux(unwritten_f, 0, fp.data)),
+                ]
 
         # ------------------------------------------- read multiplexer (registered response)
         mapped_r = Signal()
@@ -284,6 +308,16 @@ class AxiLiteRegisterBank(wiring.Component):
 def Mux1(select, mask: int):
     """``mask`` where ``select`` is 1, else 0 (a 32-bit AND with the replicated select)."""
     return select.replicate(32) & Const(mask, 32)
+
+
+def _mirror(regmap: RegisterMap, ram_min: int) -> tuple[tuple, tuple | None]:
+    """(registers of the RAM copy, its index rows), or ((), None) without a copy."""
+    mirrored = ram_registers(regmap)
+    rows = ram_index(tuple(r.offset >> 2 for r in mirrored),
+                     regmap.address_width - 2) if mirrored else None
+    if len(mirrored) < ram_min or rows is None:
+        return (), None
+    return mirrored, rows
 
 
 def ram_registers(regmap: RegisterMap) -> tuple:

@@ -97,8 +97,14 @@ class NavSequencer(wiring.Component):
 
     THROUGHPUT = None  # set from the image (one IMU sample per imu job)
 
-    def __init__(self, image):
+    def __init__(self, image, register_words: dict[str, int] | None = None):
         self.image = image
+        #: inputs read from a register file instead of a port each: input name (``alt_r``,
+        #: ``trn_y0``, ``cal_g_lsb`` ...) -> word address; the sequencer puts the word on
+        #: ``reg_word`` in the cycle it writes the input into the engines and takes
+        #: ``reg_data`` (combinational) as the data, so one register-file read port replaces
+        #: a multiplexer of up to 36 inputs
+        self.register_words = dict(register_words or {})
         self.keys = list(image.programs)
         aw = image.fields.aw
         self.addr = image.layout.fixed
@@ -117,12 +123,17 @@ class NavSequencer(wiring.Component):
             "shadow_valid": Out(1),  #: one-cycle pulse: the shadow words are new
             "update": Out(1),
         }
-        for n in ALT_INPUTS:
-            members[f"alt_{n}"] = In(32)
-        for n in TRN_INPUTS:
-            members[f"trn_{n}"] = In(32)
-        for n in CAL_INPUTS:
-            members[n] = In(32)
+        inputs = ([f"alt_{n}" for n in ALT_INPUTS] + [f"trn_{n}" for n in TRN_INPUTS]
+                  + list(CAL_INPUTS))
+        unknown = set(self.register_words) - set(inputs)
+        if unknown:
+            raise ValueError(f"not sequencer inputs: {', '.join(sorted(unknown))}")
+        for n in inputs:
+            if n not in self.register_words:
+                members[n] = In(32)
+        if self.register_words:
+            members["reg_word"] = Out(max(self.register_words.values()).bit_length())
+            members["reg_data"] = In(32)
         super().__init__(members)
 
     def elaborate(self, platform):
@@ -161,12 +172,17 @@ class NavSequencer(wiring.Component):
         m.d.sync += [self.update.eq(0), self.shadow_valid.eq(0)]
 
         # write lists: (register address, source) per job and step
+        def source(name):  # (data, register word or None)
+            if name in self.register_words:
+                return self.reg_data, self.register_words[name]
+            return getattr(self, name), None
+
         writes_of = {
-            "imu": [(a[r], getattr(imu_words, f))
+            "imu": [(a[r], getattr(imu_words, f), None)
                     for r, f in zip(IMU_REGS, IMU_FIELDS, strict=True)],
-            "alt": [(a[r], getattr(self, f"alt_{r}")) for r in ALT_INPUTS],
-            "trn": [(a[r], getattr(self, f"trn_{r}")) for r in TRN_INPUTS],
-            "cal": [(a[r], getattr(self, r)) for r in CAL_INPUTS],
+            "alt": [(a[r], *source(f"alt_{r}")) for r in ALT_INPUTS],
+            "trn": [(a[r], *source(f"trn_{r}")) for r in TRN_INPUTS],
+            "cal": [(a[r], *source(r)) for r in CAL_INPUTS],
         }
         waddr = Signal(img.fields.aw)
         wdata = Signal(32)
@@ -176,9 +192,11 @@ class NavSequencer(wiring.Component):
                 with m.Case(JOBS.index(name)):
                     m.d.comb += n_writes.eq(len(writes))
                     with m.Switch(step):
-                        for k, (addr, src) in enumerate(writes):
+                        for k, (addr, src, word) in enumerate(writes):
                             with m.Case(k):
                                 m.d.comb += [waddr.eq(addr), wdata.eq(src)]
+                                if word is not None:
+                                    m.d.comb += self.reg_word.eq(word)
             with m.Default():
                 m.d.comb += [n_writes.eq(1), waddr.eq(self.eng_addr),
                              wdata.eq(self.eng_wdata)]

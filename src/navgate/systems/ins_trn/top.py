@@ -71,6 +71,16 @@ CAL_REGISTER_OF = {
 }
 
 
+#: sequencer input -> the register it reads (through the register bank's RAM copy)
+SEQUENCER_REGISTER_OF = {
+    "alt_h_meas": "ALT_MEAS", "alt_r": "ALT_VAR", "alt_gate": "ALT_GATE",
+    "trn_y0": "TRN_POS_N", "trn_y1": "TRN_POS_E", "trn_r00": "TRN_COV_NN",
+    "trn_r01": "TRN_COV_NE", "trn_r11": "TRN_COV_EE", "trn_lag": "TRN_LAG",
+    "trn_gate": "TRN_GATE",
+    **{word: reg for reg, word in CAL_REGISTER_OF.items()},
+}
+
+
 def _field(reg: str, name: str):
     for r in register_map().registers:
         if r.name == reg:
@@ -162,7 +172,8 @@ class InsTrnTop(wiring.Component):
         )
 
         m = Module()
-        regs = AxiLiteRegisterBank(register_map())
+        regmap = register_map()
+        regs = AxiLiteRegisterBank(regmap, fabric_reads=tuple(SEQUENCER_REGISTER_OF.values()))
         m.submodules.regs = regs
         wiring.connect(m, wiring.flipped(self.axi), regs.axi)
 
@@ -215,7 +226,10 @@ class InsTrnTop(wiring.Component):
         ]
 
         # ------------------------------------------------------------ engines
-        seq = ResetInserter(engine_reset)(NavSequencer(self.image))
+        seq = NavSequencer(self.image, register_words={
+            n: regmap[r].offset >> 2 for n, r in SEQUENCER_REGISTER_OF.items()})
+        m.d.comb += [regs.fr_word.eq(seq.reg_word), seq.reg_data.eq(regs.fr_data)]
+        seq = ResetInserter(engine_reset)(seq)
         m.submodules.sequencer = seq
         raw = sensors.imu.payload
         for f in IMU_FIELDS:
@@ -240,18 +254,10 @@ class InsTrnTop(wiring.Component):
             regs.i_ENG_STATUS.eq(Cat(seq.busy, Signal(7), seq.propagations)),
             seq.trn_start.eq(_bits(regs.p_TRN_CTRL, "TRN_CTRL", "start")),
             seq.alt_start.eq(_bits(regs.p_ALT_CTRL, "ALT_CTRL", "start")),
-            seq.trn_y0.eq(regs.o_TRN_POS_N), seq.trn_y1.eq(regs.o_TRN_POS_E),
-            seq.trn_r00.eq(regs.o_TRN_COV_NN), seq.trn_r01.eq(regs.o_TRN_COV_NE),
-            seq.trn_r11.eq(regs.o_TRN_COV_EE), seq.trn_lag.eq(regs.o_TRN_LAG),
-            seq.trn_gate.eq(regs.o_TRN_GATE),
-            seq.alt_h_meas.eq(regs.o_ALT_MEAS), seq.alt_r.eq(regs.o_ALT_VAR),
-            seq.alt_gate.eq(regs.o_ALT_GATE),
             regs.i_TRN_STATUS.eq(seq.trn_status), regs.i_TRN_NIS.eq(seq.trn_nis),
             regs.i_ALT_STATUS.eq(seq.alt_status), regs.i_ALT_NIS.eq(seq.alt_nis),
         ]
         m.d.comb += seq.cal_apply.eq(_bits(regs.p_CAL_APPLY, "CAL_APPLY", "apply"))
-        for reg, word in CAL_REGISTER_OF.items():
-            m.d.comb += getattr(seq, word).eq(getattr(regs, f"o_{reg}"))
         shadow = {n: seq.shadow[k] for k, n in enumerate(SHADOW_WORDS)}
         for i in range(3):
             m.d.comb += [getattr(regs, f"i_BIAS_A{'XYZ'[i]}").eq(shadow[f"ba{i}"]),
