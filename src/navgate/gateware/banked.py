@@ -577,7 +577,12 @@ class BankedImage:
                     src = sources.index((s.unit, s.inst) if su != "misc" else ("misc", 0))
                     put(s.write, ("we", b), 1)
                     put(s.write, f.wa(b), dst & ((1 << lb) - 1))
-                    put(s.write, ("wsrc", b), src)
+                    # the write source one row early: the machine registers it, so that the
+                    # bank's write-data multiplexer is driven from a flip-flop rather than
+                    # from the microcode RAM's clock-to-out (a write is never in a program's
+                    # first cycle)
+                    assert s.write >= 1
+                    put(s.write - 1, ("wsrc", b), src)
             rom += rows
         return cls(units, misc_kinds, sources, sched, layout, base, rom, f)
 
@@ -780,7 +785,9 @@ class BankedMachine(wiring.Component):
         for b in range(nb):
             wp = wports[b]
             data = Signal(32, name=f"wdata{b}")
-            with m.Switch(fld("wsrc", b)):
+            wsrc = Signal(len(fld("wsrc", b)), name=f"wsrc{b}")
+            m.d.sync += wsrc.eq(fld("wsrc", b))  # the microcode holds it one row early
+            with m.Switch(wsrc):
                 for k, key in enumerate(img.sources):
                     with m.Case(k):
                         m.d.comb += data.eq(src_res[key])
