@@ -85,7 +85,7 @@ from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.cordic import CordicAtan2Iterative
-from navgate.gateware.fp32 import Fp32Add, Fp32FromInt, Fp32Mul
+from navgate.gateware.fp32 import Fp32Add, Fp32FromFixed, Fp32Mul
 from navgate.gateware.fp32.sqrt_iter import Fp32SqrtIter
 from navgate.numerics.cordic import cordic_error_bound, cordic_gain, cordic_vectoring
 from navgate.numerics.fp32 import (
@@ -444,10 +444,13 @@ class NavOutputFormatter(wiring.Component):
             m.submodules.mul = mul = Fp32Mul()
         m.submodules.cordic = cor = CordicAtan2Iterative(
             width=WIDTH, iterations=ITERATIONS, angle_bits=ANGLE_BITS, guard_bits=GUARD)
-        if self.shared_units:
+        if self.shared_units:  # the shared integer converter; pi scaled by 2^-31
             tof = unit_port(self, "cvt")
-        else:
-            m.submodules.tof = tof = Fp32FromInt(ANGLE_BITS)
+            pi_bits, two_pi_bits = PI_BITS_INT, TWO_PI_BITS_INT
+        else:  # its own fixed-point converter (with Fp32FromInt here, Yosys 0.70's abc9
+            # stops on an internal assertion while mapping the block alone)
+            m.submodules.tof = tof = Fp32FromFixed(width=ANGLE_BITS, frac_bits=ANGLE_BITS - 1)
+            pi_bits, two_pi_bits = PI_BITS, TWO_PI_BITS
         m.submodules.sqrt = sq = Fp32SqrtIter()
         m.d.comb += [add.o.ready.eq(1), cor.o.ready.eq(1), tof.o.ready.eq(1),
                      mul.o.ready.eq(1), sq.o.ready.eq(1)]
@@ -595,7 +598,7 @@ class NavOutputFormatter(wiring.Component):
             tof.i.payload.x.eq(wide[1:]),
             mul.i.valid.eq(tof.o.valid),
             mul.i.payload.a.eq(tof.o.payload.r),
-            mul.i.payload.b.eq(Mux(mr == 2, TWO_PI_BITS_INT, PI_BITS_INT)),
+            mul.i.payload.b.eq(Mux(mr == 2, two_pi_bits, pi_bits)),
         ]
         with m.If(tof.i.valid):
             m.d.sync += ci.eq(ci + 1)
