@@ -1,12 +1,17 @@
 """The navigation sequencer (ins_engines under job control) equals the fp32 engine bit for bit
 in Amaranth simulation: the PS's register loading through the window, IMU samples, an
 applied and a gate-rejected altitude update, an applied TRN update; every state register read
-back through the window, the shadow words, status, NIS, and the exact job cycles."""
+back through the window, the shadow words, status, NIS, and the exact job cycles. Both forms:
+the update and calibration inputs as ports, and read at their register words through
+``reg_word``/``reg_data`` as ins_trn_top builds it."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from amaranth import Module
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In
 from amaranth.sim import Simulator
 
 from navgate.systems.ins_trn import flight
@@ -30,12 +35,53 @@ def _bits(x) -> int:
     return int(np.float32(x).view(np.uint32))
 
 
-def test_sequencer_equals_fp32_engine(setup_and_words):
+class _RegisterFront(wiring.Component):
+    """The sequencer in the mode ``ins_trn_top`` builds (its ALT/TRN/CAL inputs read through
+    ``reg_word``/``reg_data`` from the register file, at the map's word addresses) behind the
+    ports of the plain one: a register file of those ports answers ``reg_word``."""
+
+    def __init__(self, image):
+        from navgate.systems.ins_trn.registers import register_map
+        from navgate.systems.ins_trn.top import SEQUENCER_REGISTER_OF
+
+        regmap = register_map()
+        self.words = {n: regmap[r].offset >> 2 for n, r in SEQUENCER_REGISTER_OF.items()}
+        self.inner = NavSequencer(image, register_words=self.words)
+        self.image, self.addr = image, self.inner.addr
+        members = {n: mb for n, mb in self.inner.signature.members.items()
+                   if n not in ("reg_word", "reg_data")}
+        members.update({n: In(32) for n in self.words})
+        super().__init__(members)
+
+    def elaborate(self, platform):
+        m = Module()
+        m.submodules.inner = inner = self.inner
+        for name, member in inner.signature.members.items():
+            if name in ("reg_word", "reg_data"):
+                continue
+            if not member.is_port:
+                wiring.connect(m, wiring.flipped(getattr(self, name)), getattr(inner, name))
+            elif member.flow == In:
+                m.d.comb += getattr(inner, name).eq(getattr(self, name))
+            else:
+                m.d.comb += getattr(self, name).eq(getattr(inner, name))
+        with m.Switch(inner.reg_word):
+            for name, word in self.words.items():
+                with m.Case(word):
+                    m.d.comb += inner.reg_data.eq(getattr(self, name))
+        return m
+
+
+@pytest.mark.parametrize("through_registers", [True, False])
+def test_sequencer_equals_fp32_engine(setup_and_words, through_registers):
+    """``through_registers``: as ins_trn_top builds it (the inputs read at their register
+    words); otherwise one port per input."""
     setup, gw, aw = setup_and_words
     model = Fp32Engine(setup)
     m = model.m
-    dut = NavSequencer(__import__("navgate.systems.ins_trn.engines",
-                                  fromlist=["engine_image"]).engine_image("ins_engines"))
+    image = __import__("navgate.systems.ins_trn.engines",
+                       fromlist=["engine_image"]).engine_image("ins_engines")
+    dut = _RegisterFront(image) if through_registers else NavSequencer(image)
     addr = dut.addr
     loads = [(a, float_to_bits(m.regs[m.index[n]]) if n in m.index else 0)
              for n, a in addr.items() if not n.startswith("c:") and n not in CAL_REGS]
