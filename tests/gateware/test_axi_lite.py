@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from amaranth.sim import Simulator
 
-from navgate.gateware.axi_lite import AxiLiteRegisterBank
+from navgate.gateware.axi_lite import AxiLiteRegisterBank, sim_response, sim_write
 from navgate.hw.regmap import OKAY, SLVERR, RegisterFileModel, load_rdl
 
 RDL = (Path(__file__).resolve().parents[2] / "src" / "navgate" / "systems" / "ins_trn"
@@ -74,12 +74,7 @@ def run_random_transactions(regmap, n, seed):
                         await _wait_handshake(ctx, axi.wvalid, axi.wready)
                 for _ in range(rng.randrange(4)):
                     await ctx.tick()
-                ctx.set(axi.bready, 1)
-                while True:
-                    _, _, bvalid, bresp = await ctx.tick().sample(axi.bvalid, axi.bresp)
-                    if bvalid:
-                        break
-                ctx.set(axi.bready, 0)
+                bresp = await sim_response(ctx, axi)
                 # the write strobe, if any, is visible one cycle after the write
                 expect = model.write(offset & ~3, data, strb)
                 log["writes"] += 1
@@ -217,21 +212,7 @@ def test_reset_after_writes_reads_the_reset_values(regmap):
                                       model.read(reg.offset)[0]))
 
     async def write(ctx, offset, data, strb=0xF):
-        ctx.set(axi.awaddr, offset)
-        ctx.set(axi.wdata, data)
-        ctx.set(axi.wstrb, strb)
-        ctx.set(axi.awvalid, 1)
-        ctx.set(axi.wvalid, 1)
-        await ctx.tick()
-        ctx.set(axi.awvalid, 0)
-        ctx.set(axi.wvalid, 0)
-        ctx.set(axi.bready, 1)
-        while True:
-            _, _, bvalid, bresp = await ctx.tick().sample(axi.bvalid, axi.bresp)
-            if bvalid:
-                break
-        ctx.set(axi.bready, 0)
-        return bresp
+        return await sim_write(ctx, axi, offset, data, strb)
 
     async def read(ctx, offset):
         ctx.set(axi.araddr, offset)

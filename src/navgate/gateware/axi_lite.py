@@ -415,3 +415,30 @@ def mux_tree(sel, leaves: dict, nbits: int, step: int = 2):
         return 0
     (leaf,) = entries.values()
     return leaf
+
+
+async def sim_response(ctx, axi) -> int:
+    """Amaranth testbench, master side of ``axi``: take the next B response (BREADY high until
+    BVALID is sampled); its BRESP."""
+    ctx.set(axi.bready, 1)
+    while True:
+        _, _, bvalid, bresp = await ctx.tick().sample(axi.bvalid, axi.bresp)
+        if bvalid:
+            break
+    ctx.set(axi.bready, 0)
+    return bresp
+
+
+async def sim_write(ctx, axi, offset: int, data: int, strb: int = 0xF) -> int:
+    """Amaranth testbench, master side of ``axi``: one write with AW and W in the same cycle
+    (a slave that takes both at once, as :class:`AxiLiteRegisterBank` does), then its B
+    response; BRESP."""
+    ctx.set(axi.awaddr, offset)
+    ctx.set(axi.wdata, data)
+    ctx.set(axi.wstrb, strb)
+    ctx.set(axi.awvalid, 1)
+    ctx.set(axi.wvalid, 1)
+    await ctx.tick()
+    ctx.set(axi.awvalid, 0)
+    ctx.set(axi.wvalid, 0)
+    return await sim_response(ctx, axi)

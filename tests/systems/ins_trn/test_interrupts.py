@@ -6,7 +6,7 @@ from __future__ import annotations
 from amaranth import Module
 from amaranth.sim import Simulator
 
-from navgate.gateware.axi_lite import AxiLiteRegisterBank
+from navgate.gateware.axi_lite import AxiLiteRegisterBank, sim_write
 from navgate.systems.ins_trn.interrupts import InterruptGenerator
 from navgate.systems.ins_trn.registers import register_map
 
@@ -23,18 +23,7 @@ def test_interrupt_line_follows_pending_and_enabled_bits():
     seen = {}
 
     async def write(ctx, offset, value):
-        ctx.set(axi.awaddr, offset)
-        ctx.set(axi.wdata, value)
-        ctx.set(axi.wstrb, 0xF)
-        ctx.set(axi.awvalid, 1)
-        ctx.set(axi.wvalid, 1)
-        await ctx.tick()
-        ctx.set(axi.awvalid, 0)
-        ctx.set(axi.wvalid, 0)
-        ctx.set(axi.bready, 1)
-        while not (await ctx.tick().sample(axi.bvalid))[2]:
-            pass
-        ctx.set(axi.bready, 0)
+        await sim_write(ctx, axi, offset, value)
 
     async def read(ctx, offset, event_now=False):
         ctx.set(axi.araddr, offset)
