@@ -185,16 +185,51 @@ def _check_ports(img):
         for k, v in reads.items():
             if u.shared(k[1]):
                 assert len(v) + writes.get(k, 0) <= 2, (key, k)
+        port_words: dict = {}
         for s in sp.ops:
             slot = u.slot_of(s.unit if s.unit in ("mul", "add") else "misc", s.inst)
             row = base + s.issue
             for j, (name, _) in enumerate(s.srcs):
                 sel = _field(img, row, ("sel", slot, j))
-                b, port = divmod(sel, u.read_ports)
+                if u.split_ports:  # operand port j reads read port j of bank ``sel``
+                    b, port = sel, j
+                    port_words.setdefault((s.issue, b, port), set()).add(addr[name])
+                else:
+                    b, port = divmod(sel, u.read_ports)
                 assert addr[name] >> lb == b
                 assert _field(img, row, ("ra", b, port)) == addr[name] & ((1 << lb) - 1)
                 if u.shared(b) and port == 0:
                     assert _field(img, row, ("we", b)) == 0, (key, s.issue, b)
+        assert all(len(v) == 1 for v in port_words.values())  # one word per split port
+
+
+def test_split_ports_swap_commutative_ops():
+    # a in bank 0, b and c in bank 1. t0 = a * b takes port 0 of bank 0 (a) and port 1 of
+    # bank 1 (b). Split ports: a * c cannot read c on port 1 of bank 1 in cycle 0, but
+    # swapped (c on port 0, a on port 1) it issues with t0; a / c cannot swap and waits a
+    # cycle; a - c issues in cycle 0 as (-c) + a. Shared ports: all in cycle 0.
+    bank = {"a": 0, "b": 1, "c": 1}
+    for kind, cycle in (("mul", 0), ("sub", 0), ("div", 1)):
+        p = Prog("w", [Op("t0", "mul", ("a", "b")), Op("t1", kind, ("a", "c"))],
+                 outputs={"o0": "t0", "o1": "t1"})
+        sp = schedule_banked(p, BankedUnits(mul=2, add=1, split_ports=True), bank)
+        t1 = next(s for s in sp.ops if s.dst == "t1")
+        assert t1.issue == cycle, kind
+        if kind == "mul":
+            assert t1.srcs == (("c", False), ("a", False))
+        if kind == "sub":
+            assert (t1.kind, t1.srcs) == ("add", (("c", True), ("a", False)))
+        if kind == "div":
+            assert (t1.kind, t1.srcs) == ("div", (("a", False), ("c", False)))
+        sp = schedule_banked(p, BankedUnits(mul=2, add=1), bank)
+        assert [s.issue for s in sp.ops if s.dst in ("t0", "t1")] == [0, 0]
+    # the same word on both ports of one op, and a third op sharing both ports
+    p = Prog("q", [Op("t0", "mul", ("b", "b")), Op("t1", "mul", ("b", "b")),
+                   Op("t2", "mul", ("c", "b"))], outputs={f"o{i}": f"t{i}" for i in range(3)})
+    sp = schedule_banked(p, BankedUnits(mul=3, add=1, split_ports=True), bank)
+    assert sorted(s.issue for s in sp.ops) == [0, 0, 1]
+    with pytest.raises(ScheduleError):
+        schedule_banked(p, BankedUnits(split_ports=True, shared_write_port=True), bank)
 
 
 def test_shared_write_port_limits():
@@ -224,7 +259,7 @@ def test_shared_write_port_limits():
         schedule_banked(p, BankedUnits(read_ports=3, shared_write_port=True), bank)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5])
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4, 5, 6, 7])
 def test_random_program_bit_exact_amaranth(seed):
     rng = np.random.default_rng(seed)
     prog, regs = _random_program(rng, n_ops=160)
@@ -236,12 +271,18 @@ def test_random_program_bit_exact_amaranth(seed):
             words[r] = int(np.float32(rng.normal() * 2.0 ** rng.integers(-20, 20))
                            .view(np.uint32))
     # seeds 4 and 5: true-dual-port banks (shared write port / read port 0), all banks or
-    # two of them
+    # two of them; seeds 6 and 7: split read ports (swapped commutative ops)
     units = BankedUnits(mul=2, add=2, read_ports=2 + (seed % 2 if seed < 4 else 0),
-                        misc_bank=seed not in (3, 5), iterative=seed in (3, 5),
-                        shared_write_port={4: True, 5: (0, 2)}.get(seed, False))
+                        misc_bank=seed not in (3, 5, 7), iterative=seed in (3, 5, 7),
+                        shared_write_port={4: True, 5: (0, 2)}.get(seed, False),
+                        split_ports=seed >= 6)
     img = BankedImage.build({"rand": prog}, units, regs)
     _check_ports(img)
+    if units.split_ports:  # some sources were swapped (a sub became an add)
+        kinds = {op.dst: op.kind for op in prog.ops}
+        swapped = [s for s in img.programs["rand"].ops if s.kind != "mov"
+                   and (s.kind != kinds[s.dst] or s.srcs[0][0] != _src0(prog, s.dst))]
+        assert swapped
     init = {img.layout.fixed[r]: w for r, w in words.items()}
     dut = img.machine(init)
     exp_regs, exp_out = _reference(prog, words)
@@ -271,6 +312,15 @@ def test_random_program_bit_exact_amaranth(seed):
     assert {k: got["out:" + k] for k in exp_out} == exp_out
 
 
+def _src0(prog, dst):
+    """The first source of ``dst``'s op, through negs (as the scheduler folds them)."""
+    ops = {op.dst: op for op in prog.ops}
+    name = ops[dst].srcs[0]
+    while name in ops and ops[name].kind == "neg":
+        name = ops[name].srcs[0]
+    return name
+
+
 def test_engine_image_respects_ports():
     from navgate.systems.ins_trn.engines import engine_image
 
@@ -282,16 +332,17 @@ def test_engine_image_shared_write_port_respects_ports():
 
     from navgate.systems.ins_trn.engines import ENGINE_UNITS, engine_image
 
-    img = engine_image("ins_engines", replace(ENGINE_UNITS, shared_write_port=True))
+    base = replace(ENGINE_UNITS, split_ports=False)  # operand ports not split (§7's runs)
+    img = engine_image("ins_engines", replace(base, shared_write_port=True))
     _check_ports(img)
     # one address field per bank fewer: 8 banks x 8 bits
-    assert img.fields.width == engine_image("ins_engines").fields.width - 8 * 8
+    assert img.fields.width == engine_image("ins_engines", base).fields.width - 8 * 8
     # exact cycles (docs/seed000-engines.md §7): every bank true-dual-port is port-bound
     # (2-D update 143 + 1 + 439 + 1 = 584 > 450); bank 0 alone keeps it at 444
     assert {k: img.cycles(k) for k in img.programs} == {
         "propagate": 732, "alt_gate": 55, "alt_apply": 265, "trn_gate": 143,
         "trn_apply": 439}
-    one = engine_image("ins_engines", replace(ENGINE_UNITS, shared_write_port=(0,)))
+    one = engine_image("ins_engines", replace(base, shared_write_port=(0,)))
     _check_ports(one)
     assert {k: one.cycles(k) for k in one.programs} == {
         "propagate": 642, "alt_gate": 55, "alt_apply": 246, "trn_gate": 142,

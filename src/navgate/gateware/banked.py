@@ -47,6 +47,16 @@ Machine
   writes cannot starve it. On xc7 a 32-bit true-dual-port bank is one RAMB36E1 (a RAMB18E1
   has 18-bit ports in that mode), the same block RAM as two simple-dual-port RAMB18E1: the
   saving is the narrower microcode (docs/seed000-engines.md §7).
+* Split read ports (``BankedUnits(split_ports=True)``, two ports): operand port ``j`` of
+  every slot reads read port ``j`` of some bank, so an operand multiplexer has one input per
+  bank (8 rather than 16 with 4 + 4 slots: on xc7 3 LUTs a bit rather than 5) and its
+  select field is a bank number. Per bank per cycle then: one word on each read port (an
+  op may share a port with another op that reads the same word there). A commutative op
+  whose sources do not fit in their order may take them swapped: ``x * y = y * x`` and
+  ``x + y = y + x`` exactly (the result is the exact sum or product correctly rounded, and
+  every NaN result is the canonical one), and ``x - y`` becomes ``(-y) + x`` (the flip bit
+  of the operand); of two orders that fit, the one sharing more ports already read that
+  cycle. Div, compare, convert and mov read their first source on port 0, as given.
 
 Programs and commit rules are those of :mod:`navgate.gateware.scheduled` (SSA ops, commit
 map read at program start, outputs): a committed temporary placed in its register's bank and
@@ -122,6 +132,11 @@ class BankedUnits:
     #: write address). One address field per bank fewer in the microcode. Needs
     #: ``read_ports == 2``. ``True``: every bank; a tuple of bank numbers: those banks.
     shared_write_port: bool | tuple = False
+    #: operand port ``j`` of every slot reads read port ``j`` of a bank (``read_ports == 2``):
+    #: each operand multiplexer has one input per bank (8 instead of 16 with 4 + 4 slots).
+    #: Per bank per cycle: one word on each read port; the scheduler swaps the operands of
+    #: a commutative op (mul, add; a sub becomes an add of the negated subtrahend) to fit.
+    split_ports: bool = False
 
     def shared(self, bank: int) -> bool:
         """Bank ``bank`` has a shared port A (write port = read port 0)."""
@@ -178,6 +193,20 @@ def _ready(s: SOp) -> int:
     return s.issue + s.lat + OVERHEAD
 
 
+#: kinds whose sources the split-port scheduler may swap (a sub as an add, :func:`_swap_sources`)
+COMMUTATIVE = ("mul", "add", "sub")
+
+
+def _swap_sources(s) -> None:
+    """Swap the two sources of a commutative op in place: x*y = y*x and x+y = y+x exactly
+    (correct rounding of the exact result, canonical NaN); x - y becomes (-y) + x."""
+    (x, fx), (y, fy) = s.srcs
+    if s.kind == "sub":
+        s.kind = "add"
+        fy = not fy
+    s.srcs = ((y, fy), (x, fx))
+
+
 def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram:
     """List-schedule ``prog`` with bank constraints. ``bank_of``: persistent register ->
     bank. Every op gets ``issue``, ``inst`` (slot instance) and ``bank`` (of its result,
@@ -188,6 +217,9 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
     shared = units.shared
     if any(shared(b) for b in range(units.banks)) and units.read_ports != 2:
         raise ScheduleError("shared_write_port (true-dual-port banks) needs read_ports == 2")
+    split = units.split_ports
+    if split and (units.read_ports != 2 or any(shared(b) for b in range(units.banks))):
+        raise ScheduleError("split_ports needs read_ports == 2 and no shared write port")
     ops = [BSOp(s.index, s.dst, s.kind, s.srcs) for s in _fold_negs(prog)]
     producer = {s.dst: s for s in ops}
     for s in ops:
@@ -211,6 +243,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
     npred = {s.index: len({n for n, _ in s.srcs if n in producer}) for s in ops}
     bank = {}  # value name -> bank (temporaries, as placed)
     reads: dict = {}  # (cycle, bank) -> set of names
+    port_reads: dict = {}  # split ports: (cycle, bank, port) -> name
     writes: set = set()  # (cycle, bank)
     issued: set = set()  # (cycle, slot)
     pending = []
@@ -271,6 +304,28 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
         for n in names:
             reads.setdefault((c, bank_of_name(n)), set()).add(n)
 
+    def orient(c, s):
+        # split ports: source j on read port j of its bank (the port free or carrying the
+        # same word); a commutative op may take its sources swapped. None: no fit.
+        names = [n for n, _ in s.srcs]
+        orders = [names]
+        if s.kind in COMMUTATIVE and len(names) == 2 and names[0] != names[1]:
+            orders.append(names[::-1])
+        fit = [order for order in orders
+               if all(port_reads.get((c, bank_of_name(n), j), n) == n
+                      for j, n in enumerate(order))]
+        if not fit:
+            return None
+        # the order that shares the most ports already read this cycle (the given order
+        # on a tie): it leaves the most ports free for the ops still to be placed
+        fit.sort(key=lambda o: -sum(port_reads.get((c, bank_of_name(n), j)) == n
+                                    for j, n in enumerate(o)))
+        return fit[0] != names
+
+    def take_ports(c, s):
+        for j, (n, _) in enumerate(s.srcs):
+            port_reads[(c, bank_of_name(n), j)] = n
+
     placed = 0
     c = 0
     while placed < len(ops):
@@ -310,7 +365,11 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                         if write_free(w, b):
                             target = b
                             break
-                fits = reads_fit(c, names)
+                if split:
+                    swap = orient(c, s)
+                    fits = swap is not None
+                else:
+                    fits = reads_fit(c, names)
                 # the misc cores share one result bus into the banks: one result per cycle
                 misc_busy = su == "misc" and ((w, "misc") in writes
                                               or c < core_free.get(s.unit, 0))
@@ -321,6 +380,10 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                             reserved[i] = r
                     skipped.append((h, i))
                     continue
+                if split:
+                    if swap:
+                        _swap_sources(s)
+                    take_ports(c, s)
                 take_reads(c, names)
                 s.issue, s.inst = c, (inst if su != "misc" else 0)
                 issued.add((c, units.slot_of(su, inst)))
@@ -367,12 +430,15 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
         while ((c, misc_slot) in issued
                or not write_free(c + OPERAND_STAGES + lat_mov, bank_of[reg])
                or (c + OPERAND_STAGES + lat_mov, "misc") in writes
-               or not reads_fit(c, [tmp])):
+               or not (port_reads.get((c, bank_of_name(tmp), 0), tmp) == tmp if split
+                       else reads_fit(c, [tmp]))):
             c += 1
         issued.add((c, misc_slot))
         writes.add((c + OPERAND_STAGES + lat_mov, bank_of[reg]))
         writes.add((c + OPERAND_STAGES + lat_mov, "misc"))
         take_reads(c, [tmp])
+        if split:
+            port_reads[(c, bank_of_name(tmp), 0)] = tmp
         s = BSOp(len(ops), reg, "mov", ((tmp, False),), "mov", 0, c)
         s.lat = lat_mov
         s.bank = bank_of[reg]
@@ -466,7 +532,8 @@ class _BankedFields:
         self.pos: dict = {}
         off = 0
         nb = units.banks
-        self.sel_bits = max(1, (nb * units.read_ports - 1).bit_length())
+        ports = 1 if units.split_ports else units.read_ports  # per bank, to one operand
+        self.sel_bits = max(1, (nb * ports - 1).bit_length())
         self.src_bits = max(1, (n_sources - 1).bit_length())
         self.kind_bits = max(1, (len(misc_kinds) - 1).bit_length())
 
@@ -559,6 +626,11 @@ class BankedImage:
                     put(s.issue, ("kind",), misc_kinds.index(s.unit))
                 for j, (name, flip) in enumerate(s.srcs):
                     b, a = addr[name] >> lb, addr[name] & ((1 << lb) - 1)
+                    if units.split_ports:  # source j on read port j (the scheduler's rule)
+                        put(s.issue, ("ra", b, j), a)
+                        put(s.issue, ("sel", slot, j), b)
+                        put(s.issue, ("flip", slot, j), int(flip))
+                        continue
                     used_ports = ports.setdefault((s.issue, b), {})
                     if a not in used_ports:
                         used_ports[a] = len(used_ports)
@@ -720,8 +792,9 @@ class BankedMachine(wiring.Component):
             sel = late(fld("sel", slot, j), f"sel{slot}_{j}")
             flip = late(fld("flip", slot, j), f"flip{slot}_{j}")
             v = Signal(32, name=f"op{slot}_{j}")
+            inputs = [ports[j] for ports in rdata] if u.split_ports else flat_ports
             with m.Switch(sel):
-                for k, d in enumerate(flat_ports):
+                for k, d in enumerate(inputs):
                     with m.Case(k):
                         m.d.comb += v.eq(d)
             out = Signal(32, name=f"opr{slot}_{j}")

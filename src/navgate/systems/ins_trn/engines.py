@@ -33,9 +33,11 @@ __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePr
 
 #: issue slots and banks of the engines (counts chosen against the 2-D update's cycle
 #: target); the misc slot (div, sqrt, compare, convert, mov) writes into the eight mul/add
-#: banks, so that every operand multiplexer has 16 inputs; iterative divider and square root
-#: (docs/seed000-engines.md)
-ENGINE_UNITS = BankedUnits(mul=4, add=4, read_ports=2, misc_bank=False, iterative=True)
+#: banks; split read ports: operand port j of every slot reads read port j of a bank, so
+#: that every operand multiplexer has 8 inputs (16 with either port); iterative divider and
+#: square root (docs/seed000-engines.md)
+ENGINE_UNITS = BankedUnits(mul=4, add=4, read_ports=2, misc_bank=False, iterative=True,
+                           split_ports=True)
 #: the programs each block runs
 PROGRAM_SETS = {
     "ins_engines": ("propagate", "alt_gate", "alt_apply", "trn_gate", "trn_apply"),

@@ -36,8 +36,8 @@ the biases and the 15 variances of P as stored) are read back after every job th
 them and feed the output registers (through the output formatter) in the same order.
 
 Timing (cycles of ``sync``, exact, :func:`job_cycles`): an IMU sample takes 1 + 6 + 1 +
-(668 + 1) + 32 + 1 = 710 cycles from its handshake to ``update``; an altitude update 338
-(67 when rejected), a TRN update 491 (158), CAL_APPLY 29.
+(654 + 1) + 32 + 1 = 696 cycles from its handshake to ``update``; an altitude update 348
+(67 when rejected), a TRN update 498 (158), CAL_APPLY 29.
 """
 
 from __future__ import annotations
