@@ -42,7 +42,8 @@ def main():
     print(f"{'shared banks':12s} {'propagate':>9s} {'alt g+a':>9s} {'trn g+a':>9s} "
           f"{'1-D':>5s} {'2-D':>5s} {'rom rows x bits':>16s} {'kbit':>6s}  bank words")
     for name, sw in cfg.items():
-        img = engine_image("ins_engines", replace(ENGINE_UNITS, split_ports=False, shared_write_port=sw))
+        img = engine_image("ins_engines",
+                           replace(ENGINE_UNITS, split_ports=False, shared_write_port=sw))
         c = {k: img.cycles(k) for k in img.programs}
         one_d = c["alt_gate"] + c["alt_apply"] + 2
         two_d = c["trn_gate"] + c["trn_apply"] + 2
