@@ -204,7 +204,8 @@ def test_ins_engines_true_dual_port_banks_bit_exact_verilator():
 
     from navgate.systems.ins_trn.engines import ENGINE_UNITS
 
-    img = engine_image("ins_engines", replace(ENGINE_UNITS, shared_write_port=True))
+    img = engine_image("ins_engines", replace(ENGINE_UNITS, split_ports=False,
+                                              shared_write_port=True))
     cycles, keys = _verilator_run(img, 6, "ins_engines_tdp")
     assert cycles == [img.cycles(k) + 1 for k in keys]
     assert img.cycles("trn_apply") > CYCLES["trn_apply"]  # port-bound (§7)
