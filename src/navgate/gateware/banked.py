@@ -641,8 +641,8 @@ class BankedImage:
                 if s.kind == "sub":
                     off, _ = f.pos[("mod", "add")]
                     rows[s.issue] |= 1 << (off + s.inst)
-                if s.kind == "le":
-                    put(s.write, ("wmod",), 1)
+                if s.kind == "le":  # one row early, registered like the write source
+                    put(s.write - 1, ("wmod",), 1)
                 dst = layout.fixed[s.dst] if s.kind == "mov" else addr.get(s.dst)
                 if dst is not None:
                     b = dst >> lb
@@ -846,7 +846,11 @@ class BankedMachine(wiring.Component):
                         if name == "cmp":
                             o = core.o.payload
                             res = Signal(32, name="cmp_res")
-                            m.d.comb += res.eq(Mux(o.lt | (fld("wmod") & o.equal), ONE_BITS, 0))
+                            # the le bit, held one row early in the microcode: a
+                            # flip-flop, not the ROM's clock-to-out, before the bus
+                            le = Signal(name="cmp_le")
+                            m.d.sync += le.eq(fld("wmod"))
+                            m.d.comb += res.eq(Mux(o.lt | (le & o.equal), ONE_BITS, 0))
                         else:
                             res = core.o.payload.r
                         res_valid = core.o.valid
