@@ -1,10 +1,12 @@
-"""One float32 adder and one float32 multiplier shared by two blocks of ``ins_trn_top``.
+"""One float32 adder, multiplier and int -> float32 converter shared by two blocks of
+``ins_trn_top``.
 
 The output formatter (``nav_output_formatter``: REF_ALT - h, the quaternion conversions, the
 sigmas' sums, the angles times pi) and the barometer compensation (``baro_compensation``: the
 BMP390 formulas in float32) each need an adder and a multiplier for about a hundred cycles
-per sample, at 400 Hz and 25 Hz. Built with ``shared_units=True``, each block has ports to an
-adder and a multiplier instead of its own (:func:`unit_members`, :func:`unit_port`); the top
+per sample, at 400 Hz and 25 Hz. Built with ``shared_units=True``, each block has ports to
+the units instead of its own (:func:`unit_members`, :func:`unit_port`, and
+:func:`forward_units` through a block that contains the user); the top
 (:func:`share_units`) gives the units to one block at a time, for a whole vector: a block
 that has work waits until the other is idle (at most its ~500 or ~106 cycles). Results do not
 change, only when they appear. This saves one ``Fp32Add``, one ``Fp32Mul`` (and its two
@@ -16,14 +18,15 @@ from __future__ import annotations
 from functools import partial
 from types import SimpleNamespace
 
-from amaranth import Mux
+from amaranth import Mux, Signal
 from amaranth.hdl import signed, unsigned
-from amaranth.lib import data, stream
+from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32FromInt, Fp32Mul
 
-__all__ = ["SHARED_CORES", "unit_members", "unit_port", "share_units", "arbitrate"]
+__all__ = ["SHARED_CORES", "unit_members", "unit_port", "forward_units", "share_units",
+           "arbitrate"]
 
 #: the shared units: port name -> (core, input layout, output layout) (the formatter
 #: converts its angles as integers, output_formatter.PI_BITS_INT)
@@ -50,6 +53,16 @@ def unit_port(component, name: str, prefix: str = ""):
     """An object with ``i`` and ``o`` like the core's own, made of the block's ports."""
     return SimpleNamespace(i=getattr(component, f"{prefix}{name}_i"),
                            o=getattr(component, f"{prefix}{name}_o"))
+
+
+def forward_units(m, inner, outer, prefix: str = ""):
+    """Connect the unit ports of ``inner`` (a submodule built with shared units) to the same
+    ports of ``outer`` (the component that contains it), named ``<prefix>add_i`` ... there."""
+    for name in SHARED_CORES:
+        wiring.connect(m, getattr(inner, f"{name}_i"),
+                       wiring.flipped(getattr(outer, f"{prefix}{name}_i")))
+        wiring.connect(m, wiring.flipped(getattr(outer, f"{prefix}{name}_o")),
+                       getattr(inner, f"{name}_o"))
 
 
 def share_units(m, first: dict, second: dict, second_owns):
@@ -84,8 +97,6 @@ def arbitrate(m, first_ready, first_request, second_busy):
     that lets the second take an input. A grant lasts while the second is busy, so a vector
     it has started is never interrupted; the first block starts only while the second is
     idle; when both want to start in the same cycle, the first wins."""
-    from amaranth import Signal
-
     first_valid, second_grant = Signal(), Signal()
     m.d.comb += [first_valid.eq(first_request & ~second_busy),
                  second_grant.eq(second_busy | (first_ready & ~first_request))]

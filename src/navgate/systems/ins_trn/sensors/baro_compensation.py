@@ -20,7 +20,7 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.devices import bmp390
 
-from ..shared_units import SHARED_CORES, unit_members
+from ..shared_units import forward_units, unit_members
 from .fp32_engine import Fp32Engine, Program
 
 IN_LAYOUT = data.StructLayout({"up": unsigned(24), "ut": unsigned(24),
@@ -58,11 +58,7 @@ class BaroCompensation(wiring.Component):
         if self.shared_units:
             m.d.comb += [eng.i.valid.eq(self.i.valid & self.grant),
                          self.i.ready.eq(eng.i.ready & self.grant), self.busy.eq(eng.busy)]
-            for unit in SHARED_CORES:
-                wiring.connect(m, getattr(eng, f"{unit}_i"),
-                               wiring.flipped(getattr(self, f"{unit}_i")))
-                wiring.connect(m, wiring.flipped(getattr(self, f"{unit}_o")),
-                               getattr(eng, f"{unit}_o"))
+            forward_units(m, eng, self)
         else:
             m.d.comb += [eng.i.valid.eq(self.i.valid), self.i.ready.eq(eng.i.ready)]
         return m

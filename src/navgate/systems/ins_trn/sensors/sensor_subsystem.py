@@ -37,7 +37,7 @@ from amaranth.hdl import Cat, Module, Signal, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from ..shared_units import SHARED_CORES, unit_members
+from ..shared_units import forward_units, unit_members
 from .baro_compensation import OUT_LAYOUT as BARO_LAYOUT
 from .baro_compensation import BaroCompensation
 from .imu_calibration import IN_FIELDS, ImuCalibrationBlock
@@ -100,11 +100,7 @@ class SensorSubsystem(wiring.Component):
         m.submodules.baro_comp = comp = BaroCompensation(shared_units=self.shared_baro_units)
         if self.shared_baro_units:
             m.d.comb += [comp.grant.eq(self.baro_grant), self.baro_busy.eq(comp.busy)]
-            for unit in SHARED_CORES:
-                wiring.connect(m, getattr(comp, f"{unit}_i"),
-                               wiring.flipped(getattr(self, f"baro_{unit}_i")))
-                wiring.connect(m, wiring.flipped(getattr(self, f"baro_{unit}_o")),
-                               getattr(comp, f"{unit}_o"))
+            forward_units(m, comp, self, "baro_")
         m.submodules.lidar_if = lidar = UartRxLidar(timeout_bits=self.lidar_timeout_bits)
 
         m.d.comb += [
