@@ -304,16 +304,19 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
         for n in names:
             reads.setdefault((c, bank_of_name(n)), set()).add(n)
 
+    def ports_fit(c, order):
+        # split ports: source j on read port j of its bank, free or carrying the same word
+        return all(port_reads.get((c, bank_of_name(n), j), n) == n
+                   for j, n in enumerate(order))
+
     def orient(c, s):
-        # split ports: source j on read port j of its bank (the port free or carrying the
-        # same word); a commutative op may take its sources swapped. None: no fit.
+        # split ports: whether the op takes its sources swapped to fit (a commutative op
+        # may); None: no order fits
         names = [n for n, _ in s.srcs]
         orders = [names]
         if s.kind in COMMUTATIVE and len(names) == 2 and names[0] != names[1]:
             orders.append(names[::-1])
-        fit = [order for order in orders
-               if all(port_reads.get((c, bank_of_name(n), j), n) == n
-                      for j, n in enumerate(order))]
+        fit = [order for order in orders if ports_fit(c, order)]
         if not fit:
             return None
         # the order that shares the most ports already read this cycle (the given order
@@ -322,8 +325,8 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                                     for j, n in enumerate(o)))
         return fit[0] != names
 
-    def take_ports(c, s):
-        for j, (n, _) in enumerate(s.srcs):
+    def take_ports(c, names):
+        for j, n in enumerate(names):
             port_reads[(c, bank_of_name(n), j)] = n
 
     placed = 0
@@ -383,7 +386,7 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
                 if split:
                     if swap:
                         _swap_sources(s)
-                    take_ports(c, s)
+                    take_ports(c, [n for n, _ in s.srcs])
                 take_reads(c, names)
                 s.issue, s.inst = c, (inst if su != "misc" else 0)
                 issued.add((c, units.slot_of(su, inst)))
@@ -430,15 +433,14 @@ def schedule_banked(prog, units: BankedUnits, bank_of: dict) -> ScheduledProgram
         while ((c, misc_slot) in issued
                or not write_free(c + OPERAND_STAGES + lat_mov, bank_of[reg])
                or (c + OPERAND_STAGES + lat_mov, "misc") in writes
-               or not (port_reads.get((c, bank_of_name(tmp), 0), tmp) == tmp if split
-                       else reads_fit(c, [tmp]))):
+               or not (ports_fit(c, [tmp]) if split else reads_fit(c, [tmp]))):
             c += 1
         issued.add((c, misc_slot))
         writes.add((c + OPERAND_STAGES + lat_mov, bank_of[reg]))
         writes.add((c + OPERAND_STAGES + lat_mov, "misc"))
         take_reads(c, [tmp])
         if split:
-            port_reads[(c, bank_of_name(tmp), 0)] = tmp
+            take_ports(c, [tmp])
         s = BSOp(len(ops), reg, "mov", ((tmp, False),), "mov", 0, c)
         s.lat = lat_mov
         s.bank = bank_of[reg]
@@ -641,7 +643,12 @@ class BankedImage:
                 if s.kind == "sub":
                     off, _ = f.pos[("mod", "add")]
                     rows[s.issue] |= 1 << (off + s.inst)
-                if s.kind == "le":  # one row early, registered like the write source
+                # the write source and the compare's le bit are held one row early: the
+                # machine registers them, so that the bank's write-data multiplexer and the
+                # misc result bus start from flip-flops rather than from the microcode RAM's
+                # clock-to-out (a write is never in a program's first cycle)
+                assert s.write >= 1
+                if s.kind == "le":
                     put(s.write - 1, ("wmod",), 1)
                 dst = layout.fixed[s.dst] if s.kind == "mov" else addr.get(s.dst)
                 if dst is not None:
@@ -649,11 +656,6 @@ class BankedImage:
                     src = sources.index((s.unit, s.inst) if su != "misc" else ("misc", 0))
                     put(s.write, ("we", b), 1)
                     put(s.write, f.wa(b), dst & ((1 << lb) - 1))
-                    # the write source one row early: the machine registers it, so that the
-                    # bank's write-data multiplexer is driven from a flip-flop rather than
-                    # from the microcode RAM's clock-to-out (a write is never in a program's
-                    # first cycle)
-                    assert s.write >= 1
                     put(s.write - 1, ("wsrc", b), src)
             rom += rows
         return cls(units, misc_kinds, sources, sched, layout, base, rom, f)
