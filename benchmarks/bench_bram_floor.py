@@ -52,7 +52,8 @@ def critical_path(sp) -> int:
     end = 0
     for s in sorted(sp.ops, key=lambda s: s.issue):
         start = max([ready.get(n, 0) for n, _ in s.srcs], default=0)
-        ready[s.dst] = start + s.lat + OVERHEAD
+        if s.kind != "mov":  # a mov's destination is a register: ops read its old value
+            ready[s.dst] = start + s.lat + OVERHEAD
         end = max(end, start + OPERAND_STAGES + s.lat + 1)
     return end
 
