@@ -1,23 +1,30 @@
-"""Block RAM floors of seed 000's ``ins_engines`` (issue 10: at most 4 BRAM36; issue 12: the
-whole ``ins_trn_top`` at most 11), computed from the engines' own image
-(:func:`navgate.systems.ins_trn.engines.engine_image`): how much block RAM any machine needs
-that runs the fp32 engine's op programs from a straight-line schedule (one control word, or
-one op entry, per scheduled op: the architecture issue 10 asks for), against the targets.
-docs/seed000-engines.md §6 discusses the figures.
+"""Block RAM budget of seed 000's ``ins_engines`` (issue 10: at most 4 BRAM36; issue 12: the
+whole ``ins_trn_top`` at most 11), worked out from the engines' own image
+(:func:`navgate.systems.ins_trn.engines.engine_image`) for machines that run the fp32
+engine's op programs from a straight-line schedule (one control word, or one op entry, per
+scheduled op), against the targets. docs/seed000-engines.md §6 discusses the figures.
 
-Three floors, each independent of how the schedule is encoded:
-
-* **Operand bandwidth.** The 2-D update (``trn_gate`` + ``trn_apply``, plus one cycle per
-  call) must finish in 450 cycles. With ``m`` multipliers and ``a`` adders it takes at least
-  ``max(critical path, ceil(mul ops / m), ceil(add ops / a))`` cycles. Every unit reads two
-  32-bit operands a cycle; a RAMB18E1 gives one 36-bit read port (simple dual port), so
-  ``m + a`` units fed from block RAM need ``m + a`` BRAM36.
-* **Control, per op.** A straight-line schedule names every op's two source words and its
-  destination word among the register file's words: ``ceil(log2(words))`` bits each, plus
-  the op kind and the two sign flips, summed over every op of every program.
+* **Operands.** The 2-D update (``trn_gate`` + ``trn_apply``, plus one cycle per call) must
+  finish in 450 cycles. With ``m`` multipliers and ``a`` adders it takes at least
+  ``max(critical path, ceil(mul ops / m) + tail, ceil(add ops / a) + tail)`` cycles per
+  call. A RAMB18E1 gives one 36-bit read port (simple dual port) at one access a cycle, so
+  a machine whose units read their operands from their own block RAM ports needs
+  ``m + a`` BRAM36 of banks; whatever the routing, the distinct words the update reads, over
+  450 cycles, need ``ceil(reads / 450)`` such ports (the bandwidth floor). Running the banks
+  at twice the clock (double pumping) halves either figure.
+* **Control, per op.** A schedule that names every op's two source words and its
+  destination among the register file's words: ``ceil(log2(words))`` bits each, plus the
+  op kind and the two sign flips, summed over every op of every program. An encoding with
+  implied destinations or forwarded operands could be smaller.
 * **Control, per row.** The microcode as built: rows x width, and the sum over its fields of
-  each field's order-0 entropy over the rows (what an ideal coder of each field separately
-  would need), plus the rows that are all zero, only write, or issue an op.
+  each field's order-0 entropy over the rows, plus the rows that are all zero, only write,
+  or issue an op.
+* **Control, per slot.** One op stream per issue slot (sources and destination as bank and
+  local address, flips, kind), a slot's next entry read when a 9-bit issue mask (one row a
+  cycle, in its own block RAM) says it issues, each stream in block RAM: entries, widths,
+  and the RAMB36E1 count at 1,024 x 36 per RAMB36 (two streams may share one as its two
+  true-dual-port ports), for the local addresses as laid out and for banks of at most 128
+  words.
 
     python benchmarks/bench_bram_floor.py [--json out.json]
 
@@ -43,6 +50,8 @@ TOP_OTHER_BRAM36 = 0.5  #: the profile FIFO (64 x 128 bits, one RAMB18E1), measu
 #: counted as Vivado counts slice LUTs), to weigh banks moved into distributed RAM
 TOP_LUT_MEASURED = 11_800
 TOP_LUT_TARGET = 12_000
+ENGINES_LUT_MEASURED = 6_356
+ENGINES_LUT_TARGET = 8_000
 
 
 def critical_path(sp) -> int:
@@ -58,8 +67,9 @@ def critical_path(sp) -> int:
     return end
 
 
-def update_2d_floor(img) -> dict:
-    """Fewest mul + add units that a 2-D update in 450 cycles needs, by the bound above."""
+def update_2d(img) -> dict:
+    """Cycle bounds of the 2-D update by unit counts, fewest units within 450, and the
+    distinct words it reads (each (cycle, word) once: ops sharing a read count once)."""
     progs = [img.programs["trn_gate"], img.programs["trn_apply"]]
     n = Counter(_slot_unit(s.unit) for sp in progs for s in sp.ops)
     paths = [critical_path(sp) for sp in progs]
@@ -78,8 +88,11 @@ def update_2d_floor(img) -> dict:
             table[(m, a)] = bound
             if bound <= UPDATE_2D_TARGET and (best is None or m + a < sum(best)):
                 best = (m, a)
+    reads = sum(len({name for s in sp.ops if s.issue == c for name, _ in s.srcs})
+                for sp in progs for c in range(sp.cycles))
     return {"mul_ops": n["mul"], "add_ops": n["add"], "misc_ops": n["misc"],
-            "critical_path": sum(paths) + len(progs), "bounds": table, "fewest_units": best}
+            "critical_path": sum(paths) + len(progs), "bounds": table, "fewest_units": best,
+            "distinct_reads": reads, "read_ports_bandwidth": -(-reads // UPDATE_2D_TARGET)}
 
 
 def per_op_bits(img) -> dict:
@@ -87,23 +100,18 @@ def per_op_bits(img) -> dict:
     aw = math.ceil(math.log2(words))
     kinds = {s.kind for sp in img.programs.values() for s in sp.ops}
     kw = math.ceil(math.log2(len(kinds)))
-    bits = 0
-    ops = 0
-    for sp in img.programs.values():
-        for s in sp.ops:
-            ops += 1
-            bits += aw * (len(s.srcs) + 1) + kw + len(s.srcs)
-    return {"ops": ops, "words": words, "address_bits": aw, "kinds": len(kinds),
-            "bits": bits}
+    ops = sum(len(sp.ops) for sp in img.programs.values())
+    bits = sum(aw * (len(s.srcs) + 1) + kw + len(s.srcs)
+               for sp in img.programs.values() for s in sp.ops)
+    return {"ops": ops, "words": words, "address_bits": aw, "kinds": len(kinds), "bits": bits}
 
 
 def row_stats(img) -> dict:
     f = img.fields
     rom = img.rom
-    write_keys = [k for k in f.pos if k[0] in ("we", "wa", "wsrc")]
     issue_mask = 0
     for k, (off, w) in f.pos.items():
-        if k not in write_keys and k != ("wmod",):
+        if k[0] not in ("we", "wa", "wsrc", "wmod"):
             issue_mask |= ((1 << w) - 1) << off
     zero = sum(1 for r in rom if r == 0)
     issuing = sum(1 for r in rom if r & issue_mask)
@@ -117,13 +125,43 @@ def row_stats(img) -> dict:
             "entropy_bits": entropy * len(rom)}
 
 
+def slot_streams(img, local_bits: int) -> dict:
+    """Per-slot op streams: entries and widths, and RAMB36E1 at 1,024 x 36 each, two
+    streams (or pieces of streams) to a RAMB36 at most (its two ports)."""
+    u = img.units
+    n_misc = len(img.misc_kinds) + 1  # the compare's lt and le are two kinds
+    addr = max(1, (u.banks - 1).bit_length()) + local_bits
+    entries = Counter()
+    widths = {}
+    for sp in img.programs.values():
+        for s in sp.ops:
+            entries[u.slot_of(_slot_unit(s.unit), s.inst)] += 1
+    for slot, (unit, _) in enumerate(u.slots()):
+        kind = {"mul": 0, "add": 1}.get(unit, math.ceil(math.log2(n_misc)))
+        widths[slot] = 2 * addr + (addr + 1) + 2 + kind  # sources, destination + valid
+    rows = len(img.rom)
+    mask_bits = rows * len(widths)
+    bits = sum(entries[s] * widths[s] for s in widths) + mask_bits
+    total = sum(entries.values())
+    if max(widths.values()) <= 36:
+        # at least ceil(entries / 1024) RAMB36, and a port for each stream or piece
+        ramb36 = max(-(-total // 1024), -(-len(widths) // 2))
+    else:
+        ramb36 = None  # wider than a port: 72-bit simple dual port, 512 entries a RAMB36
+    return {"local_bits": local_bits, "entries": [entries[s] for s in sorted(widths)],
+            "widths": [widths[s] for s in sorted(widths)], "issue_mask_bits": mask_bits,
+            "bits": bits, "ramb36_streams": ramb36,
+            # the 9-bit issue mask: 1,402 x 9 fits one RAMB18E1 (2,048 x 9)
+            "bram36": None if ramb36 is None else ramb36 + 0.5}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--json", default="bench_bram_floor.json")
     args = ap.parse_args()
     img = engine_image("ins_engines")
     u = ENGINE_UNITS
-    upd = update_2d_floor(img)
+    upd = update_2d(img)
     per_op = per_op_bits(img)
     rows = row_stats(img)
 
@@ -139,17 +177,20 @@ def main():
         print(f"{k:10s} {n['mul']:5d} {n['add']:5d} {n['misc']:5d} {sp.cycles:7d} {path:5d}")
 
     print(f"\n2-D update: {upd['mul_ops']} mul + {upd['add_ops']} add + {upd['misc_ops']} misc "
-          f"ops, critical path {upd['critical_path']} cycles; cycle floor by units "
+          f"ops, critical path {upd['critical_path']} cycles; cycle bound by units "
           f"(target <= {UPDATE_2D_TARGET}):")
     print("mul\\add " + "".join(f"{a:6d}" for a in range(1, 7)))
     for m in range(1, 7):
         print(f"{m:7d} " + "".join(f"{upd['bounds'][(m, a)]:6d}" for a in range(1, 7)))
     fm, fa = upd["fewest_units"]
-    bank_floor = fm + fa
+    unit_banks = fm + fa
+    bw_ports = upd["read_ports_bandwidth"]
     print(f"fewest units within {UPDATE_2D_TARGET}: {fm} mul + {fa} add -> "
-          f"{2 * bank_floor} read ports of 32 bits -> {bank_floor} BRAM36 of banks "
-          f"(this machine: {u.mul} + {u.add} units, {u.banks} banks, "
-          f"{2 * u.banks} RAMB18E1 = {u.banks} BRAM36)")
+          f"{2 * unit_banks} read ports of 32 bits, one per operand -> {unit_banks} BRAM36 "
+          f"(this machine: {u.mul} + {u.add} units, {2 * u.banks} RAMB18E1 = {u.banks} BRAM36)")
+    print(f"distinct words read by the 2-D update: {upd['distinct_reads']} -> at least "
+          f"{bw_ports} read ports over {UPDATE_2D_TARGET} cycles -> {bw_ports / 2} BRAM36 "
+          f"(bandwidth floor); double-pumped: {unit_banks / 2} and {bw_ports / 4}")
 
     per_op_b36 = per_op["bits"] / BRAM36_BITS
     print(f"\nControl, per op: {per_op['ops']} ops; {per_op['words']} register words "
@@ -162,37 +203,51 @@ def main():
           f"{rows['write_only_rows']} write-only rows, {rows['issue_rows']} rows issue an op; "
           f"field entropy {rows['entropy_bits_per_row']:.1f} bits/row = "
           f"{rows['entropy_bits'] / 1000:.1f} kbit ({ent_b36:.2f} BRAM36)")
+    streams = {}
+    for lbits in sorted({img.layout.local_bits, 7}, reverse=True):
+        st = slot_streams(img, lbits)
+        streams[lbits] = st
+        fit = ("wider than a 36-bit port" if st["bram36"] is None
+               else f"{st['ramb36_streams']} RAMB36 + 0.5 for the issue mask = {st['bram36']}")
+        print(f"Control, per slot ({lbits}-bit local addresses"
+              f"{', as laid out' if lbits == img.layout.local_bits else ', banks <= 128 words'}):"
+              f" entries {st['entries']}, widths {sorted(set(st['widths']))}, "
+              f"{st['bits'] / 1000:.1f} kbit with the mask; {fit} BRAM36")
 
     words = per_op["words"]
-    per_bank = -(-words // bank_floor)
-    lutram = bank_floor * 2 * 32 * -(-per_bank // 64)
-    print(f"Banks in distributed RAM instead: {words} words over {bank_floor} banks "
+    per_bank = -(-words // unit_banks)
+    lutram = unit_banks * 2 * 32 * -(-per_bank // 64)
+    print(f"\nBanks in distributed RAM instead: {words} words over {unit_banks} banks "
           f"({per_bank} words each), two read ports of 32 bits: at least {lutram} LUT6 "
-          f"(one 64 x 1 LUT per bit, per read port, per 64 words); the top, measured at "
-          f"{TOP_LUT_MEASURED:,} LUT with its banks in block RAM, would need "
-          f"{TOP_LUT_MEASURED + lutram:,} (target <= {TOP_LUT_TARGET:,})")
+          f"(one 64 x 1 LUT per bit, per read port, per 64 words), "
+          f"{lutram // unit_banks} a bank. Measured with the banks in block RAM: top "
+          f"{TOP_LUT_MEASURED:,} LUT (target <= {TOP_LUT_TARGET:,}), engines "
+          f"{ENGINES_LUT_MEASURED:,} (target <= {ENGINES_LUT_TARGET:,})")
 
-    floor = bank_floor + per_op_b36
-    print("\nFloors, straight-line control, banks in block RAM (BRAM36):")
-    print(f"{'':34s} {'floor':>7s} {'target':>7s}")
-    print(f"{'ins_engines':34s} {floor:7.2f} {ENGINES_TARGET:7.1f}")
-    print(f"{'ins_engines, control alone':34s} {per_op_b36:7.2f} {ENGINES_TARGET:7.1f}")
-    print(f"{'ins_trn_top':34s} {floor + TOP_OTHER_BRAM36:7.2f} {TOP_TARGET:7.1f}")
-    print(f"{'ins_trn_top, banks in LUT RAM':34s} {per_op_b36 + TOP_OTHER_BRAM36:7.2f} "
-          f"{TOP_TARGET:7.1f}  (LUT {TOP_LUT_MEASURED + lutram:,} > {TOP_LUT_TARGET:,})")
+    best_streams = min(st["bram36"] for st in streams.values() if st["bram36"] is not None)
+    cases = {
+        "this machine by bits (synthesised: 21, 21.5)": u.banks + rom_b36,
+        "banks for the fewest units, per-op control": unit_banks + per_op_b36,
+        "double-pumped banks, per-slot streams": u.banks / 2 + best_streams,
+        "bandwidth floor, double-pumped, per-op": bw_ports / 4 + per_op_b36,
+    }
+    print(f"\nBlock RAM, BRAM36 (engines; the top adds {TOP_OTHER_BRAM36} for the profile FIFO):")
+    print(f"{'':44s} {'engines':>8s} {'top':>6s}")
+    for name, v in cases.items():
+        print(f"{name:44s} {v:8.2f} {v + TOP_OTHER_BRAM36:6.2f}")
+    print(f"{'target':44s} {ENGINES_TARGET:8.1f} {TOP_TARGET:6.1f}")
     summary = {"units": {"mul": u.mul, "add": u.add, "banks": u.banks},
                "programs": progs,
                "update_2d": {**{k: v for k, v in upd.items() if k != "bounds"},
                              "bounds": {f"{m}x{a}": v for (m, a), v in upd["bounds"].items()}},
                "per_op": per_op, "rows": rows,
-               "banks_in_lutram": {"words_per_bank": per_bank, "lut_floor": lutram,
-                                   "top_lut": TOP_LUT_MEASURED + lutram,
-                                   "top_lut_target": TOP_LUT_TARGET},
-               "floor_bram36": {"banks": bank_floor, "control_per_op": per_op_b36,
-                                "control_rom_bits": rom_b36, "control_entropy": ent_b36,
-                                "ins_engines": floor,
-                                "ins_trn_top": floor + TOP_OTHER_BRAM36},
-               "targets_bram36": {"ins_engines": ENGINES_TARGET, "ins_trn_top": TOP_TARGET}}
+               "slot_streams": {str(k): v for k, v in streams.items()},
+               "banks_in_lutram": {"words_per_bank": per_bank, "lut_floor": lutram},
+               "bram36": {"engines": cases,
+                          "top": {k: v + TOP_OTHER_BRAM36 for k, v in cases.items()}},
+               "targets": {"engines_bram36": ENGINES_TARGET, "top_bram36": TOP_TARGET,
+                           "engines_lut": ENGINES_LUT_TARGET, "top_lut": TOP_LUT_TARGET},
+               "measured_lut": {"engines": ENGINES_LUT_MEASURED, "top": TOP_LUT_MEASURED}}
     with open(args.json, "w") as fh:
         json.dump(summary, fh, indent=2)
     print(f"\nsummary: {args.json}")
