@@ -236,6 +236,8 @@ def main():
     for name, v in cases.items():
         print(f"{name:44s} {v:8.2f} {v + TOP_OTHER_BRAM36:6.2f}")
     print(f"{'target':44s} {ENGINES_TARGET:8.1f} {TOP_TARGET:6.1f}")
+    print("(per-slot streams packed two to a RAMB36E1 by hand; bench_stream_control.py "
+          "synthesises that control and measures its LUT and block RAM)")
     summary = {"units": {"mul": u.mul, "add": u.add, "banks": u.banks},
                "programs": progs,
                "update_2d": {**{k: v for k, v in upd.items() if k != "bounds"},
