@@ -24,7 +24,9 @@ the same program counter, synthesised alone.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
+import operator
 import tempfile
 from pathlib import Path
 
@@ -33,7 +35,7 @@ from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from navgate.gateware.banked import OPERAND_STAGES, _slot_unit
+from navgate.gateware.banked import OPERAND_STAGES, _slot_unit, row_counter
 from navgate.hw.synth import synthesize
 from navgate.hw.verilog import emit_verilog
 from navgate.systems.ins_trn.engines import engine_image
@@ -112,32 +114,17 @@ class StreamControlSketch(wiring.Component):
         m = Module()
         img, lb, aw, ns = self.img, self.lb, self.aw, self.n_slots
         streams, base, mask_rows = self.data["streams"], self.data["base"], self.data["mask"]
-        keys = list(img.programs)
         m.submodules.mask = mask_rom = Memory(shape=unsigned(ns), depth=len(mask_rows),
                                               init=mask_rows)
-        rw = (len(mask_rows) - 1).bit_length()
-        pc, last, running = Signal(rw), Signal(rw), Signal()
-        first_sel, last_sel = Signal(rw), Signal(rw)
+        seq = row_counter(m, img.spans(), self.start, self.prog)
+        running, go = seq.running, seq.go
         ptr_base = [Signal(POINTER_BITS, name=f"ptr_base{s}") for s in range(ns)]
-        row = 0
         with m.Switch(self.prog):
-            for i, k in enumerate(keys):
+            for i, k in enumerate(img.programs):
                 with m.Case(i):
-                    m.d.comb += [first_sel.eq(row), last_sel.eq(row + img.cycles(k) - 1)]
                     m.d.comb += [ptr_base[s].eq(base[k][s]) for s in range(ns)]
-                row += img.cycles(k)
-        go = Signal()
-        m.d.comb += [go.eq(self.start & ~running), self.busy.eq(running)]
         mask_port = mask_rom.read_port()
-        nxt = Signal(rw)
-        m.d.comb += [nxt.eq(Mux(go, first_sel, Mux(running & (pc != last), pc + 1, pc))),
-                     mask_port.addr.eq(nxt)]
-        with m.If(go):
-            m.d.sync += [running.eq(1), pc.eq(first_sel), last.eq(last_sel)]
-        with m.Elif(running):
-            m.d.sync += pc.eq(nxt)
-            with m.If(pc == last):
-                m.d.sync += running.eq(0)
+        m.d.comb += [self.busy.eq(running), mask_port.addr.eq(seq.nxt)]
         issue = Signal(ns)
         m.d.comb += issue.eq(mask_port.data & running.replicate(ns))
         entries, wheels = [], []
@@ -197,10 +184,7 @@ class StreamControlSketch(wiring.Component):
 
 
 def _or(terms):
-    out = terms[0]
-    for t in terms[1:]:
-        out = out | t
-    return out
+    return functools.reduce(operator.or_, terms)
 
 
 class RowMicrocode(wiring.Component):
@@ -216,26 +200,9 @@ class RowMicrocode(wiring.Component):
         img = self.img
         m.submodules.rom = rom = Memory(shape=unsigned(img.fields.width), depth=len(img.rom),
                                         init=img.rom)
-        rw = (len(img.rom) - 1).bit_length()
-        pc, last, running = Signal(rw), Signal(rw), Signal()
-        first_sel, last_sel = Signal(rw), Signal(rw)
-        with m.Switch(self.prog):
-            for i, k in enumerate(img.programs):
-                with m.Case(i):
-                    m.d.comb += [first_sel.eq(img.base[k]),
-                                 last_sel.eq(img.base[k] + img.cycles(k) - 1)]
-        go = Signal()
-        m.d.comb += [go.eq(self.start & ~running), self.busy.eq(running)]
+        seq = row_counter(m, img.spans(), self.start, self.prog)
         port = rom.read_port()
-        nxt = Signal(rw)
-        m.d.comb += [nxt.eq(Mux(go, first_sel, Mux(running & (pc != last), pc + 1, pc))),
-                     port.addr.eq(nxt), self.ctl.eq(port.data)]
-        with m.If(go):
-            m.d.sync += [running.eq(1), pc.eq(first_sel), last.eq(last_sel)]
-        with m.Elif(running):
-            m.d.sync += pc.eq(nxt)
-            with m.If(pc == last):
-                m.d.sync += running.eq(0)
+        m.d.comb += [self.busy.eq(seq.running), port.addr.eq(seq.nxt), self.ctl.eq(port.data)]
         return m
 
 

@@ -96,7 +96,8 @@ from navgate.gateware.scheduled import (
 )
 
 __all__ = ["BankedUnits", "BankedLayout", "BankedImage", "BankedMachine", "schedule_banked",
-           "MISC_KINDS", "OVERHEAD", "assign_banks", "allocate_banked"]
+           "MISC_KINDS", "OVERHEAD", "assign_banks", "allocate_banked", "row_counter",
+           "RowCounter"]
 
 #: the cores sharing the misc issue slot, in select order
 MISC_KINDS = ("div", "sqrt", "cmp", "cvt", "mov")
@@ -663,12 +664,55 @@ class BankedImage:
     def cycles(self, key: str) -> int:
         return self.programs[key].cycles
 
+    def spans(self) -> list:
+        """(first row, last row) of every program, in program order."""
+        return [(self.base[k], self.base[k] + sp.cycles - 1) for k, sp in self.programs.items()]
+
     def output_addr(self, key: str) -> dict:
         sp = self.programs[key]
         return {n: self.layout.temp_addr[key][t] for n, t in sp.outputs.items()}
 
     def machine(self, init: dict | None = None):
         return BankedMachine(self, init)
+
+
+@dataclass
+class RowCounter:
+    """The signals of :func:`row_counter`."""
+
+    nxt: Signal  #: the row to read next: a synchronous read port's address
+    pc: Signal  #: the row whose control word the read port presents now
+    last: Signal  #: the running program's last row
+    running: Signal
+    go: Signal  #: a program starts (``start`` while not running)
+
+
+def row_counter(m: Module, spans: list, start, prog) -> RowCounter:
+    """The program counter of a straight-line control store: ``start`` while not running
+    loads the first row of program ``prog`` (``spans[prog] = (first, last)``), the counter
+    then steps a row a cycle and stops after the last row. Addressing a synchronous read
+    port with ``nxt`` makes its data the control word of row ``pc``."""
+    rw = max(1, max(last for _, last in spans).bit_length())
+    pc = Signal(rw)
+    last = Signal(rw)
+    running = Signal()
+    base_sel = Signal(rw)
+    last_sel = Signal(rw)
+    with m.Switch(prog):
+        for i, (first, end) in enumerate(spans):
+            with m.Case(i):
+                m.d.comb += [base_sel.eq(first), last_sel.eq(end)]
+    go = Signal()
+    nxt = Signal(rw)
+    m.d.comb += [go.eq(start & ~running),
+                 nxt.eq(Mux(go, base_sel, Mux(running & (pc != last), pc + 1, pc)))]
+    with m.If(go):
+        m.d.sync += [running.eq(1), pc.eq(base_sel), last.eq(last_sel)]
+    with m.Elif(running):
+        m.d.sync += pc.eq(nxt)
+        with m.If(pc == last):
+            m.d.sync += running.eq(0)
+    return RowCounter(nxt, pc, last, running, go)
 
 
 def _or_all(terms):
@@ -713,30 +757,11 @@ class BankedMachine(wiring.Component):
                 inits[b][a] = v
         m.submodules.rom = rom = Memory(shape=unsigned(f.width), depth=len(img.rom),
                                         init=img.rom)
-        rw = max(1, (len(img.rom) - 1).bit_length())
-        pc = Signal(rw)
-        last = Signal(rw)
-        running = Signal()
-        base_sel = Signal(rw)
-        last_sel = Signal(rw)
-        with m.Switch(self.prog):
-            for i, k in enumerate(self.keys):
-                with m.Case(i):
-                    m.d.comb += [base_sel.eq(img.base[k]),
-                                 last_sel.eq(img.base[k] + img.programs[k].cycles - 1)]
+        seq = row_counter(m, img.spans(), self.start, self.prog)
+        running = seq.running
         rp = rom.read_port()
-        go = Signal()
-        m.d.comb += [go.eq(self.start & ~running), self.busy.eq(running)]
-        nxt = Signal(rw)
-        m.d.comb += [nxt.eq(Mux(go, base_sel, Mux(running & (pc != last), pc + 1, pc))),
-                     rp.addr.eq(nxt)]
-        with m.If(go):
-            m.d.sync += [running.eq(1), pc.eq(base_sel), last.eq(last_sel)]
-        with m.Elif(running):
-            m.d.sync += pc.eq(nxt)
-            with m.If(pc == last):
-                m.d.sync += running.eq(0)
-        m.d.sync += self.done.eq(running & (pc == last))
+        m.d.comb += [self.busy.eq(running), rp.addr.eq(seq.nxt)]
+        m.d.sync += self.done.eq(running & (seq.pc == seq.last))
         ctl = Signal(f.width)
         m.d.comb += ctl.eq(rp.data)
         gated = {k for k in f.pos if k[0] in ("we", "iss")}
