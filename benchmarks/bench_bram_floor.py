@@ -74,22 +74,22 @@ def update_2d(img) -> dict:
     n = Counter(_slot_unit(s.unit) for sp in progs for s in sp.ops)
     paths = [critical_path(sp) for sp in progs]
     lat = {s.unit: s.lat for sp in progs for s in sp.ops}
+    per_call = [(path, Counter(s.unit for s in sp.ops))
+                for sp, path in zip(progs, paths, strict=True)]
     table = {}
     best = None
     for m in range(1, 7):
         for a in range(1, 7):
-            # per call: the last of ceil(n / units) issues writes OPERAND_STAGES + L later
-            bound = len(progs)  # one cycle per call (start)
-            for sp, path in zip(progs, paths, strict=True):
-                c = Counter(s.unit for s in sp.ops)
-                bound += max(path,
-                             -(-c["mul"] // m) + OPERAND_STAGES + lat["mul"],
-                             -(-c["add"] // a) + OPERAND_STAGES + lat["add"])
+            # per call: the last of ceil(n / units) issues writes OPERAND_STAGES + L later;
+            # and one cycle per call (start)
+            bound = sum(max(path,
+                            -(-c["mul"] // m) + OPERAND_STAGES + lat["mul"],
+                            -(-c["add"] // a) + OPERAND_STAGES + lat["add"]) + 1
+                        for path, c in per_call)
             table[(m, a)] = bound
             if bound <= UPDATE_2D_TARGET and (best is None or m + a < sum(best)):
                 best = (m, a)
-    reads = sum(len({name for s in sp.ops if s.issue == c for name, _ in s.srcs})
-                for sp in progs for c in range(sp.cycles))
+    reads = sum(len({(s.issue, name) for s in sp.ops for name, _ in s.srcs}) for sp in progs)
     return {"mul_ops": n["mul"], "add_ops": n["add"], "misc_ops": n["misc"],
             "critical_path": sum(paths) + len(progs), "bounds": table, "fewest_units": best,
             "distinct_reads": reads, "read_ports_bandwidth": -(-reads // UPDATE_2D_TARGET)}

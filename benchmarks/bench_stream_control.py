@@ -24,9 +24,7 @@ the same program counter, synthesised alone.
 from __future__ import annotations
 
 import argparse
-import functools
 import json
-import operator
 import tempfile
 from pathlib import Path
 
@@ -35,7 +33,7 @@ from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from navgate.gateware.banked import OPERAND_STAGES, _slot_unit, row_counter
+from navgate.gateware.banked import OPERAND_STAGES, _or_all, _slot_unit, row_counter
 from navgate.hw.synth import synthesize
 from navgate.hw.verilog import emit_verilog
 from navgate.systems.ins_trn.engines import engine_image
@@ -164,27 +162,23 @@ class StreamControlSketch(wiring.Component):
                     continue
                 hit = issue[s] & dst[aw]
                 if len(set(lat_of_kind.values())) > 1:
-                    hit = hit & _or([kind == k for k in kinds])
+                    hit = hit & _or_all([kind == k for k in kinds])
                 m.d.sync += st.eq(Mux(hit, dst, shifted))
             wheels.append(stages)
         for b in range(img.units.banks):
             for j in range(2):
                 off = j * (aw + 1)
-                m.d.comb += self.ra[b][j].eq(_or([
+                m.d.comb += self.ra[b][j].eq(_or_all([
                     Mux(issue[s] & (entries[s][off + lb:off + aw] == b),
                         entries[s][off:off + lb], 0) for s in range(ns)]))
             hits = [w[0][aw] & (w[0][lb:aw] == b) for w in wheels]
             early = [w[1][aw] & (w[1][lb:aw] == b) for w in wheels]
             wsrc = Signal(4, name=f"wsrc{b}")
-            m.d.sync += wsrc.eq(_or([Mux(h, s, 0) for s, h in enumerate(early)]))
-            m.d.comb += [self.we[b].eq(_or(hits)), self.wsrc[b].eq(wsrc),
-                         self.wa[b].eq(_or([Mux(h, w[0][:lb], 0)
+            m.d.sync += wsrc.eq(_or_all([Mux(h, s, 0) for s, h in enumerate(early)]))
+            m.d.comb += [self.we[b].eq(_or_all(hits)), self.wsrc[b].eq(wsrc),
+                         self.wa[b].eq(_or_all([Mux(h, w[0][:lb], 0)
                                             for h, w in zip(hits, wheels, strict=True)]))]
         return m
-
-
-def _or(terms):
-    return functools.reduce(operator.or_, terms)
 
 
 class RowMicrocode(wiring.Component):
