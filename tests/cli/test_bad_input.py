@@ -124,7 +124,7 @@ def interrupt(*args, **kwargs):
 RUNS = {
     "fly": (["fly", "--duration", 20, "--no-trn"],
             ["summary.json", "trajectory.csv", "trn_fixes.csv", "track.png", "errors.png"],
-            "navgate.systems.ins_trn.report:plot_errors"),
+            "navgate.systems.ins_trn.ps.report:plot_errors"),
     "gpsins": (["gpsins", "--duration", 250, "--outage-start", 200],
                ["summary.json", "trajectory.csv", "gps.csv", "errors.png"],
                "navgate.cli.gpsins:plot_errors"),
@@ -628,7 +628,7 @@ def test_dem_not_in_metres(scale, tmp_path, capsys):
 
 
 def test_non_finite_summary_is_not_exit_0(tmp_path, capsys, monkeypatch):
-    import navgate.systems.ins_trn.flight as flight
+    import navgate.systems.ins_trn.ps.flight as flight
 
     original = flight.FlightResult.summary if hasattr(flight, "FlightResult") else None
     result_cls = None
@@ -687,8 +687,7 @@ def test_fpga_sim_refuses_ideal_sensors_and_reports_simulation_failures(tmp_path
                         "--out", tmp_path / "a"], capsys)
     assert_one_line(err, code, needle="--ideal-sensors")
     assert not (tmp_path / "a").exists()
-    from navgate.systems.ins_trn import fpga_sim
-
+    from navgate.systems.ins_trn.ps import fpga_sim
     def broken(self, setup, **kw):
         raise fpga_sim.FpgaSimError("native model: wedged by an earlier timeout")
 

@@ -70,7 +70,7 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from navgate.systems.ins_trn import flight, report
+    from navgate.systems.ins_trn.ps import flight, report
     from navgate.trn.dem import Dem, DemError
 
     table_console, console = consoles(quiet)
@@ -124,7 +124,7 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
         summary["wall_time_s"] = time.perf_counter() - start
         files = report.write_report(result, stage)
         if record_path is not None:
-            from navgate.systems.ins_trn.records import write_log
+            from navgate.systems.ins_trn.ps.records import write_log
 
             if dem_path is not None and Path(record_path).resolve() == Path(dem_path).resolve():
                 raise CliError(f"--record {record_path} would overwrite the input DEM")

@@ -1,6 +1,6 @@
 """``navgate replay``: run seed 000's navigator on a sensor record log (``navgate fly --record``).
 
-The log format is documented in :mod:`navgate.systems.ins_trn.records`. Bad records
+The log format is documented in :mod:`navgate.systems.ins_trn.ps.records`. Bad records
 (truncated, unparsable, non-finite, out-of-order time, int16 overflow) are counted by reason,
 skipped and reported in summary.json; only a log without a valid IMU record is an error. When
 the log holds truth records, both runs are scored exactly as ``navgate fly`` scores them.
@@ -38,8 +38,8 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
     from dataclasses import fields, replace
 
     from navgate.sim.flight import FlightConfig, score
-    from navgate.systems.ins_trn.flight import fly_stream
-    from navgate.systems.ins_trn.records import LogError, read_log
+    from navgate.systems.ins_trn.ps.flight import fly_stream
+    from navgate.systems.ins_trn.ps.records import LogError, read_log
     from navgate.trn.dem import Dem, DemError
     from navgate.trn.pmf import PmfConfig
     from navgate.trn.tercom import TercomConfig
