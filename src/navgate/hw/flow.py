@@ -10,6 +10,8 @@
   it is (see :func:`timing_summary`): ``xc7_logic_path_ns`` (Yosys ``sta``, logic only, with
   the path's start and end points), ``ecp5_fmax_mhz`` and ``nexus_fmax_mhz`` (routed proxies,
   each the mean over its placer seeds, with ``*_fmax_by_seed``).
+- with ``asic="sg13g2"``, ``BLOCK.asic.json``: the pre-layout IHP SG13G2 standard-cell figures
+  of :func:`navgate.hw.asic.synthesize_asic` (cells, flip-flops, area, smallest TinyTapeout tile);
 - whatever else the component delivers through its optional ``write_artifacts(out_dir, name)``
   method (a register bank writes its C header and register documentation), listed under
   ``artifacts`` in ``BLOCK.json``.
@@ -79,6 +81,8 @@ def build_block(
     ecp5_seeds: tuple[int, ...] = (ECP5_SEED,),
     nexus_seeds: tuple[int, ...] = (NEXUS_SEED,),
     models: tuple[str, ...] = TIMING_MODELS,
+    asic: str | None = None,
+    liberty: Path | None = None,
 ) -> dict[str, Any]:
     """Emit, describe and synthesise block ``name``; returns the merged description."""
     say = progress or (lambda message: None)
@@ -129,11 +133,21 @@ def build_block(
                 say(f"{name}: place and route for the Nexus timing proxy (nextpnr-nexus)")
                 nexus = timing_nexus(text, name, work / "nexus", seeds=nexus_seeds)
             timing_json = timing_summary(name, xc7, ecp5, nexus)
+        asic_json = None
+        if asic is not None:
+            from navgate.hw.asic import default_liberty, synthesize_asic
+
+            say(f"{name}: mapping to the {asic} standard cells (yosys dfflibmap, abc -liberty)")
+            asic_json = synthesize_asic(text, name, work / asic, liberty or default_liberty(),
+                                        asic)
     _write_json(out_dir / f"{name}.utilization.json", utilization)
     result = {**description, "utilization": utilization}
     if timing_json is not None:
         _write_json(out_dir / f"{name}.timing.json", timing_json)
         result["timing"] = timing_json
+    if asic_json is not None:
+        _write_json(out_dir / f"{name}.asic.json", asic_json)
+        result["asic"] = asic_json
     return result
 
 
