@@ -103,3 +103,39 @@ def test_build_writes_asic_json(tmp_path):
     assert asic["flip_flops"] == use["ff"] == 33
     assert asic["tile"] == "1x1"
     assert f"{asic['flip_flops']} flip-flops; fits 1x1" in proc.stdout
+    assert asic["timing"]["longest_path_ns"] < 100.0 and "longest path" in proc.stdout
+
+
+@needs_liberty
+def test_nldm_lookup_hits_the_table():
+    """The interpolation returns the library's own numbers on its grid and the mean of four
+    neighbours at a cell's centre (sg13g2_nand2_1, Y from A, cell_rise)."""
+    from navgate.hw.asic import _lookup, liberty_timing
+
+    nand = liberty_timing(LIBERTY, {"sg13g2_nand2_1"})["sg13g2_nand2_1"]
+    arc = next(a for a in nand["pins"]["Y"]["arcs"] if a["related"] == "A")
+    rise = arc["tables"]["cell_rise"]
+    assert _lookup(rise, 0.0186, 0.001) == pytest.approx(0.022718, abs=1e-9)
+    assert _lookup(rise, 2.5074, 0.3) == pytest.approx(2.05647, abs=1e-9)
+    centre = _lookup(rise, (0.0186 + 0.0966) / 2, (0.001 + 0.0234) / 2)
+    assert centre == pytest.approx((0.022718 + 0.0868603 + 0.0437056 + 0.129513) / 4, abs=1e-9)
+    assert nand["pins"]["A"]["direction"] == "input" and nand["pins"]["A"]["capacitance"] > 0
+
+
+@needs_liberty
+def test_counter_longest_path(tmp_path):
+    """The counter's longest path starts at a flip-flop's clock-to-Q and ends at a D input;
+    it is longer than the bare clock-to-Q at the smallest load and grows with the counter."""
+    from navgate.hw.asic import _lookup, liberty_timing
+
+    small = synthesize_asic(COUNTER, "counter4", tmp_path / "4", LIBERTY)["timing"]
+    wide = synthesize_asic(COUNTER.replace("counter4", "counter16").replace("[3:0]", "[15:0]")
+                           .replace("4'd", "16'd"), "counter16", tmp_path / "16",
+                           LIBERTY)["timing"]
+    flop = liberty_timing(LIBERTY, {"sg13g2_dfrbpq_1"})["sg13g2_dfrbpq_1"]
+    clk_q = next(a for a in flop["pins"]["Q"]["arcs"] if a["type"] == "rising_edge")
+    bare = max(_lookup(clk_q["tables"][k], 0.0186, 0.001) for k in ("cell_rise", "cell_fall"))
+    assert "clock-to-Q" in small["path_start"] and "(D, setup)" in small["path_end"]
+    assert bare < small["longest_path_ns"] < wide["longest_path_ns"] < 100.0
+    assert small["longest_path_ns"] == pytest.approx(0.5881, abs=1e-4)  # Yosys 0.70 mapping
+    assert small["slack_ns"] == pytest.approx(100.0 - small["longest_path_ns"], abs=1e-4)

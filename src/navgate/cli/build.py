@@ -184,10 +184,15 @@ def _check_asic(asic: str | None, liberty: str | None) -> Path | None:
 
 def _asic_line(asic: dict) -> str:
     tile = asic["tile"] or "no IHP tile"
-    at = f" at {asic['tile_percent'][asic['tile']]:.1f} %" if asic["tile"] else ""
+    largest = list(asic["tile_percent"])[-1]
+    path = asic["timing"]
+    at = (f" at {asic['tile_percent'][asic['tile']]:.1f} %" if asic["tile"]
+          else f" ({asic['tile_percent'][largest]:.1f} % of {largest})")
     return (f"  {asic['tech']} pre-layout: {asic['area_um2']:,.1f} um2, {asic['cells']} cells, "
             f"{asic['flip_flops']} flip-flops; fits {tile}{at} "
-            f"(limit {100 * asic['tile_density']:.0f} %)")
+            f"(limit {100 * asic['tile_density']:.0f} %); longest path "
+            f"{path['longest_path_ns']:.2f} ns, slack {path['slack_ns']:.2f} ns "
+            f"at {path['clock_mhz']:g} MHz")
 
 
 def _timing_lines(timing: dict) -> list[str]:
