@@ -139,3 +139,22 @@ def test_counter_longest_path(tmp_path):
     assert bare < small["longest_path_ns"] < wide["longest_path_ns"] < 100.0
     assert small["longest_path_ns"] == pytest.approx(0.5881, abs=1e-4)  # Yosys 0.70 mapping
     assert small["slack_ns"] == pytest.approx(100.0 - small["longest_path_ns"], abs=1e-4)
+
+
+def test_report_asic_columns():
+    """The report's SG13G2 columns come from ``BLOCK.asic.json`` (the table code only)."""
+    from navgate.hw.flow import ASIC_COLUMNS, COLUMNS, asic_cells, report_table
+
+    asic = {"area_um2": 45441.4236, "flip_flops": 420, "tile": None,
+            "timing": {"longest_path_ns": 4.69594}}
+    cells = asic_cells(asic)
+    assert cells == ["45441.4", "420", "none", "4.696"]
+    table = report_table([["b"] + ["1"] * (len(COLUMNS) - 1) + cells])
+    assert table.splitlines()[0].count("|") == len(COLUMNS) + len(ASIC_COLUMNS) + 1
+    assert "SG13G2 area (um2)" in table and "| 45441.4 | 420 | none | 4.696 |" in table
+
+
+def test_report_absent_liberty_is_one_line(tmp_path):
+    proc = navgate("report", "--asic", "sg13g2", "--liberty", str(tmp_path / "missing.lib"))
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+    assert "Liberty file not found" in proc.stderr

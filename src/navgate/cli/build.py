@@ -6,8 +6,8 @@ FILE]] [--keep-work]`` writes ``DIR/BLOCK.v``, ``DIR/BLOCK.json`` and
 SG13G2 cells, flip-flops, area and TinyTapeout tile, :mod:`navgate.hw.asic`), with
 ``--timing`` also ``DIR/BLOCK.timing.json`` (xc7 logic-only path, ECP5 and Nexus routed proxy
 Fmax); Yosys and nextpnr work files stay in ``DIR/work/BLOCK`` only with ``--keep-work``.
-``navgate build --list`` names the blocks. ``navgate report [--timing] [--out FILE] [-j N]``
-synthesises every block and prints one markdown table. The flow itself lives in
+``navgate build --list`` names the blocks. ``navgate report [--timing] [--asic sg13g2] [--out
+FILE] [-j N]`` synthesises every block and prints one markdown table. The flow itself lives in
 :mod:`navgate.hw.flow`.
 """
 
@@ -238,7 +238,8 @@ def _yowasp_note(timing: bool = True) -> str:
     return YOWASP_NOTE if cold else ""
 
 
-def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1) -> str:
+def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
+                    asic: str | None = None, liberty: Path | None = None) -> str:
     """Build every block in a scratch directory (``jobs`` at a time; the tools run in child
     processes) and return the markdown table, rows in registry order. One stderr line per
     finished block, so that progress shows even when stderr is not a terminal."""
@@ -258,7 +259,8 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1) 
             def one(name: str):
                 out_dir = Path(scratch) / name
                 out_dir.mkdir()
-                return _run_build(name, out_dir, target, timing, progress, task)
+                return _run_build(name, out_dir, target, timing, progress, task,
+                                  asic=asic, liberty=liberty)
 
             with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
                 futures = {pool.submit(one, name): name for name in blocks}
@@ -286,11 +288,17 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1) 
                   "written atomically)", kind="file")
 @click.option("-j", "--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
               help="blocks synthesised in parallel")
-def report(timing: bool, target: str, out: str | None, jobs: int) -> None:
+@click.option("--asic", default=None, metavar="TECH",
+              help="add SG13G2 area, flip-flop, tile and path columns (choices: sg13g2)")
+@click.option("--liberty", default=None, metavar="FILE", help="the Liberty file for --asic")
+def report(timing: bool, target: str, out: str | None, jobs: int, asic: str | None,
+           liberty: str | None) -> None:
     """Synthesise every block and print one markdown table of resources and timing."""
     _check_target(target)
+    liberty_path = _check_asic(asic, liberty)
     out_path = check_writable_file(out) if out is not None else None
-    table = report_markdown(timing, target, Console(stderr=True, soft_wrap=True), jobs)
+    table = report_markdown(timing, target, Console(stderr=True, soft_wrap=True), jobs, asic,
+                            liberty_path)
     click.echo(table, nl=False)
     if out_path is not None:
         with atomic_output_file(out_path) as tmp:

@@ -156,6 +156,10 @@ COLUMNS = ("block", "LUT", "FF", "DSP", "CARRY4", "BRAM36", "latency", "throughp
            "Nexus routed proxy Fmax (MHz)")
 
 
+#: the columns ``navgate report --asic`` adds
+ASIC_COLUMNS = ("SG13G2 area (um2)", "SG13G2 FF", "IHP tile (65 %)", "SG13G2 path (ns)")
+
+
 def _number(value: float | None, digits: int) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
 
@@ -176,7 +180,13 @@ def report_row(built: dict[str, Any]) -> list[str]:
         _number(timing.get("xc7_logic_path_ns"), 3),
         _number(timing.get("ecp5_fmax_mhz"), 1),
         _number(timing.get("nexus_fmax_mhz"), 1),
-    ]
+    ] + (asic_cells(built["asic"]) if "asic" in built else [])
+
+
+def asic_cells(asic: dict[str, Any]) -> list[str]:
+    """The :data:`ASIC_COLUMNS` entries of one block's ``BLOCK.asic.json``."""
+    return [f"{asic['area_um2']:.1f}", str(asic["flip_flops"]), asic["tile"] or "none",
+            f"{asic['timing']['longest_path_ns']:.3f}"]
 
 
 def path_line(built: dict[str, Any]) -> str | None:
@@ -197,10 +207,12 @@ TIMING_LEGEND = (
 
 
 def report_table(rows: list[list[str]], paths: list[str] | None = None) -> str:
-    """A markdown table of ``rows`` under :data:`COLUMNS`, then the critical paths if given."""
+    """A markdown table of ``rows`` under :data:`COLUMNS` (and :data:`ASIC_COLUMNS` when the
+    rows carry them), then the critical paths if given."""
+    columns = COLUMNS + (ASIC_COLUMNS if rows and len(rows[0]) > len(COLUMNS) else ())
     lines = [
-        "| " + " | ".join(COLUMNS) + " |",
-        "|" + "|".join("---" if i == 0 else "---:" for i in range(len(COLUMNS))) + "|",
+        "| " + " | ".join(columns) + " |",
+        "|" + "|".join("---" if i == 0 else "---:" for i in range(len(columns))) + "|",
     ]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     if paths:
