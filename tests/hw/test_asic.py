@@ -158,3 +158,16 @@ def test_report_absent_liberty_is_one_line(tmp_path):
     proc = navgate("report", "--asic", "sg13g2", "--liberty", str(tmp_path / "missing.lib"))
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
     assert "Liberty file not found" in proc.stderr
+
+
+@needs_liberty
+def test_flip_flops_by_register(tmp_path):
+    """Two registers of known widths: every flip-flop is counted under its register."""
+    text = """
+module two(input clk, input [2:0] d, output reg [2:0] a, output reg [4:0] b);
+  always @(posedge clk) begin a <= d; b <= {b[3:0], d[1] ^ d[2]}; end
+endmodule
+"""
+    got = synthesize_asic(text, "two", tmp_path, LIBERTY)
+    assert got["flip_flops_by_register"] == {"b": 5, "a": 3}
+    assert sum(got["flip_flops_by_register"].values()) == got["flip_flops"]

@@ -143,8 +143,32 @@ def synthesize_asic(verilog_text: str, top: str, workdir: Path, liberty: Path,
         "tile_density": TILE_DENSITY,
         "tile_percent": tiles,
         "timing": longest_path(workdir / f"netlist_{tech}.json", top, liberty),
+        "flip_flops_by_register": flip_flops_by_register(
+            workdir / f"netlist_{tech}.json", top,
+            {cell for cell, entry in library.items() if entry["ff"]}),
         "cells_by_type": dict(sorted(cells.items())),
     }
+
+
+def flip_flops_by_register(netlist_json: Path, top: str, ff_types: set[str]) -> dict[str, int]:
+    """Flip-flops per register: each flip-flop cell counted under the name of the net on its
+    output (bit index dropped; a flip-flop whose output has no public name is ``(unnamed)``),
+    largest first. What the area in flip-flops is spent on."""
+    module = json.loads(Path(netlist_json).read_text())["modules"][top]
+    names: dict[Any, str] = {}
+    for name, net in module["netnames"].items():
+        if net.get("hide_name") or name.startswith("$"):
+            continue
+        for bit in net["bits"]:
+            names.setdefault(bit, name)
+    counts: dict[str, int] = {}
+    for cell in module["cells"].values():
+        if cell["type"] not in ff_types:
+            continue
+        outputs = [bit for pin in ("Q", "Q_N") for bit in cell["connections"].get(pin, [])]
+        name = next((names[bit] for bit in outputs if bit in names), "(unnamed)")
+        counts[name] = counts.get(name, 0) + 1
+    return dict(sorted(counts.items(), key=lambda item: (-item[1], item[0])))
 
 
 # --- timing: a static timing pass over the mapped netlist with the Liberty NLDM tables -------
