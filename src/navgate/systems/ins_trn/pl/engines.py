@@ -3,7 +3,7 @@
 Reference: seed 000 "INS Mechanization", "Covariance Propagation", "Kalman Update Engine",
 "Memory Architecture"; the programs are those of the ``fp32`` engine
 (:func:`navgate.systems.ins_trn.pl.fp32_program.programs`), scheduled by
-:mod:`navgate.gateware.scheduled` onto shared float32 units over one register file that
+:mod:`navgate.opflow.schedule` onto shared float32 units over one register file that
 holds the navigation state, the error-state/bias words, the 120 stored elements of P, their
 compensation words, the configuration the PS writes and the per-call inputs.
 docs/seed000-engines.md describes the blocks and their figures.
@@ -21,8 +21,8 @@ from functools import lru_cache
 import numpy as np
 from amaranth.sim import Simulator
 
-from navgate.gateware.banked import BankedImage, BankedUnits
-from navgate.gateware.scheduled import ScheduledMachineStream
+from navgate.opflow.machine import BankedImage, ScheduledMachineStream
+from navgate.opflow.schedule import BankedUnits
 from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS, Program, programs
 
 __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePropagator",
@@ -226,7 +226,7 @@ def command_vectors(image: BankedImage, regs: dict, calls) -> dict:
     """Input arrays for :class:`ScheduledMachineStream`: write every register of ``regs``,
     then per call ``(key, inputs)``: write the inputs, run ``key``, read every persistent
     register and the program's outputs."""
-    from navgate.gateware.scheduled import CMD_READ, CMD_START, CMD_WRITE
+    from navgate.opflow.machine import CMD_READ, CMD_START, CMD_WRITE
 
     keys = list(image.programs)
     rows = [(CMD_WRITE, image.layout.fixed[n], int(v) & 0xFFFFFFFF, 0) for n, v in regs.items()]
@@ -244,7 +244,7 @@ def command_vectors(image: BankedImage, regs: dict, calls) -> dict:
 def stream_model(image: BankedImage):
     """Bit-true model of :class:`ScheduledMachineStream` over ``image`` (the register file as
     a dict, each run by :func:`navgate.systems.ins_trn.pl.fp32_exec.run_bittrue`)."""
-    from navgate.gateware.scheduled import CMD_READ, CMD_WRITE
+    from navgate.opflow.machine import CMD_READ, CMD_WRITE
     from navgate.systems.ins_trn.pl.fp32_exec import run_bittrue
 
     keys = list(image.programs)
