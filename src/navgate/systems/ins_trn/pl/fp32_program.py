@@ -661,14 +661,6 @@ def trn_apply_program() -> Program:
     return b.prog
 
 
-def correction_program() -> Program:
-    """Feedback of an error-state estimate written by the PS (initialisation, tests)."""
-    ins = tuple(f"dx{i}" for i in range(N_STATES))
-    b = Builder("state_correction", ins)
-    emit_correction(b, list(ins))
-    return b.prog
-
-
 # ------------------------------------------------------------------ cycle estimates
 
 
