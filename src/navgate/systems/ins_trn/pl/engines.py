@@ -21,9 +21,10 @@ from functools import lru_cache
 import numpy as np
 from amaranth.sim import Simulator
 
+from navgate.opflow.ir import Program
 from navgate.opflow.machine import BankedImage, ScheduledMachineStream
 from navgate.opflow.schedule import BankedUnits
-from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS, Program, programs
+from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS, programs
 
 __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePropagator",
            "split_program", "engine_programs", "command_vectors", "stream_model",
@@ -96,7 +97,8 @@ def split_program(prog: Program, modules, name: str) -> Program:
     outputs.update({k: v for k, v in prog.outputs.items() if v in keep})
     commit = {r: t for r, t in prog.commit.items() if t in keep}
     inputs = tuple(n for n in prog.inputs if any(n in op.srcs for op in ops)) + tuple(imports)
-    return Program(name, ops=ops, inputs=inputs, commit=commit, outputs=outputs)
+    return Program(name, ops=ops, inputs=inputs, commit=commit, outputs=outputs,
+                   registers=prog.registers)
 
 
 def reuse_gate(gate: Program, apply: Program, prefix: str) -> tuple[Program, Program]:
@@ -106,7 +108,7 @@ def reuse_gate(gate: Program, apply: Program, prefix: str) -> tuple[Program, Pro
     (written in place at no cost). Both programs read the same state and inputs and the
     sequencer writes nothing between them, so the results are those of the original pair
     bit for bit (tests/systems/ins_trn/pl/test_engines.py)."""
-    from navgate.systems.ins_trn.pl.fp32_program import Op
+    from navgate.opflow.ir import Op
 
     sig = {(op.kind, op.srcs): op.dst for op in gate.ops if op.kind != "neg"}
     ren: dict = {}
@@ -128,11 +130,11 @@ def reuse_gate(gate: Program, apply: Program, prefix: str) -> tuple[Program, Pro
     if any(v.startswith(prefix + ".") for v in list(out.values()) + list(com.values())):
         raise ValueError("an apply output or commit is a gate result")
     new_apply = Program(apply.name, ops=ops, inputs=tuple(apply.inputs) + tuple(kept),
-                        commit=com, outputs=out)
+                        commit=com, outputs=out, registers=apply.registers)
     commit = dict(gate.commit)
     commit.update({k: k[len(prefix) + 1:] for k in kept})
     new_gate = Program(gate.name, ops=list(gate.ops), inputs=gate.inputs, commit=commit,
-                       outputs=dict(gate.outputs))
+                       outputs=dict(gate.outputs), registers=gate.registers)
     return new_gate, new_apply
 
 
