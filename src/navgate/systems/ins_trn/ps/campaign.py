@@ -110,10 +110,10 @@ _DEM_CACHE: dict = {}
 
 
 def _load_dem(spec: str):
-    from navgate.trn.dem import Dem
+    from navgate.trn.tiles import load_terrain
 
     if spec not in _DEM_CACHE:
-        _DEM_CACHE[spec] = Dem.default() if spec == "default" else Dem.from_file(spec)
+        _DEM_CACHE[spec] = load_terrain(None if spec == "default" else spec)
     return _DEM_CACHE[spec]
 
 
