@@ -89,7 +89,7 @@ class Navigator:
     """The PS side of seed 000 over one PL engine."""
 
     def __init__(self, engine: PlEngine, cfg, *, t0: float, dem=None, use_trn: bool = True,
-                 name: str = "nav", progress=None):
+                 name: str = "nav", progress=None, trn_link=None):
         self.engine = engine
         self.cfg = cfg
         self.use_trn = bool(use_trn) and dem is not None
@@ -101,7 +101,10 @@ class Navigator:
         self.baro_sigma = max(sensors.Barometer(sensors.BMP390).altitude_noise_m, 0.05)
         self.ranger_unit = pl_sensors.ranger_unit(cfg.ranger)
         self.tangent = engine.setup.reference
-        self.correlator = make_correlator(cfg, dem, self.tangent) if self.use_trn else None
+        self.correlator = None
+        if self.use_trn:  # the Pi's service over the link, or the correlator in this process
+            self.correlator = (trn_link.correlator(cfg, self.tangent) if trn_link is not None
+                               else make_correlator(cfg, dem, self.tangent))
         if self.use_trn:
             from navgate.trn.correlators import make_monitor
 
@@ -260,11 +263,13 @@ class Navigator:
 
 
 def navigate(stream: RecordStream, cfg, *, engine: str = "reference", dem=None,
-             use_trn: bool = True, name: str = "nav", progress=None) -> NavRun:
-    """Build the engine from the stream header and run the navigator over the stream."""
+             use_trn: bool = True, name: str = "nav", progress=None, trn_link=None) -> NavRun:
+    """Build the engine from the stream header and run the navigator over the stream
+    (``trn_link``: a :class:`~navgate.systems.ins_trn.ps.trn_link.TrnLink` to correlate on
+    the Pi's service instead of in this process)."""
     eng = make_engine(engine, engine_setup(stream.header, cfg))
     nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=use_trn, name=name,
-                    progress=progress)
+                    progress=progress, trn_link=trn_link)
     return nav.run(stream)
 
 
