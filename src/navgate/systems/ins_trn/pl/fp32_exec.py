@@ -57,7 +57,9 @@ def _cholesky_ok(regs, p_idx, work):
     return True
 
 
-@njit(cache=True, error_model="numpy")
+# not cached: Numba's cache checks only this file, so a cached copy would keep an old
+# opflow.execute kernel after that file changed (compiling takes about 0.4 s per process)
+@njit(error_model="numpy")
 def run_samples(regs, ops, table, in_idx, gyro_words, accel_words, check_pd, p_idx, stats):
     """The propagate program over N samples of IMU words. ``stats``: [samples with P not
     positive definite, samples with a non-finite state or P word] (counted when check_pd)."""
