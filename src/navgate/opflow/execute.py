@@ -9,7 +9,7 @@ Two executors of the same :class:`navgate.opflow.ir.Program`:
   registers of the programs, :attr:`Program.registers`, then inputs, constants and shared
   temporaries) and run by the Numba kernel :func:`execute`. Registers hold float64 values that
   are exactly float32 numbers; each op is evaluated in float64 on them and rounded with
-  :func:`_rnd`, which is the rule of :mod:`navgate.numerics.fp32` (round the float64 result to
+  :func:`round_fp32`, the rule of :mod:`navgate.numerics.fp32` (round the float64 result to
   24 significant bits, ties to even, with unbounded exponent; below 2^-126 -> signed zero;
   overflow -> infinity; NaN canonical on export). The float64 step is exact for mul (48-bit
   products) and for add/sub of float32 operands whose result is tiny, and a double rounding
@@ -31,7 +31,7 @@ from numba import njit
 from navgate.numerics import fp32 as F
 from navgate.opflow.ir import OPCODE, Program, const_value
 
-__all__ = ["execute", "commit", "Compiled", "Machine", "to_f32", "float_to_bits",
+__all__ = ["round_fp32", "execute", "commit", "Compiled", "Machine", "to_f32", "float_to_bits",
            "floats_to_bits", "run_bittrue"]
 
 _MIN_NORMAL = 2.0**-126
@@ -39,7 +39,7 @@ _ZERO_BELOW = 2.0**-126 - 2.0**-151  #: magnitudes that round (24 bits) to below
 
 
 @njit(cache=True, inline="always")
-def _rnd(r):
+def round_fp32(r):
     if r != r:
         return r
     a = abs(r)
@@ -74,7 +74,7 @@ def execute(regs, ops):
             r = 1.0 if a <= regs[ops[n, 3]] else 0.0
         else:
             r = 1.0 if a < regs[ops[n, 3]] else 0.0
-        regs[ops[n, 1]] = _rnd(r)
+        regs[ops[n, 1]] = round_fp32(r)
 
 
 @njit(cache=True)
