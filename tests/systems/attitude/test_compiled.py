@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from navgate.numerics.fp32 import f32_to_bits
+from navgate.numerics.fp32 import f32_to_bits, is_nan
 from navgate.systems.attitude.compiled import CompiledSolve
 from navgate.systems.attitude.mahony import SEED003
 from navgate.systems.attitude.mahony_fp32 import MahonyCircuitFP32
@@ -69,3 +69,38 @@ def test_compiled_equals_bittrue_model_on_bad_samples():
     for lane in (1, 2, 3, 4, 8):
         assert flags[lane, 10:, 0].all() and flags[lane, 10:, 1].all(), lane
     assert not flags[5].any()  # subnormals flush to zero, the vector stays valid
+
+
+SPECIAL = [0x00000000, 0x80000000, 0x3F800000, 0xBF800000, 0x3F800001, 0xBF800001, 0x7F800000,
+           0xFF800000, 0x7FC00000, 0x00800000, 0x40800000, 0xC0800000, 0x407FFFFF, 0xC0800001,
+           0x3A800000, 0xBA7FFFFF, 0x39800000, 0x42652EE1, 0xC3B40000, 0x3E99999A]
+
+
+def test_every_kind_equals_the_programs_evaluator_on_special_values():
+    """Each op kind of the solve program (program.EVAL, numerics.fp32 and atan16) on every
+    pair of special values: signed zeros, +-1 and their neighbours, infinities, NaN, the
+    smallest normal, the Q2.13 range edges (+-4), a value that rounds to half an LSB."""
+    from navgate.systems.attitude import atan16, compiled
+    from navgate.systems.attitude.program import EVAL
+
+    a, b = (np.array(v, np.uint32) for v in zip(*[(x, y) for x in SPECIAL for y in SPECIAL],
+                                                strict=True))
+    vals = np.column_stack([compiled._value(a), compiled._value(b)])
+    kinds = compiled._KINDS
+    ops = np.array([[compiled._CODE[k], 2 + i, 0, 1] for i, k in enumerate(kinds)], np.int64)
+    out = np.zeros((len(a), len(kinds)))
+    flags = np.zeros((len(a), 2), np.bool_)
+    compiled._run(np.zeros(2 + len(kinds)), ops, compiled._ATAN_TABLE, atan16.HALF_PI_Z,
+                  np.array([0, 1]), vals, np.zeros((0, 2), np.int64),
+                  np.arange(2, 2 + len(kinds)), np.zeros(0, np.int64), out, flags)
+    got = compiled.floats_to_bits(out).reshape(out.shape)
+    for i, k in enumerate(kinds):
+        args = (a, b)[:1] if k in ("sqrt", "neg", "dbl", "clampneg") else (a, b)
+        want = np.asarray(EVAL[k](*args), np.uint32)
+        want = np.where(is_nan(want), np.uint32(0x7FC00000), want)  # canonical, as exported
+        bad = np.flatnonzero(got[:, i] != want)
+        assert bad.size == 0, (k, [(hex(a[j]), hex(b[j]), hex(got[j, i]), hex(want[j]))
+                                   for j in bad[:4]])
+    sat = np.asarray(atan16.atan_fp32(a, b)[2], bool)
+    np.testing.assert_array_equal(flags[:, 1], sat)
+    assert sat.sum() > 50 and (~sat).sum() > 50
