@@ -24,6 +24,8 @@ import sys
 import time
 from dataclasses import asdict
 
+import numpy as np
+
 from navgate.systems.ins_trn.link import frames, messages
 from navgate.systems.ins_trn.link.faults import FaultInjector
 from navgate.systems.ins_trn.link.transport import (
@@ -35,6 +37,7 @@ from navgate.systems.ins_trn.link.transport import (
 )
 
 UNAVAILABLE = "no fix: TRN service unavailable"
+INVALID = "no fix: invalid fix from TRN service"
 #: the child's start-up (imports, terrain, compiled kernels) may take this long (s)
 SPAWN_HELLO_TIMEOUT_S = 120.0
 
@@ -81,7 +84,7 @@ class TrnLink:
         self.counters = {"absent_at_start": 0, "requests": 0, "replies": 0, "timeouts": 0,
                          "retries": 0,
                          "unavailable": 0, "stale_replies": 0, "service_errors": 0,
-                         "reconnects": 0, "bad_frames": 0, "bytes_sent": 0,
+                         "reconnects": 0, "invalid_fixes": 0, "bad_frames": 0, "bytes_sent": 0,
                          "bytes_received": 0}
         self._open(first=True)
 
@@ -299,7 +302,22 @@ class RemoteCorrelator:
             self.link.counters["stale_replies"] += 1
             return self.result_type(False, UNAVAILABLE, now)
         self.used_until, self.widen = used_until, widen
+        if result.accepted and not _usable(result):
+            self.link.counters["invalid_fixes"] += 1
+            return self.result_type(False, INVALID, now)
         return result
+
+
+def _usable(result) -> bool:
+    """An accepted fix the filter can take: finite positions and lag, and a covariance that
+    is finite, symmetric and positive definite (the chi-square gate judges the rest)."""
+    values = (result.fix_n, result.fix_e, result.ins_n, result.ins_e, result.lag_s)
+    if not all(isinstance(v, int | float) and math.isfinite(v) for v in values):
+        return False
+    cov = np.asarray(result.cov, float)
+    if cov.shape != (2, 2) or not np.all(np.isfinite(cov)) or cov[0, 1] != cov[1, 0]:
+        return False
+    return bool(cov[0, 0] > 0 and np.linalg.det(cov) > 0)
 
 
 __all__ = ["LinkError", "RemoteCorrelator", "TrnLink", "UNAVAILABLE", "parse_spec"]
