@@ -38,7 +38,8 @@ def _positive_float(ctx, param, value):
 
 @click.command()
 @click.option("--dem", "dem_path", type=click.Path(dir_okay=True), default=None,
-              help="DEM file (GeoTIFF, DTED .dt0/.dt1/.dt2, SRTM .hgt; geographic CRS). "
+              help="DEM file (GeoTIFF, DTED .dt0/.dt1/.dt2, SRTM .hgt; geographic CRS) or a "
+                   "directory of such tiles (merged; shared edge posts must agree). "
                    "Default: the embedded Jacksboro fault DEM.")
 @click.option("--duration", type=float, default=600.0, show_default=True,
               callback=_positive_float, help="Flight duration after GPS loss (s).")
@@ -71,7 +72,8 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from navgate.systems.ins_trn import flight, report
-    from navgate.trn.dem import Dem, DemError
+    from navgate.trn.dem import DemError
+    from navgate.trn.tiles import open_terrain
 
     table_console, console = consoles(quiet)
     if duration > 4 * 3600:
@@ -86,7 +88,7 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
         raise CliError("--engine fpga-sim needs the IMU's int16 output words, which "
                        "--ideal-sensors does not produce")
     try:
-        dem = Dem.default() if dem_path is None else Dem.from_file(dem_path)
+        dem = open_terrain(dem_path)
     except DemError as error:
         raise CliError(str(error)) from None
     try:
