@@ -99,3 +99,37 @@ def test_hardware_line_reports_the_simulated_pl():
     assert "108 profile DMAs" in line and "6,000 ranger frames" in line
     assert hardware_line({"engine_cycles": 2_500_000, "engine_cycles_per_imu_sample": 669.0}) \
         == "2.5 M engine cycles (669 per IMU sample)"
+
+
+@pytest.mark.parametrize("rows,cols", [(2, 2), (3, 3)])
+def test_flight_over_split_tiles_is_identical_to_whole_dem(tmp_path, rows, cols):
+    from navgate.trn import tiles
+    from navgate.trn.dem import Dem
+
+    tile_dir = tmp_path / "tiles"
+    tiles.split(Dem.default(), rows, cols, tile_dir)
+    runs = {}
+    for label, extra in (("whole", ()), ("tiles", ("--dem", str(tile_dir)))):
+        out = tmp_path / label
+        proc = navgate("fly", "--duration", "60", *extra, "--out", str(out), "--quiet")
+        assert proc.returncode == 0, proc.stderr
+        runs[label] = out
+    assert ((runs["whole"] / "trajectory.csv").read_bytes()
+            == (runs["tiles"] / "trajectory.csv").read_bytes())
+
+    def figures(label):
+        """The summary less wall-clock times and the DEM's name (file vs directory)."""
+        def strip(node):
+            if isinstance(node, dict):
+                return {k: strip(v) for k, v in node.items() if k not in ("wall_time_s", "name")}
+            return node
+        return strip(json.loads((runs[label] / "summary.json").read_text()))
+
+    a, b = figures("whole"), figures("tiles")
+    assert a["trn_aided"] and a == b
+
+
+def test_fly_over_empty_tile_directory_is_one_line_error(tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert_one_line_error(navgate("fly", "--dem", str(empty)), "no DEM tiles")
