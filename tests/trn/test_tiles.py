@@ -36,7 +36,7 @@ def test_heights_and_gradients_across_seams_match_bit_for_bit(dem, tmp_path):
     lat = seam_lat + rng.uniform(-2, 2, 500) * dem.dlat
     lon = dem.lon_west + rng.uniform(1, dem.shape[1] - 2, 500) * dem.dlon
     assert np.array_equal(merged.height(lat, lon), dem.height(lat, lon), equal_nan=True)
-    for a, b in zip(merged.gradient(lat, lon), dem.gradient(lat, lon)):
+    for a, b in zip(merged.gradient(lat, lon), dem.gradient(lat, lon), strict=True):
         assert np.array_equal(a, b, equal_nan=True)
 
 

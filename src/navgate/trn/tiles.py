@@ -81,10 +81,10 @@ def index_tiles(directory) -> TileIndex:
             raise DemError(f"{directory}: tile {t.name} is not on the post grid of "
                            f"{ref.name} (offset {fr:.4f} x {fc:.4f} posts)")
         offsets.append((r, c))
-    nrow = max(r + t.shape[0] for t, (r, _) in zip(tiles, offsets))
-    ncol = max(c + t.shape[1] for t, (_, c) in zip(tiles, offsets))
+    nrow = max(r + t.shape[0] for t, (r, _) in zip(tiles, offsets, strict=True))
+    ncol = max(c + t.shape[1] for t, (_, c) in zip(tiles, offsets, strict=True))
     covered = np.zeros((nrow, ncol), bool)
-    for t, (r, c) in zip(tiles, offsets):
+    for t, (r, c) in zip(tiles, offsets, strict=True):
         covered[r:r + t.shape[0], c:c + t.shape[1]] = True
     return TileIndex(tiles, offsets, (nrow, ncol), lat_north, lon_west, ref.dlat, ref.dlon,
                      int((~covered).sum()))
@@ -96,7 +96,7 @@ def mosaic(index: TileIndex, priority: str = "agree", name: str = "tiles") -> De
         raise DemError(f"tile priority must be one of {', '.join(PRIORITIES)}, got {priority!r}")
     heights = np.full(index.shape, np.nan)
     filled = np.zeros(index.shape, bool)
-    for t, (r, c) in zip(index.tiles, index.offsets):
+    for t, (r, c) in zip(index.tiles, index.offsets, strict=True):
         win = (slice(r, r + t.shape[0]), slice(c, c + t.shape[1]))
         old, old_filled = heights[win], filled[win]
         if priority == "agree":
