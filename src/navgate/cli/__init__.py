@@ -38,6 +38,7 @@ COMMANDS: dict[str, str] = {
     "kf2x2": "navgate.cli.kf2x2:kf2x2",
     "replay": "navgate.cli.replay:replay",
     "tinykalman": "navgate.cli.tinykalman:tinykalman",
+    "tiles": "navgate.cli.tiles:tiles",
 }
 
 
