@@ -1,4 +1,4 @@
-"""Seed 000's engines on the banked scheduled float32 datapath (navgate.systems.ins_trn.engines):
+"""Seed 000's engines on the banked scheduled float32 datapath (navgate.systems.ins_trn.pl.engines):
 exact cycle counts of every program per block (first issue to last write; a command adds
 the ``start``/``done`` cycle), the lower bounds of fp32_program.schedule_bounds, register banks
 and microcode sizes, and the Verilator simulation rate of ``ins_engines`` (native model of
@@ -18,7 +18,7 @@ import json
 import numpy as np
 
 from navgate.gateware.scheduled import UNIT_LATENCY
-from navgate.systems.ins_trn.engines import (
+from navgate.systems.ins_trn.pl.engines import (
     ENGINE_UNITS,
     IMU_WORDS,
     PROGRAM_SETS,
@@ -27,7 +27,7 @@ from navgate.systems.ins_trn.engines import (
     engine_programs,
     random_registers,
 )
-from navgate.systems.ins_trn.fp32_program import schedule_bounds
+from navgate.systems.ins_trn.pl.fp32_program import schedule_bounds
 
 
 def main():

@@ -16,9 +16,9 @@ import time
 
 import numpy as np
 
-from navgate.systems.ins_trn import flight
-from navgate.systems.ins_trn.engine import make_engine
-from navgate.systems.ins_trn.navigator import Navigator, engine_setup
+from navgate.systems.ins_trn.ps import flight
+from navgate.systems.ins_trn.ps.engine import make_engine
+from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
 from navgate.trn.dem import Dem
 
 

@@ -1,7 +1,7 @@
 """Speed of the reference navigation: mechanization, mechanization + ESKF (P at every IMU
 sample), the full `navgate fly` scenario; and, where python-ins (pyins) is installed, its
 Integrator and feedback filter on the same data. Seed 000's float32 engine: its op counts per
-IMU sample and per update (the op programs of navgate.systems.ins_trn.fp32_program), its
+IMU sample and per update (the op programs of navgate.systems.ins_trn.pl.fp32_program), its
 throughput, and the default flight with ``--engine fp32`` against the reference engine in
 the same run.
 
@@ -60,7 +60,7 @@ def main():
     run_filter()
     t_filt = best(run_filter, args.repeat)
 
-    from navgate.systems.ins_trn import flight
+    from navgate.systems.ins_trn.ps import flight
     from navgate.trn.dem import Dem
 
     t_f32 = bench_fp32_engine(nav0, p0, cfg, gyro, accel, traj)
@@ -106,8 +106,8 @@ def bench_fp32_engine(nav0, p0, cfg, gyro, accel, traj):
     """The float32 engine on the same readings (identity calibration, float words)."""
     from navgate.nav.calibration import ImuCalibration
     from navgate.nav.earth import LocalTangent
-    from navgate.systems.ins_trn.engine import EngineSetup
-    from navgate.systems.ins_trn.fp32_engine import Fp32Engine
+    from navgate.systems.ins_trn.ps.engine import EngineSetup
+    from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
 
     cal = ImuCalibration(gyro_lsb=1.0, accel_lsb=1.0)
     setup = EngineSetup(cal, cfg, 400.0, nav0, p0, np.zeros(3), np.zeros(3),
@@ -118,7 +118,7 @@ def bench_fp32_engine(nav0, p0, cfg, gyro, accel, traj):
 
 def print_op_counts():
     """Operations per IMU sample and per update, by module (neg is a sign flip: free)."""
-    from navgate.systems.ins_trn.fp32_engine import programs
+    from navgate.systems.ins_trn.pl.fp32_program import programs
 
     progs = programs()
     print(f"\n{'fp32 op program':44s} {'mul':>6s} {'add/sub':>8s} {'div':>5s} {'sqrt':>5s} "
@@ -151,7 +151,7 @@ def print_cycle_bounds(progs, units=None):
     from navgate.gateware.fp32.div import Fp32Div
     from navgate.gateware.fp32.mul import Fp32Mul
     from navgate.gateware.fp32.sqrt import Fp32Sqrt
-    from navgate.systems.ins_trn.fp32_program import schedule_bounds
+    from navgate.systems.ins_trn.pl.fp32_program import schedule_bounds
 
     lat = {"add": Fp32Add.LATENCY, "mul": Fp32Mul.LATENCY, "div": Fp32Div.LATENCY,
            "sqrt": Fp32Sqrt.LATENCY, "cmp": Fp32Compare.LATENCY, "cvt": Fp32FromInt.LATENCY}

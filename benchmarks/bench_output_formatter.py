@@ -24,7 +24,7 @@ import numpy as np
 
 from navgate.nav.rotations import euler_to_dcm_array
 from navgate.numerics.fp32 import bits_to_f32, f32_to_bits
-from navgate.systems.ins_trn import output_formatter as F
+from navgate.systems.ins_trn.pl import output_formatter as F
 
 
 def euler_quat(roll, pitch, yaw):

@@ -22,12 +22,12 @@ from pathlib import Path
 
 import numpy as np
 
-from navgate.systems.ins_trn.sensors.adis16500_emulator import Adis16500Emulator
-from navgate.systems.ins_trn.sensors.bmp390_emulator import Bmp390Emulator
-from navgate.systems.ins_trn.sensors.sim_bench import run_imu_emulated
-from navgate.systems.ins_trn.sensors.spi_master_baro import SpiMasterBaro
-from navgate.systems.ins_trn.sensors.spi_master_imu import SpiMasterImu, burst_cycles
-from navgate.systems.ins_trn.sensors.tfluna_emulator import TfLunaEmulator
+from navgate.systems.ins_trn.pl.sensors.adis16500_emulator import Adis16500Emulator
+from navgate.systems.ins_trn.pl.sensors.bmp390_emulator import Bmp390Emulator
+from navgate.systems.ins_trn.pl.sensors.sim_bench import run_imu_emulated
+from navgate.systems.ins_trn.pl.sensors.spi_master_baro import SpiMasterBaro
+from navgate.systems.ins_trn.pl.sensors.spi_master_imu import SpiMasterImu, burst_cycles
+from navgate.systems.ins_trn.pl.sensors.tfluna_emulator import TfLunaEmulator
 
 FIELDS = ("gx", "gy", "gz", "ax", "ay", "az", "temp", "diag")
 

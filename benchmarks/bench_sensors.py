@@ -16,7 +16,7 @@ import json
 import time
 from pathlib import Path
 
-from navgate.systems.ins_trn.sensors.verilator_bench import STREAMS, long_streams
+from navgate.systems.ins_trn.pl.sensors.verilator_bench import STREAMS, long_streams
 
 
 def main():

@@ -36,7 +36,7 @@ from amaranth.lib.wiring import In, Out
 from navgate.gateware.banked import OPERAND_STAGES, _or_all, _slot_unit, row_counter
 from navgate.hw.synth import synthesize
 from navgate.hw.verilog import emit_verilog
-from navgate.systems.ins_trn.engines import engine_image
+from navgate.systems.ins_trn.pl.engines import engine_image
 
 BANK_BITS = 3
 KIND_BITS = 3

@@ -20,7 +20,7 @@ import tempfile
 from dataclasses import replace
 from pathlib import Path
 
-from navgate.systems.ins_trn.engines import ENGINE_UNITS, engine_image
+from navgate.systems.ins_trn.pl.engines import ENGINE_UNITS, engine_image
 
 
 def configs() -> dict:

@@ -24,11 +24,11 @@ from navgate.hw.verilog import emit_verilog
 
 
 def _parts():
-    from navgate.systems.ins_trn.engines import InsEngines
-    from navgate.systems.ins_trn.output_formatter import NavOutputFormatter
-    from navgate.systems.ins_trn.profile_manager import AltitudeProfileManager
-    from navgate.systems.ins_trn.registers import register_bank
-    from navgate.systems.ins_trn.sensors.sensor_subsystem import SensorSubsystem
+    from navgate.systems.ins_trn.pl.engines import InsEngines
+    from navgate.systems.ins_trn.pl.output_formatter import NavOutputFormatter
+    from navgate.systems.ins_trn.pl.profile_manager import AltitudeProfileManager
+    from navgate.systems.ins_trn.pl.registers import register_bank
+    from navgate.systems.ins_trn.pl.sensors.sensor_subsystem import SensorSubsystem
 
     return {
         "ins_engines": InsEngines,
@@ -58,7 +58,7 @@ def main() -> None:
                         help="also the top with synth_xilinx -widemux N")
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
-    from navgate.systems.ins_trn.top import InsTrnTop, ZyboInsTrnTop
+    from navgate.systems.ins_trn.pl.top import InsTrnTop, ZyboInsTrnTop
 
     runs = [("ins_trn_top (core)", InsTrnTop, None, True)]
     if args.zybo:

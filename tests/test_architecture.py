@@ -65,7 +65,7 @@ def _layer(module: str) -> str:
 def test_the_graph_is_read():
     graph = import_graph()
     # a few edges that must be there, so that an empty graph cannot pass the tests below
-    assert "navgate.nav.eskf" in graph["navgate.systems.ins_trn.engine"]
+    assert "navgate.nav.eskf" in graph["navgate.systems.ins_trn.ps.engine"]
     assert "navgate.devices.adis16500" in graph["navgate.nav.calibration"]
     assert "navgate.devices.adis16500" in graph["navgate.sim.sensors"]
     assert len(graph) > 60
@@ -125,3 +125,36 @@ def test_cycle_finder_finds_a_known_cycle():
 def test_no_import_cycles():
     cycles = find_cycles(import_graph())
     assert not cycles, f"import cycles: {cycles}"
+
+
+# Seed 000 is arranged by computer (../shared/DESIGN.md, Layout): each package may import only
+# the packages of seed 000 below it. The fabric knows nothing of its driver or of the Pi.
+SEED000_FLOORS = {
+    "pl": set(),
+    "link": set(),
+    "pi": {"link"},
+    "ps": {"pl", "link"},
+}
+
+
+def _seed000_part(module: str) -> str | None:
+    parts = module.split(".")
+    if parts[:3] == ["navgate", "systems", "ins_trn"] and len(parts) > 3:
+        return parts[3]
+    return None
+
+
+def test_seed000_is_arranged_by_computer():
+    graph = import_graph()
+    parts = {_seed000_part(m) for m in graph} - {None}
+    assert {"pl", "ps"} <= parts, parts
+    offenders = []
+    for module, targets in graph.items():
+        here = _seed000_part(module)
+        if here not in SEED000_FLOORS:
+            continue
+        for target in targets:
+            there = _seed000_part(target)
+            if there and there != here and there not in SEED000_FLOORS[here]:
+                offenders.append(f"{module} -> {target}")
+    assert not offenders, "seed 000 part imports a part it must not:\n" + "\n".join(offenders)

@@ -13,7 +13,7 @@ from amaranth.sim import Simulator
 from navgate.gateware.axi_lite import AxiLiteRegisterBank, sim_response, sim_write
 from navgate.hw.regmap import OKAY, SLVERR, RegisterFileModel, load_rdl
 
-RDL = (Path(__file__).resolve().parents[2] / "src" / "navgate" / "systems" / "ins_trn"
+RDL = (Path(__file__).resolve().parents[2] / "src" / "navgate" / "systems" / "ins_trn" / "pl"
        / "registers.rdl")
 
 

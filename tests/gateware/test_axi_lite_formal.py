@@ -34,7 +34,7 @@ from navgate.gateware.axi_lite import AxiLiteRegisterBank, axi_lite_signature
 from navgate.hw.regmap import load_rdl
 from navgate.hw.synth import SynthesisError, run_yosys
 
-RDL = (Path(__file__).resolve().parents[2] / "src" / "navgate" / "systems" / "ins_trn"
+RDL = (Path(__file__).resolve().parents[2] / "src" / "navgate" / "systems" / "ins_trn" / "pl"
        / "registers.rdl")
 
 

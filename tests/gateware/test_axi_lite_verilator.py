@@ -13,7 +13,7 @@ from navgate.gateware.axi_lite import AxiLiteRegisterBank
 from navgate.gateware.verify import run_cocotb
 from navgate.hw.regmap import load_rdl
 
-RDL = (Path(__file__).resolve().parents[2] / "src" / "navgate" / "systems" / "ins_trn"
+RDL = (Path(__file__).resolve().parents[2] / "src" / "navgate" / "systems" / "ins_trn" / "pl"
        / "registers.rdl")
 
 

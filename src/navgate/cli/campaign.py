@@ -1,6 +1,6 @@
 """``navgate campaign``: Monte Carlo over seeds x terrains x options on Dask.
 
-Runs :mod:`navgate.systems.ins_trn.campaign` and writes ``summary.json`` (a
+Runs :mod:`navgate.systems.ins_trn.ps.campaign` and writes ``summary.json`` (a
 ``configurations`` list and every failed run), ``results.csv`` (one row per run),
 ``error_cdf.png`` and ``nees_hist.png`` into ``--out``; prints a results table per
 configuration. Bad input ends with one line on stderr and exit 2.
@@ -55,8 +55,8 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
     )
 
     from navgate.sim.sensors import RANGER_PRESETS
-    from navgate.systems.ins_trn import campaign as camp
-    from navgate.systems.ins_trn.flight import FlightConfig, RouteError, plan_route
+    from navgate.systems.ins_trn.ps import campaign as camp
+    from navgate.systems.ins_trn.ps.flight import FlightConfig, RouteError, plan_route
     from navgate.trn.correlators import METHODS
     from navgate.trn.dem import DemError
 

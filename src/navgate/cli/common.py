@@ -474,8 +474,8 @@ def simulation_errors() -> tuple:
     """The gateware co-simulations' own failures (a Verilator build or run that failed)."""
     from navgate.gateware.native_axi import NativeAxiError
     from navgate.gateware.native_stream import NativeStreamError
-    from navgate.systems.ins_trn.fpga_sim import FpgaSimError
-    from navgate.systems.ins_trn.rtl_engine import RtlError
+    from navgate.systems.ins_trn.ps.fpga_sim import FpgaSimError
+    from navgate.systems.ins_trn.ps.rtl_engine import RtlError
 
     return (NativeStreamError, RtlError, NativeAxiError, FpgaSimError)
 

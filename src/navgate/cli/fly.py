@@ -39,8 +39,14 @@ def _positive_float(ctx, param, value):
 @click.command()
 @click.option("--dem", "dem_path", type=click.Path(dir_okay=True), default=None,
               help="DEM file (GeoTIFF, DTED .dt0/.dt1/.dt2, SRTM .hgt; geographic CRS) or a "
-                   "directory of such tiles (merged; shared edge posts must agree). "
+                   "directory of such tiles (navgate tiles split makes one). "
                    "Default: the embedded Jacksboro fault DEM.")
+@click.option("--tile-cache-mb", type=float, default=None, callback=_positive_float,
+              help="With a tile directory: the tile cache's cap (MiB; default no cap).")
+@click.option("--tile-priority", type=click.Choice(["check", "first", "last"]),
+              default="check", show_default=True,
+              help="With a tile directory: where overlapping tiles disagree, stop (check) or "
+                   "let the first / last tile in file-name order win.")
 @click.option("--duration", type=float, default=600.0, show_default=True,
               callback=_positive_float, help="Flight duration after GPS loss (s).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
@@ -66,14 +72,14 @@ def _positive_float(ctx, param, value):
 @click.option("--record", "record_path", type=click.Path(dir_okay=False), default=None,
               help="Also write the sensor record stream to this log file (navgate replay).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")
-def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, speed,
-        trn_method, engine, record_path, quiet):
+def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_sensors, no_trn,
+        imu_rate, ranger, speed, trn_method, engine, record_path, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from navgate.systems.ins_trn import flight, report
+    from navgate.systems.ins_trn.ps import flight, report
     from navgate.trn.dem import DemError
-    from navgate.trn.tiles import open_terrain
+    from navgate.trn.tiles import load_terrain
 
     table_console, console = consoles(quiet)
     if duration > 4 * 3600:
@@ -88,9 +94,11 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
         raise CliError("--engine fpga-sim needs the IMU's int16 output words, which "
                        "--ideal-sensors does not produce")
     try:
-        dem = open_terrain(dem_path)
+        dem = load_terrain(dem_path, cache_mb=tile_cache_mb, priority=tile_priority)
     except DemError as error:
         raise CliError(str(error)) from None
+    if (tile_cache_mb is not None or tile_priority != "check") and not hasattr(dem, "stats"):
+        raise CliError("--tile-cache-mb and --tile-priority need --dem to be a tile directory")
     try:
         cfg = flight.FlightConfig(duration_s=duration, imu_rate_hz=imu_rate, seed=seed,
                                   ideal_sensors=ideal_sensors, trn=not no_trn, ranger=ranger,
@@ -99,7 +107,7 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
         raise CliError(str(error).replace("duration_s", "--duration")) from None
     try:
         route = flight.plan_route(dem, cfg)
-    except flight.RouteError as error:
+    except (flight.RouteError, DemError) as error:
         raise CliError(str(error)) from None
     check_out_dir(out)
     console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
@@ -121,12 +129,14 @@ def fly(dem_path, duration, seed, out, ideal_sensors, no_trn, imu_rate, ranger, 
                                 engine=engine)
         except simulation_errors() as error:
             raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
+        except DemError as error:
+            raise CliError(str(error)) from None
         bar.update(task, description="writing report", completed=total)
         summary = result.summary()
         summary["wall_time_s"] = time.perf_counter() - start
         files = report.write_report(result, stage)
         if record_path is not None:
-            from navgate.systems.ins_trn.records import write_log
+            from navgate.systems.ins_trn.ps.records import write_log
 
             if dem_path is not None and Path(record_path).resolve() == Path(dem_path).resolve():
                 raise CliError(f"--record {record_path} would overwrite the input DEM")

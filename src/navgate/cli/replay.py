@@ -1,6 +1,6 @@
 """``navgate replay``: run seed 000's navigator on a sensor record log (``navgate fly --record``).
 
-The log format is documented in :mod:`navgate.systems.ins_trn.records`. Bad records
+The log format is documented in :mod:`navgate.systems.ins_trn.ps.records`. Bad records
 (truncated, unparsable, non-finite, out-of-order time, int16 overflow) are counted by reason,
 skipped and reported in summary.json; only a log without a valid IMU record is an error. When
 the log holds truth records, both runs are scored exactly as ``navgate fly`` scores them.
@@ -38,11 +38,12 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
     from dataclasses import fields, replace
 
     from navgate.sim.flight import FlightConfig, score
-    from navgate.systems.ins_trn.flight import fly_stream
-    from navgate.systems.ins_trn.records import LogError, read_log
-    from navgate.trn.dem import Dem, DemError
+    from navgate.systems.ins_trn.ps.flight import fly_stream
+    from navgate.systems.ins_trn.ps.records import LogError, read_log
+    from navgate.trn.dem import DemError
     from navgate.trn.pmf import PmfConfig
     from navgate.trn.tercom import TercomConfig
+    from navgate.trn.tiles import load_terrain
 
     try:
         stream = read_log(log_path)
@@ -66,7 +67,7 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
     if no_trn:
         cfg = replace(cfg, trn=False)
     try:
-        dem = Dem.default() if dem_path is None else Dem.from_file(dem_path)
+        dem = load_terrain(dem_path)
     except DemError as error:
         raise CliError(str(error)) from None
     out = prepare_out_dir(out_dir)
@@ -75,6 +76,8 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
         runs = fly_stream(stream, dem, cfg, engine=engine)
     except simulation_errors() as error:
         raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
+    except DemError as error:
+        raise CliError(str(error)) from None
     summary = {
         "log": str(log_path), "engine": engine, "dem": dem.name,
         "log_dem": header.get("dem"), "records": len(stream), "imu_records": stream.n_imu,

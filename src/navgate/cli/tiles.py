@@ -1,8 +1,13 @@
-"""`navgate tiles split|info`: cut a DEM into edge-sharing GeoTIFF tiles; describe a tile set.
+"""``navgate tiles``: make and inspect DEM tile directories (the Pi's DTED cache of seed 000).
 
-Both sub-commands follow README's conventions: one-line errors with exit 2, outputs written
-through :func:`navgate.cli.common.atomic_output_dir`, a JSON summary beside the printed table.
-The tile store itself is :mod:`navgate.trn.tiles`.
+- ``navgate tiles split DEM --into RxC --out DIR`` cuts a DEM (a file, or ``default`` for the
+  embedded Jacksboro DEM) into R x C GeoTIFF tiles that share their edge posts, as DTED and
+  SRTM cells do, on exactly the DEM's lattice: a flight over DIR equals the flight over the DEM.
+- ``navgate tiles info DIR`` indexes a tile directory and prints its coverage, post spacing,
+  gaps, voids and overlaps, and the tile cache a route needs; ``--out`` writes the same as
+  ``tiles.json``.
+
+The store itself is :mod:`navgate.trn.tiles`.
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ import click
 from navgate.cli.common import (
     CliError,
     atomic_output_dir,
+    check_out_dir,
     consoles,
     default_out_dir,
     out_option,
@@ -24,95 +30,121 @@ from navgate.cli.common import (
 
 @click.group()
 def tiles():
-    """DEM tile directories (for `navgate fly --dem DIR`)."""
+    """Make and inspect DEM tile directories (navgate fly --dem DIR, navgate trn-serve)."""
 
 
-def _grid(value: str):
-    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", value)
-    if not m or int(m[1]) < 1 or int(m[2]) < 1:
-        raise CliError(f"--into must be ROWSxCOLS with positive counts (e.g. 2x2), got {value!r}")
-    return int(m[1]), int(m[2])
-
-
-def _describe(dem, index=None):
-    sn, se = dem.post_spacing_m()
-    s, n, w, e = dem.lat_south, dem.lat_north, dem.lon_west, dem.lon_east
-    out = {"posts": list(dem.shape), "post_spacing_m": [sn, se],
-           "post_spacing_arcsec": [math.degrees(dem.dlat) * 3600, math.degrees(dem.dlon) * 3600],
-           "bounds_deg": {"south": math.degrees(s), "north": math.degrees(n),
-                          "west": math.degrees(w), "east": math.degrees(e)},
-           "void_fraction": dem.void_fraction(), "bytes": int(dem.heights.nbytes)}
-    if index is not None:
-        out["tiles"] = [{"name": t.name, "posts": list(t.shape), "offset_posts": list(o),
-                         "void_fraction": t.void_fraction()}
-                        for t, o in zip(index.tiles, index.offsets, strict=True)]
-        out["gap_posts"] = index.gap_posts
-    return out
-
-
-def _print(console, title, info):
-    from rich.table import Table
-
-    table = Table(title=title)
-    table.add_column("figure")
-    table.add_column("value", justify="right")
-    table.add_row("posts", " x ".join(map(str, info["posts"])))
-    table.add_row("post spacing (m, N x E)", "{:.2f} x {:.2f}".format(*info["post_spacing_m"]))
-    b = info["bounds_deg"]
-    table.add_row("bounds (deg)", f"{b['south']:.5f}..{b['north']:.5f} N, "
-                  f"{b['west']:.5f}..{b['east']:.5f} E")
-    table.add_row("void fraction", f"{info['void_fraction']:.4%}")
-    if "tiles" in info:
-        table.add_row("tiles", str(len(info["tiles"])))
-        table.add_row("gap posts (no tile)", str(info["gap_posts"]))
-    table.add_row("merged size (MiB)", f"{info['bytes'] / 2**20:.3f}")
-    console.print(table)
+def _grid(ctx, param, value):
+    match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", value or "")
+    if not match:
+        raise click.BadParameter(f"must be ROWSxCOLS, e.g. 2x2, got {value!r}")
+    rows, cols = int(match.group(1)), int(match.group(2))
+    if not (1 <= rows <= 256 and 1 <= cols <= 256):
+        raise click.BadParameter(f"tile counts must be between 1 and 256, got {value}")
+    return rows, cols
 
 
 @tiles.command()
 @click.argument("dem_path", metavar="DEM")
-@click.option("--into", "into", default="2x2", show_default=True, help="ROWSxCOLS tiles.")
-@out_option(default_out_dir("tiles-split"), "Tile directory (written atomically).")
+@click.option("--into", "grid", required=True, callback=_grid,
+              help="Tile counts ROWSxCOLS (e.g. 3x3).")
+@out_option(default_out_dir("tiles"), "Tile directory to write (written atomically).")
 @click.option("--quiet", is_flag=True, help="No table.")
-def split(dem_path, into, out, quiet):
-    """Split DEM (a file, or `default` for the embedded DEM) into GeoTIFF tiles sharing edges."""
-    from navgate.trn import tiles as store
-    from navgate.trn.dem import DemError
+def split(dem_path, grid, out, quiet):
+    """Cut DEM (a file, or 'default' for the embedded DEM) into tiles sharing edge posts."""
+    from navgate.trn.dem import Dem, DemError
+    from navgate.trn.tiles import TileStore, split_dem
 
-    rows, cols = _grid(into)
-    table_console, _ = consoles(quiet)
+    table_console, console = consoles(quiet)
     try:
-        dem = store.open_terrain(dem_path)
-        store.split_bounds(dem.shape[0], rows)
-        store.split_bounds(dem.shape[1], cols)
+        dem = Dem.default() if dem_path == "default" else Dem.from_file(dem_path)
     except DemError as error:
         raise CliError(str(error)) from None
-    with atomic_output_dir(out, inputs=[dem_path]) as stage:
-        paths = store.split(dem, rows, cols, stage)
-        summary = {"source": dem.name, "into": [rows, cols],
-                   "tile_files": [p.name for p in paths], **_describe(dem)}
-        write_summary(stage, summary, name="tiles_summary.json")
-    _print(table_console, f"{dem.name} -> {rows} x {cols} tiles in {out}", summary)
+    check_out_dir(out)
+    rows, cols = grid
+    inputs = [] if dem_path == "default" else [dem_path]
+    with atomic_output_dir(out, inputs=inputs) as stage:
+        try:
+            paths = split_dem(dem, rows, cols, stage)
+        except ValueError as error:
+            raise CliError(str(error)) from None
+        store = TileStore(stage)
+        summary = _describe(store)
+        summary["source"] = dem.name
+        write_summary(stage, summary, name="tiles.json")
+    table_console.print(f"{len(paths)} tiles of {dem.name} ({dem.shape[0]} x {dem.shape[1]} "
+                        f"posts) cut {rows} x {cols}, sharing their edge posts")
+    console.print(f"wrote {len(paths)} tiles and tiles.json in {out}", highlight=False)
+
+
+def _describe(store) -> dict:
+    scan = store.scan()
+    sn, se = store.post_spacing_m()
+    south, north, west, east = store.valid_bounds()
+    largest = max(t.nbytes for t in store.tiles)
+    return {
+        "directory": str(store.directory),
+        "tiles": [{"file": t.path.name, "row0": t.row0, "col0": t.col0, "rows": t.rows,
+                   "cols": t.cols, "bytes": t.nbytes} for t in store.tiles],
+        "tile_count": len(store.tiles),
+        "posts": list(store.shape),
+        "post_spacing_arcsec": [math.degrees(store.dlat) * 3600, math.degrees(store.dlon) * 3600],
+        "post_spacing_m": [sn, se],
+        "coverage_deg": {"south": math.degrees(south), "north": math.degrees(north),
+                         "west": math.degrees(west), "east": math.degrees(east)},
+        "gap_posts": store.gap_posts,
+        "void_posts": scan["void_posts"],
+        "void_fraction": store.void_fraction(),
+        "height_range_m": [scan["min_m"], scan["max_m"]],
+        "overlapping_pairs": len(store.overlapping_pairs),
+        "overlaps_agree": True,  # scan() assembled every post through the "check" rule
+        "size_bytes": store.size_bytes,
+        "largest_tile_bytes": largest,
+        # a route crossing a tile corner needs the four tiles around it at once
+        "route_cache_bytes": min(4 * largest, store.size_bytes),
+    }
 
 
 @tiles.command()
-@click.argument("tile_dir", metavar="DIR", type=click.Path(file_okay=False))
-@click.option("--priority", type=click.Choice(["agree", "first"]), default="agree",
-              show_default=True, help="Shared edge posts must agree, or the first-named wins.")
-@out_option(default_out_dir("tiles-info"), "Where the JSON summary goes (written atomically).")
+@click.argument("directory", type=click.Path(file_okay=False))
+@out_option(None, "Also write tiles.json into this directory (written atomically).")
 @click.option("--quiet", is_flag=True, help="No table.")
-def info(tile_dir, priority, out, quiet):
-    """Coverage, post spacing, voids and gaps of a tile directory."""
-    from navgate.trn import tiles as store
-    from navgate.trn.dem import DemError
+def info(directory, out, quiet):
+    """Index a tile directory: coverage, spacing, gaps, voids, the cache a route needs."""
+    from rich.table import Table
 
-    table_console, _ = consoles(quiet)
+    from navgate.trn.dem import DemError
+    from navgate.trn.tiles import TileStore
+
+    table_console, console = consoles(quiet)
+    if out is not None:
+        check_out_dir(out)
     try:
-        index = store.index_tiles(tile_dir)
-        dem = store.mosaic(index, priority=priority, name=str(tile_dir))
+        store = TileStore(directory)
+        summary = _describe(store)
     except DemError as error:
         raise CliError(str(error)) from None
-    summary = {"directory": str(tile_dir), "priority": priority, **_describe(dem, index)}
-    with atomic_output_dir(out, inputs=[tile_dir]) as stage:
-        write_summary(stage, summary)
-    _print(table_console, f"tile set {tile_dir}", summary)
+    mib = 2.0**20
+    table = Table(title=f"tiles in {directory}")
+    table.add_column("")
+    table.add_column("")
+    cov = summary["coverage_deg"]
+    for key, value in (
+            ("tiles", f"{summary['tile_count']}"),
+            ("posts", f"{summary['posts'][0]} x {summary['posts'][1]}"),
+            ("post spacing", "{:.4g} x {:.4g} arc-s ({:.1f} x {:.1f} m)".format(
+                *summary["post_spacing_arcsec"], *summary["post_spacing_m"])),
+            ("coverage", f"{cov['south']:.5f} to {cov['north']:.5f} N, "
+                         f"{cov['west']:.5f} to {cov['east']:.5f} E"),
+            ("gaps", f"{summary['gap_posts']} posts"),
+            ("voids", f"{summary['void_posts']} posts ({100 * summary['void_fraction']:.3g} %)"),
+            ("heights", "{:.1f} to {:.1f} m".format(*summary["height_range_m"])),
+            ("overlapping tile pairs", f"{summary['overlapping_pairs']} (shared posts agree)"),
+            ("size in memory", f"{summary['size_bytes'] / mib:.2f} MiB"),
+            ("cache a route needs", f"{summary['route_cache_bytes'] / mib:.2f} MiB "
+                                    "(the 4 tiles around a corner)")):
+        table.add_row(key, value)
+    table_console.print(table)
+    if out is not None:
+        with atomic_output_dir(out, inputs=[directory]) as stage:
+            write_summary(stage, summary, name="tiles.json")
+        console.print(f"wrote tiles.json in {out}", highlight=False)

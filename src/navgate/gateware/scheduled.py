@@ -6,7 +6,7 @@ Programs
 A program is a list of ops with ``dst``, ``kind`` and ``srcs`` (SSA: every ``dst`` is a new
 temporary), a ``commit`` map (register <- temporary, all reads of a register in the program
 see its value at program start) and ``outputs`` (name -> temporary) -- the form of
-:class:`navgate.systems.ins_trn.fp32_program.Program`. Kinds: ``add sub mul div sqrt le lt
+:class:`navgate.systems.ins_trn.pl.fp32_program.Program`. Kinds: ``add sub mul div sqrt le lt
 cvt neg``; ``neg`` is a sign flip folded into its consumers' operand paths
 (:func:`_fold_negs`; it must feed arithmetic ops only). Register names that are not
 temporaries are persistent: ``c:<hex>`` constants (initial contents) and the names the

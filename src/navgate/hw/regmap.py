@@ -19,7 +19,7 @@ back 0). Writes to read-only registers are ignored with OKAY; only unmapped offs
 SLVERR. User properties ``navgate_extension``, ``navgate_departure`` and
 ``navgate_float32`` mark registers added to, changed from, and float32 in the source spec.
 Arrays are unrolled as ``NAME_0``, ``NAME_1``, ... This module is a shared library: it
-knows no particular map (seed 000's is ``navgate/systems/ins_trn/registers.rdl``).
+knows no particular map (seed 000's is ``navgate/systems/ins_trn/pl/registers.rdl``).
 """
 
 from __future__ import annotations

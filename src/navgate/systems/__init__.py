@@ -25,10 +25,10 @@ is published to :mod:`navgate.hw.blocks` through the ``navgate.blocks`` entry po
 #: and their CORDIC is the shared ``cordic_atan2_iter`` core (docs/seed001-tinykalman.md).
 BLOCKS: dict[str, tuple[str, str]] = {
     "kf2x2": ("navgate.systems.kf2x2.top:Kf2x2", "seed 004 2x2 adaptive Kalman filter"),
-    "ins_trn_regs": ("navgate.systems.ins_trn.registers:register_bank",
+    "ins_trn_regs": ("navgate.systems.ins_trn.pl.registers:register_bank",
                      "seed 000 AXI4-Lite register bank from its SystemRDL map (+ C header, docs)"),
     "altitude_profile_manager": (
-        "navgate.systems.ins_trn.profile_manager:AltitudeProfileManager",
+        "navgate.systems.ins_trn.pl.profile_manager:AltitudeProfileManager",
         "seed 000 altitude profile FIFO (64 x 128 bit, one RAMB18) with AXI4 burst DMA to DDR"),
     "tinykalman_top": ("navgate.systems.tinykalman.top:TinyKalmanTop",
                        "seed 001 TinyKalman chip, TinyTapeout user module (10 MHz, 100 Hz loop)"),
@@ -38,19 +38,19 @@ BLOCKS: dict[str, tuple[str, str]] = {
                       "seed 001 steady-state Kalman filter, >>> 6 gains, two axes"),
     "uart_tx": ("navgate.systems.tinykalman.uart:UartTx",
                 "seed 001 8N1 UART transmitter (9596.9 baud at 10 MHz)"),
-    "spi_master_imu": ("navgate.systems.ins_trn.sensors.spi_master_imu:SpiMasterImu",
+    "spi_master_imu": ("navgate.systems.ins_trn.pl.sensors.spi_master_imu:SpiMasterImu",
                        "seed 000 ADIS16500 burst reader (SPI mode 3, checksum, FIFO, counters)"),
-    "spi_master_baro": ("navgate.systems.ins_trn.sensors.spi_master_baro:SpiMasterBaro",
+    "spi_master_baro": ("navgate.systems.ins_trn.pl.sensors.spi_master_baro:SpiMasterBaro",
                         "seed 000 BMP390 reader (NVM once, pressure/temperature reads)"),
-    "baro_compensation": ("navgate.systems.ins_trn.sensors.baro_compensation:BaroCompensation",
+    "baro_compensation": ("navgate.systems.ins_trn.pl.sensors.baro_compensation:BaroCompensation",
                           "seed 000 BMP390 compensation engine, float32 on shared fp32 cores"),
-    "uart_rx_lidar": ("navgate.systems.ins_trn.sensors.uart_rx_lidar:UartRxLidar",
+    "uart_rx_lidar": ("navgate.systems.ins_trn.pl.sensors.uart_rx_lidar:UartRxLidar",
                       "seed 000 TF-Luna 115200 8N1 receiver and 9-byte frame parser"),
-    "imu_calibration": ("navgate.systems.ins_trn.sensors.imu_calibration:ImuCalibrationBlock",
+    "imu_calibration": ("navgate.systems.ins_trn.pl.sensors.imu_calibration:ImuCalibrationBlock",
                         "seed 000 IMU calibration: int16 -> float32 SI, bias/scale/misalignment"),
-    "sensor_subsystem": ("navgate.systems.ins_trn.sensors.sensor_subsystem:SensorSubsystem",
+    "sensor_subsystem": ("navgate.systems.ins_trn.pl.sensors.sensor_subsystem:SensorSubsystem",
                          "seed 000 sensor subsystem: three interfaces, calibration, compensation"),
-    "nav_output_formatter": ("navgate.systems.ins_trn.output_formatter:NavOutputFormatter",
+    "nav_output_formatter": ("navgate.systems.ins_trn.pl.output_formatter:NavOutputFormatter",
                              "seed 000 nav_output_formatter: state words -> POS/VEL/QUAT/Euler"),
     "attitude_top": ("navgate.systems.attitude.top:AttitudeTop",
                      "seed 003 attitude-solving circuit (INS_top, shared float32 units)"),
@@ -68,19 +68,19 @@ BLOCKS: dict[str, tuple[str, str]] = {
                        "seed 003 INS_euler: Euler angles (3.1.7), own units"),
     "attitude_atan": ("navgate.systems.attitude.units:AtanCircuit",
                       "seed 003 fix16 arctangent (3.1.8): float32->Q2.13->CORDIC->float32"),
-    # Seed 000's whole PL (navgate.systems.ins_trn.top, docs/seed000-top.md); with
+    # Seed 000's whole PL (navgate.systems.ins_trn.pl.top, docs/seed000-top.md); with
     # --target zybo-z7-20 the board variant (MMCM clocking) plus XDC and filelist
-    "ins_trn_top": ("navgate.systems.ins_trn.top:InsTrnTop",
+    "ins_trn_top": ("navgate.systems.ins_trn.pl.top:InsTrnTop",
                     "seed 000 ins_trn_top: registers, sensors, sequencer, engines, formatter, "
                     "profile DMA, interrupts"),
-    # Seed 000's PL engines (navgate.systems.ins_trn.engines): the banked scheduled float32
+    # Seed 000's PL engines (navgate.systems.ins_trn.pl.engines): the banked scheduled float32
     # datapath (navgate.gateware.banked, docs/seed000-engines.md)
-    "ins_engines": ("navgate.systems.ins_trn.engines:InsEngines",
+    "ins_engines": ("navgate.systems.ins_trn.pl.engines:InsEngines",
                     "seed 000 INS engines: propagate + altitude/TRN updates, shared fp32 units"),
-    "kalman_update_engine": ("navgate.systems.ins_trn.engines:KalmanUpdateEngine",
+    "kalman_update_engine": ("navgate.systems.ins_trn.pl.engines:KalmanUpdateEngine",
                              "seed 000 Kalman update engine (1-D altitude, 2-D TRN), fp32"),
-    "ins_mechanization": ("navgate.systems.ins_trn.engines:InsMechanization",
+    "ins_mechanization": ("navgate.systems.ins_trn.pl.engines:InsMechanization",
                           "seed 000 IMU calibration + INS mechanization, fp32, one sample"),
-    "covariance_propagator": ("navgate.systems.ins_trn.engines:CovariancePropagator",
+    "covariance_propagator": ("navgate.systems.ins_trn.pl.engines:CovariancePropagator",
                               "seed 000 Phi/Q generation + covariance propagation, fp32"),
 }

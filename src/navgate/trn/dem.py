@@ -42,12 +42,99 @@ class DemError(ValueError):
     """A file that cannot serve as a DEM (missing, unreadable, not geographic, empty)."""
 
 
+@dataclass(frozen=True)
+class RasterHeader:
+    """Where a geographic raster's posts lie: post-centre origin and spacing (rad), the size,
+    and the source's own edges in degrees (west, north, dlon, dlat) for north-up rasters."""
+
+    rows: int
+    cols: int
+    lat_north: float
+    lon_west: float
+    dlat: float
+    dlon: float
+    edges_deg: tuple | None
+
+
+def _open_raster(path: Path):
+    try:
+        import rasterio
+    except ImportError as error:  # pragma: no cover - rasterio is a dependency
+        raise DemError(f"rasterio is needed to read {path}: {error}") from None
+    return rasterio.open(path)
+
+
+def _header(src, path: Path) -> RasterHeader:
+    if src.count < 1:
+        raise DemError(f"{path}: raster has no bands")
+    crs = src.crs
+    if crs is None or not crs.is_geographic:
+        raise DemError(f"{path}: DEM must be in geographic (lat/lon) coordinates, got "
+                       f"{crs.to_string() if crs else 'no CRS'}")
+    t = src.transform
+    if t.b != 0 or t.d != 0:
+        raise DemError(f"{path}: rotated rasters are not supported")
+    dlon, dlat = t.a, -t.e
+    if not (dlon > 0 and dlat != 0 and math.isfinite(dlon) and math.isfinite(dlat)):
+        raise DemError(f"{path}: post spacing must be positive, got {dlon!r}, {-dlat!r}")
+    rows, cols = src.height, src.width
+    if dlat < 0:  # south-up raster: flipped to north-up when read
+        return RasterHeader(rows, cols, math.radians(t.f - dlat * (rows - 0.5)),
+                            math.radians(t.c + dlon / 2), math.radians(-dlat),
+                            math.radians(dlon), None)
+    return RasterHeader(rows, cols, math.radians(t.f - dlat / 2), math.radians(t.c + dlon / 2),
+                        math.radians(dlat), math.radians(dlon), (t.c, t.f, dlon, dlat))
+
+
+def read_header(path) -> RasterHeader:
+    """The header of a geographic raster, without reading its heights (tile indexing)."""
+    path = Path(path)
+    from rasterio.errors import RasterioIOError
+
+    try:
+        with _open_raster(path) as src:
+            return _header(src, path)
+    except DemError:
+        raise
+    except (RasterioIOError, OSError, ValueError) as error:
+        raise DemError(f"{path}: not a readable DEM ({' '.join(str(error).split())})") from None
+
+
+def read_raster(path) -> tuple[np.ndarray, RasterHeader]:
+    """Heights (float64, north-up, NaN for nodata and the SRTM void) and header of a raster."""
+    path = Path(path)
+    from rasterio.errors import RasterioIOError
+
+    try:
+        with _open_raster(path) as src:
+            header = _header(src, path)
+            data = src.read(1, masked=True)
+            heights = np.ma.filled(data.astype(np.float64), np.nan)
+            nodata = src.nodata
+    except DemError:
+        raise
+    except (RasterioIOError, OSError, ValueError) as error:
+        raise DemError(f"{path}: not a readable DEM ({' '.join(str(error).split())})") from None
+    heights[heights == SRTM_VOID] = np.nan
+    if nodata is not None and np.isfinite(nodata):
+        heights[heights == nodata] = np.nan
+    if header.edges_deg is None:
+        heights = heights[::-1]
+    return np.ascontiguousarray(heights), header
+
+
 @njit(cache=True)
-def bilinear(heights, lat_north, lon_west, dlat, dlon, lat, lon):
-    """Bilinear height at (lat, lon) in rad; NaN outside the grid or next to a void."""
+def bilinear_at(heights, row0, col0, nrow, ncol, lat_north, lon_west, dlat, dlon, lat, lon):
+    """Bilinear height at (lat, lon) in rad on a grid of ``nrow`` x ``ncol`` posts of which
+    ``heights`` holds the block starting at post (``row0``, ``col0``); NaN outside the grid,
+    next to a void, or where the block does not hold the four posts.
+
+    The arithmetic depends on the whole grid's origin and spacing only, never on the block:
+    a height read from a window of a tile mosaic equals, bit for bit, the height read from
+    the merged raster (``navgate.trn.tiles``).
+    """
     fi = (lat_north - lat) / dlat
     fj = (lon - lon_west) / dlon
-    nrow, ncol = heights.shape
     # points within rounding (1e-9 post) of the outer posts count as on the grid
     if fi < 0.0 and fi > -1e-9:
         fi = 0.0
@@ -63,20 +150,69 @@ def bilinear(heights, lat_north, lon_west, dlat, dlon, lat, lon):
     j = min(int(fj), ncol - 2)
     u = fi - i
     v = fj - j
-    h00 = heights[i, j]
-    h01 = heights[i, j + 1]
-    h10 = heights[i + 1, j]
-    h11 = heights[i + 1, j + 1]
+    bi = i - row0
+    bj = j - col0
+    if bi < 0 or bj < 0 or bi + 1 >= heights.shape[0] or bj + 1 >= heights.shape[1]:
+        return math.nan
+    h00 = heights[bi, bj]
+    h01 = heights[bi, bj + 1]
+    h10 = heights[bi + 1, bj]
+    h11 = heights[bi + 1, bj + 1]
     return (h00 * (1.0 - u) * (1.0 - v) + h01 * (1.0 - u) * v
             + h10 * u * (1.0 - v) + h11 * u * v)
 
 
 @njit(cache=True)
-def bilinear_many(heights, lat_north, lon_west, dlat, dlon, lat, lon):
+def bilinear(heights, lat_north, lon_west, dlat, dlon, lat, lon):
+    """Bilinear height at (lat, lon) in rad; NaN outside the grid or next to a void."""
+    return bilinear_at(heights, 0, 0, heights.shape[0], heights.shape[1], lat_north, lon_west,
+                       dlat, dlon, lat, lon)
+
+
+@njit(cache=True)
+def bilinear_many_at(heights, row0, col0, nrow, ncol, lat_north, lon_west, dlat, dlon, lat, lon):
     out = np.empty(lat.shape[0])
     for k in range(lat.shape[0]):
-        out[k] = bilinear(heights, lat_north, lon_west, dlat, dlon, lat[k], lon[k])
+        out[k] = bilinear_at(heights, row0, col0, nrow, ncol, lat_north, lon_west, dlat, dlon,
+                             lat[k], lon[k])
     return out
+
+
+def bilinear_many(heights, lat_north, lon_west, dlat, dlon, lat, lon):
+    return bilinear_many_at(heights, 0, 0, heights.shape[0], heights.shape[1], lat_north,
+                            lon_west, dlat, dlon, lat, lon)
+
+
+@dataclass(frozen=True)
+class GridWindow:
+    """A block of a terrain grid: ``heights`` holds posts ``row0..`` x ``col0..`` of a grid of
+    ``nrow`` x ``ncol`` posts with the given origin and spacing (rad). The correlators' kernels
+    take :meth:`kernel_args` and index the block with the whole grid's arithmetic."""
+
+    heights: np.ndarray
+    row0: int
+    col0: int
+    nrow: int
+    ncol: int
+    lat_north: float
+    lon_west: float
+    dlat: float
+    dlon: float
+
+    def kernel_args(self):
+        return (self.heights, self.row0, self.col0, self.nrow, self.ncol, self.lat_north,
+                self.lon_west, self.dlat, self.dlon)
+
+
+def window_around(terrain, tangent, pos_n, pos_e, pad_m: float) -> GridWindow:
+    """The window of ``terrain`` that holds every point within ``pad_m`` (m) of the NED
+    positions ``pos_n``, ``pos_e`` (m) about ``tangent``, plus one post all round."""
+    n = np.asarray(pos_n, float)
+    e = np.asarray(pos_e, float)
+    lat_a, lon_a = tangent.to_geodetic(np.array([n.min() - pad_m, n.max() + pad_m]),
+                                       np.array([e.min() - pad_m, e.max() + pad_m]))
+    return terrain.window(float(np.min(lat_a)), float(np.max(lat_a)),
+                          float(np.min(lon_a)), float(np.max(lon_a)))
 
 
 @dataclass
@@ -89,6 +225,9 @@ class Dem:
     dlat: float
     dlon: float
     name: str = "dem"
+    #: the source's own (west edge, north edge, dlon, dlat) in degrees, where it has one:
+    #: ``navgate tiles split`` writes tiles on exactly this lattice
+    edges_deg: tuple | None = None
 
     def __post_init__(self):
         h = np.ascontiguousarray(self.heights, dtype=np.float64)
@@ -121,7 +260,8 @@ class Dem:
         north_edge = max(float(data["ymin"]), float(data["ymax"]))
         west_edge = min(float(data["xmin"]), float(data["xmax"]))
         return cls(elevation, math.radians(north_edge - dy / 2), math.radians(west_edge + dx / 2),
-                   math.radians(dy), math.radians(dx), name="jacksboro_fault_dem (matplotlib)")
+                   math.radians(dy), math.radians(dx), name="jacksboro_fault_dem (matplotlib)",
+                   edges_deg=(west_edge, north_edge, dx, dy))
 
     @classmethod
     def from_file(cls, path) -> Dem:
@@ -131,44 +271,9 @@ class Dem:
             raise DemError(f"DEM file not found: {path}")
         if path.is_dir():
             raise DemError(f"DEM path is a directory, not a file: {path}")
-        try:
-            import rasterio
-            from rasterio.errors import RasterioIOError
-        except ImportError as error:  # pragma: no cover - rasterio is a dependency
-            raise DemError(f"rasterio is needed to read {path}: {error}") from None
-        try:
-            with rasterio.open(path) as src:
-                if src.count < 1:
-                    raise DemError(f"{path}: raster has no bands")
-                crs = src.crs
-                if crs is None or not crs.is_geographic:
-                    raise DemError(
-                        f"{path}: DEM must be in geographic (lat/lon) coordinates, got "
-                        f"{crs.to_string() if crs else 'no CRS'}")
-                t = src.transform
-                if t.b != 0 or t.d != 0:
-                    raise DemError(f"{path}: rotated rasters are not supported")
-                data = src.read(1, masked=True)
-                heights = np.ma.filled(data.astype(np.float64), np.nan)
-                nodata = src.nodata
-        except DemError:
-            raise
-        except (RasterioIOError, OSError, ValueError) as error:
-            raise DemError(f"{path}: not a readable DEM ({' '.join(str(error).split())})") from None
-        heights[heights == SRTM_VOID] = np.nan
-        if nodata is not None and np.isfinite(nodata):
-            heights[heights == nodata] = np.nan
-        dlon = t.a
-        dlat = -t.e
-        if dlat < 0:  # south-up raster: flip to north-up
-            heights = heights[::-1]
-            lat_north = t.f + dlat * (heights.shape[0] - 0.5)
-            dlat = -dlat
-        else:
-            lat_north = t.f - dlat / 2
-        lon_west = t.c + dlon / 2
-        return cls(heights, math.radians(lat_north), math.radians(lon_west),
-                   math.radians(dlat), math.radians(dlon), name=path.name)
+        heights, header = read_raster(path)
+        return cls(heights, header.lat_north, header.lon_west, header.dlat, header.dlon,
+                   name=path.name, edges_deg=header.edges_deg)
 
     # -- geometry ---------------------------------------------------------------------------
     @property
@@ -204,6 +309,11 @@ class Dem:
     def void_fraction(self) -> float:
         return float(np.mean(~np.isfinite(self.heights)))
 
+    def window(self, lat_lo=None, lat_hi=None, lon_lo=None, lon_hi=None) -> GridWindow:
+        """The grid as one :class:`GridWindow` (a DEM in memory hands out all of itself)."""
+        return GridWindow(self.heights, 0, 0, self.shape[0], self.shape[1], self.lat_north,
+                          self.lon_west, self.dlat, self.dlon)
+
     # -- queries --------------------------------------------------------------------------------
     def height(self, lat, lon):
         """Bilinear height(s) (m) at lat, lon (rad); NaN off the map or next to a void."""
@@ -218,16 +328,7 @@ class Dem:
 
     def gradient(self, lat, lon, step_m: float | None = None):
         """(dh/dnorth, dh/deast) (m/m) by central differences of the bilinear surface."""
-        lat = np.asarray(lat, float)
-        lon = np.asarray(lon, float)
-        rn, re = radii(float(np.mean(lat)))
-        sn, se = self.post_spacing_m()
-        step = step_m if step_m is not None else 0.5 * min(sn, se)
-        dlat = step / rn
-        dlon = step / (re * math.cos(float(np.mean(lat))))
-        gn = (self.height(lat + dlat, lon) - self.height(lat - dlat, lon)) / (2 * step)
-        ge = (self.height(lat, lon + dlon) - self.height(lat, lon - dlon)) / (2 * step)
-        return gn, ge
+        return terrain_gradient(self, lat, lon, step_m)
 
     def hillshade(self, azimuth_deg=315.0, altitude_deg=45.0):
         """Shaded-relief image (0..1) for plots, voids as NaN."""
@@ -239,3 +340,18 @@ class Dem:
         shade = ls.hillshade(filled, vert_exag=1.0, dx=se, dy=sn)
         shade[~np.isfinite(self.heights)] = np.nan
         return shade
+
+
+def terrain_gradient(terrain, lat, lon, step_m: float | None = None):
+    """(dh/dnorth, dh/deast) (m/m) of any terrain grid (a :class:`Dem` or a tile store) by
+    central differences of its bilinear surface; the step defaults to half a post."""
+    lat = np.asarray(lat, float)
+    lon = np.asarray(lon, float)
+    rn, re = radii(float(np.mean(lat)))
+    sn, se = terrain.post_spacing_m()
+    step = step_m if step_m is not None else 0.5 * min(sn, se)
+    dlat = step / rn
+    dlon = step / (re * math.cos(float(np.mean(lat))))
+    gn = (terrain.height(lat + dlat, lon) - terrain.height(lat - dlat, lon)) / (2 * step)
+    ge = (terrain.height(lat, lon + dlon) - terrain.height(lat, lon - dlon)) / (2 * step)
+    return gn, ge

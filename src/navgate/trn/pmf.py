@@ -67,14 +67,15 @@ import numpy as np
 from numba import njit
 
 from navgate.nav.earth import LocalTangent
-from navgate.trn.dem import Dem, bilinear
+from navgate.trn.dem import Dem, bilinear_at, window_around
 from navgate.trn.profile import ProfileSnapshot
 from navgate.trn.tercom import TercomResult
 
 
 @njit(cache=True)
-def pmf_loglik(heights, lat_north, lon_west, dlat, dlon, lat0, lon0, m_lat, m_lon,
-               h_meas, pos_n, pos_e, var_base, rel_var, shifts_n, shifts_e, grad_step):
+def pmf_loglik(heights, row0, col0, nrow, ncol, lat_north, lon_west, dlat, dlon, lat0, lon0,
+               m_lat, m_lon, h_meas, pos_n, pos_e, var_base, rel_var, shifts_n, shifts_e,
+               grad_step):
     """Log-likelihood and chi-square of every (shift_n, shift_e) on the grid.
 
     The common offset is marginalised (flat prior); the per-sample variance adds the terrain
@@ -97,20 +98,21 @@ def pmf_loglik(heights, lat_north, lon_west, dlat, dlon, lat0, lon0, m_lat, m_lo
                 e = pos_e[i] + shifts_e[b]
                 lat = lat0 + n / m_lat
                 lon = lon0 + e / m_lon
-                t = bilinear(heights, lat_north, lon_west, dlat, dlon, lat, lon)
+                t = bilinear_at(heights, row0, col0, nrow, ncol, lat_north, lon_west, dlat,
+                                dlon, lat, lon)
                 if not math.isfinite(t):
                     bad = True
                     break
                 var = var_base[i]
                 if rel_var[i] > 0.0:
-                    tn1 = bilinear(heights, lat_north, lon_west, dlat, dlon,
-                                   lat + grad_step / m_lat, lon)
-                    tn0 = bilinear(heights, lat_north, lon_west, dlat, dlon,
-                                   lat - grad_step / m_lat, lon)
-                    te1 = bilinear(heights, lat_north, lon_west, dlat, dlon,
-                                   lat, lon + grad_step / m_lon)
-                    te0 = bilinear(heights, lat_north, lon_west, dlat, dlon,
-                                   lat, lon - grad_step / m_lon)
+                    tn1 = bilinear_at(heights, row0, col0, nrow, ncol, lat_north, lon_west,
+                                      dlat, dlon, lat + grad_step / m_lat, lon)
+                    tn0 = bilinear_at(heights, row0, col0, nrow, ncol, lat_north, lon_west,
+                                      dlat, dlon, lat - grad_step / m_lat, lon)
+                    te1 = bilinear_at(heights, row0, col0, nrow, ncol, lat_north, lon_west,
+                                      dlat, dlon, lat, lon + grad_step / m_lon)
+                    te0 = bilinear_at(heights, row0, col0, nrow, ncol, lat_north, lon_west,
+                                      dlat, dlon, lat, lon - grad_step / m_lon)
                     if math.isfinite(tn1) and math.isfinite(tn0) and math.isfinite(te1) \
                             and math.isfinite(te0):
                         gn = (tn1 - tn0) / (2.0 * grad_step)
@@ -195,7 +197,9 @@ class PointMassCorrelator:
         g = np.arange(-steps, steps + 1) * cells_step
         gn = centre[0] + g
         ge = centre[1] + g
-        ll, c2 = pmf_loglik(d.heights, d.lat_north, d.lon_west, d.dlat, d.dlon,
+        pad = max(abs(centre[0]), abs(centre[1])) + half + cells_step + self.post_m
+        window = window_around(d, t, profile.pos_n, profile.pos_e, pad)
+        ll, c2 = pmf_loglik(*window.kernel_args(),
                             t.lat0, t.lon0, t.m_per_rad_lat, t.m_per_rad_lon,
                             np.ascontiguousarray(profile.h_terrain),
                             np.ascontiguousarray(profile.pos_n),

@@ -49,13 +49,13 @@ import numpy as np
 from numba import njit
 
 from navgate.nav.earth import LocalTangent
-from navgate.trn.dem import Dem, bilinear
+from navgate.trn.dem import Dem, bilinear_at, window_around
 from navgate.trn.profile import ProfileSnapshot
 
 
 @njit(cache=True)
-def msd_surface(heights, lat_north, lon_west, dlat, dlon, lat0, lon0, m_lat, m_lon,
-                h_meas, pos_n, pos_e, shifts_n, shifts_e):
+def msd_surface(heights, row0, col0, nrow, ncol, lat_north, lon_west, dlat, dlon, lat0, lon0,
+                m_lat, m_lon, h_meas, pos_n, pos_e, shifts_n, shifts_e):
     """Mean-removed mean squared difference for every (shift_n, shift_e) on the grid.
 
     NaN where any profile point falls off the map or next to a void.
@@ -72,7 +72,8 @@ def msd_surface(heights, lat_north, lon_west, dlat, dlon, lat0, lon0, m_lat, m_l
             for i in range(m):
                 lat = lat0 + (pos_n[i] + shifts_n[a]) / m_lat
                 lon = lon0 + (pos_e[i] + shifts_e[b]) / m_lon
-                t = bilinear(heights, lat_north, lon_west, dlat, dlon, lat, lon)
+                t = bilinear_at(heights, row0, col0, nrow, ncol, lat_north, lon_west, dlat,
+                                dlon, lat, lon)
                 if not math.isfinite(t):
                     bad = True
                     break
@@ -168,7 +169,9 @@ class TercomCorrelator:
 
     def _surface(self, profile, shifts_n, shifts_e):
         d, t = self.dem, self.tangent
-        return msd_surface(d.heights, d.lat_north, d.lon_west, d.dlat, d.dlon,
+        pad = max(float(np.max(np.abs(shifts_n))), float(np.max(np.abs(shifts_e)))) + self.post_m
+        window = window_around(d, t, profile.pos_n, profile.pos_e, pad)
+        return msd_surface(*window.kernel_args(),
                            t.lat0, t.lon0, t.m_per_rad_lat, t.m_per_rad_lon,
                            np.ascontiguousarray(profile.h_terrain),
                            np.ascontiguousarray(profile.pos_n),

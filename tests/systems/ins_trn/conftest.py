@@ -9,11 +9,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from navgate.systems.ins_trn import flight
-from navgate.systems.ins_trn.engine import make_engine
-from navgate.systems.ins_trn.fp32_exec import float_to_bits
-from navgate.systems.ins_trn.fp32_program import STATE_REGS
-from navgate.systems.ins_trn.navigator import Navigator, engine_setup
+from navgate.systems.ins_trn.pl.fp32_exec import float_to_bits
+from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS
+from navgate.systems.ins_trn.ps import flight
+from navgate.systems.ins_trn.ps.engine import make_engine
+from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
 from navgate.trn.dem import Dem
 
 

@@ -1,0 +1,275 @@
+"""Seed 000's navigator as a streaming system: the PS side over a PL engine.
+
+Reference: seed 000 "System Architecture" / "Data Flow" (the PS runs the TRN correlation and
+writes fixes; the PL runs calibration, mechanization, covariance propagation, the altitude
+profile buffer and the Kalman update engine). The navigator consumes the sensor record stream
+of :mod:`navgate.systems.ins_trn.ps.records` one record at a time (:meth:`Navigator.feed`) or a
+whole stream (:meth:`Navigator.run`, which hands runs of consecutive IMU records to the engine
+in one call with the same result) and talks to the PL only through
+:class:`navgate.systems.ins_trn.ps.engine.PlEngine`:
+
+- IMU record: ``engine.propagate`` (calibration, mechanization, covariance);
+- barometer record: ``engine.update_altitude`` (an invalid sample is counted, not applied);
+  the newest barometer altitude is kept for the profile;
+- ranger record (TRN runs only): the profile consumer computes roll/pitch from the state
+  registers and pushes the entry (``engine.profile_push``); on an accepted entry, when the
+  fix schedule allows (one attempt per ``fix_interval_s``), the correlator runs on the
+  profile snapshot with the search window from the horizontal covariance, and an accepted
+  fix goes to ``engine.update_trn``; the applied correction shifts the stored profile.
+- logging: the state, the square roots of P's diagonal and P_NE are logged every
+  ``imu_rate / log_rate`` IMU samples, after every record stamped at that time.
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+
+from navgate.nav import eskf
+from navgate.nav.calibration import ImuCalibration
+from navgate.nav.earth import LocalTangent
+from navgate.nav.rotations import quat_to_dcm_array
+from navgate.sim import sensors
+from navgate.systems.ins_trn.ps import pl_sensors
+from navgate.systems.ins_trn.ps.engine import EngineSetup, PlEngine, make_engine
+from navgate.systems.ins_trn.ps.records import BARO, IMU, RANGER, RecordStream
+from navgate.trn.profile import ACCEPTED
+
+
+@dataclass
+class NavRun:
+    """Navigation output, logged at cfg.log_rate_hz."""
+
+    name: str
+    t: np.ndarray
+    nav: np.ndarray  #: (M, 10)
+    sigma: np.ndarray  #: (M, 15) square roots of P's diagonal
+    p_ne: np.ndarray  #: (M,) P[0, 1]
+    fixes: list  #: TercomResult rows (dicts) with "applied" and "nis"
+    accepted: dict
+    rejected: dict
+    profile_counts: dict
+    imu_samples_rejected: int
+    wall_time_s: float
+    engine: str = "reference"
+    hardware: dict | None = None  #: the simulated PL's counts (PlEngine.hardware_stats)
+
+
+def make_correlator(cfg, dem, tangent):
+    """The PS-side TRN correlator (the single call site of navgate.trn.correlators)."""
+    from navgate.trn.correlators import make_correlator as _make
+
+    return _make(cfg.trn_method, dem, tangent, cfg.tercom, pmf=cfg.pmf)
+
+
+def engine_setup(header: dict, cfg) -> EngineSetup:
+    """The engine's configuration from a stream header (see records.make_header)."""
+    ideal = bool(header["ideal"])
+    filter_cfg = eskf.FilterConfig.from_imu_spec(
+        sensors.IDEAL_IMU if ideal else sensors.ADIS16500, rate_hz=cfg.imu_rate_hz,
+        residual_accel_bias=cfg.init_accel_bias_sigma,
+        residual_gyro_bias=cfg.init_gyro_bias_sigma)
+    c = header["calibration"]
+    cal = ImuCalibration(np.array(c["gyro_bias"]), np.array(c["gyro_matrix"]),
+                         np.array(c["accel_bias"]), np.array(c["accel_matrix"]),
+                         c["gyro_lsb"], c["accel_lsb"])
+    ini = header["initial"]
+    ref = header["reference"]
+    return EngineSetup(cal, filter_cfg, cfg.imu_rate_hz, np.array(ini["nav"], float),
+                       np.array(ini["p0"], float), np.array(ini["bias_a"], float),
+                       np.array(ini["bias_g"], float),
+                       LocalTangent(ref["lat_rad"], ref["lon_rad"], ref["h_m"]),
+                       cfg.profile_spacing_m, float(header["t0"]))
+
+
+class Navigator:
+    """The PS side of seed 000 over one PL engine."""
+
+    def __init__(self, engine: PlEngine, cfg, *, t0: float, dem=None, use_trn: bool = True,
+                 name: str = "nav", progress=None):
+        self.engine = engine
+        self.cfg = cfg
+        self.use_trn = bool(use_trn) and dem is not None
+        self.name = name
+        self.progress = progress
+        self.t0 = float(t0)
+        self.dt = 1.0 / cfg.imu_rate_hz
+        self.log_every = max(1, int(round(cfg.imu_rate_hz / cfg.log_rate_hz)))
+        self.baro_sigma = max(sensors.Barometer(sensors.BMP390).altitude_noise_m, 0.05)
+        self.ranger_unit = pl_sensors.ranger_unit(cfg.ranger)
+        self.tangent = engine.setup.reference
+        self.correlator = make_correlator(cfg, dem, self.tangent) if self.use_trn else None
+        if self.use_trn:
+            from navgate.trn.correlators import make_monitor
+
+            self.monitor = make_monitor(self.correlator)
+        else:
+            self.monitor = None
+        self.fixes: list = []
+        self.last_fix_t = -math.inf
+        self.h_baro = math.nan
+        self.baro_invalid = 0
+        self.samples = 0
+        self._nav, self._sigma, self._p_ne = [], [], []
+        self._start = _time.perf_counter()
+
+    # -- logging ------------------------------------------------------------------------------
+    def _log(self):
+        e = self.engine
+        self._nav.append(e.read_nav())
+        self._sigma.append(np.sqrt(np.maximum(e.read_cov_diag(), 0.0)))
+        self._p_ne.append(float(e.read_p_horizontal()[0, 1]))
+
+    def _before_imu(self):
+        if self.samples % self.log_every == 0 and len(self._nav) == self.samples // self.log_every:
+            self._log()
+
+    # -- records --------------------------------------------------------------------------------
+    def feed_imu(self, gyro_words, accel_words):
+        """IMU records (N, 3) + (N, 3), in order; split at the log boundaries."""
+        gyro_words = np.atleast_2d(gyro_words)
+        accel_words = np.atleast_2d(accel_words)
+        i, n = 0, gyro_words.shape[0]
+        while i < n:
+            self._before_imu()
+            step = self.log_every - self.samples % self.log_every
+            j = min(n, i + step)
+            self.engine.propagate(gyro_words[i:j], accel_words[i:j])
+            self.samples += j - i
+            if self.progress is not None:
+                self.progress(j - i)
+            i = j
+
+    def feed_baro(self, t, altitude, valid=True, words=None):
+        """A barometer record; with a PL engine it is read through the PL (pl_sensors), from
+        the ADC ``words`` (up, ut, ok) when :meth:`run` has encoded them already."""
+        h = float(altitude) if valid else math.nan
+        if self.engine.pl_sensors and math.isfinite(h):
+            if words is None:
+                up, ut, ok = (w[0] for w in pl_sensors.baro_words(h))
+            else:
+                up, ut, ok = words
+            h = (pl_sensors.altitude_from_pressure(self.engine.read_baro(int(up), int(ut)))
+                 if ok else math.nan)
+        self.h_baro = h
+        if math.isfinite(h):
+            self.engine.update_altitude(h, self.baro_sigma)
+        else:
+            self.baro_invalid += 1
+
+    def feed_ranger(self, t, slant_range, valid):
+        if not self.use_trn:
+            return
+        e = self.engine
+        if e.pl_sensors:  # the frame through the PL's receiver
+            dist, strength = e.read_ranger(*pl_sensors.ranger_words(
+                float(slant_range), bool(valid), self.ranger_unit))
+            slant_range, valid = pl_sensors.range_from_words(dist, strength, self.ranger_unit)
+        nav = e.read_nav()
+        roll, pitch, _ = _euler(nav[6:10])
+        pn, pe = e.read_position_ned()
+        status = e.profile_push(time=t, h_baro=float(self.h_baro), slant_range=float(slant_range),
+                                range_valid=bool(valid), roll=roll, pitch=pitch,
+                                pos_n=float(pn), pos_e=float(pe))
+        if status == ACCEPTED and t - self.last_fix_t >= self.cfg.fix_interval_s:
+            self.last_fix_t = t
+            self._fix(t)
+
+    def _fix(self, t):
+        e = self.engine
+        p2 = e.read_p_horizontal()
+        sigma_max = math.sqrt(max(np.linalg.eigvalsh(p2).max(), 0.0))
+        result = self.correlator.correlate(e.profile_read(), sigma_max, prior_cov=p2)
+        row = result.as_row()
+        row["applied"] = False
+        row["nis"] = math.nan
+        upd = y = None
+        if result.accepted:
+            # y = p_ins - p_fix = -shift, measured lag_s ago
+            y = np.array([result.ins_n - result.fix_n, result.ins_e - result.fix_e])
+            lag = result.lag_s if self.cfg.lag_compensation else 0.0
+            upd = e.update_trn(y, result.cov, lag)
+            row["nis"] = upd.nis
+            row["applied"] = upd.accepted
+            if upd.accepted:
+                c = upd.correction
+                e.profile_shift(-c[0], -c[1], -c[3], -c[4], now=t)
+            else:
+                row["reason"] = upd.reason or "rejected by chi-square gate"
+        review = self.monitor.review(result, upd, y, sigma_max)
+        row["integrity"] = review.event
+        if review.inflate is not None:  # divergence: reopen the filter's position
+            e.inflate_p_horizontal(review.inflate)
+        self.fixes.append(row)
+
+    def feed(self, kind, t, payload):
+        """One record: kind (records.IMU/BARO/RANGER/TRUTH), time, payload tuple."""
+        if kind == IMU:
+            self.feed_imu(np.asarray(payload[0]).reshape(1, 3),
+                          np.asarray(payload[1]).reshape(1, 3))
+        elif kind == BARO:
+            self.feed_baro(t, *payload)
+        elif kind == RANGER:
+            self.feed_ranger(t, *payload)
+
+    def run(self, stream: RecordStream) -> NavRun:
+        """Consume a whole stream (runs of IMU records go to the engine in one call)."""
+        kind = stream.kind
+        other = np.flatnonzero(kind != IMU)
+        baro = None
+        if self.engine.pl_sensors:  # the BMP390's words for every record, encoded at once
+            baro = pl_sensors.baro_words(np.where(stream.baro_status == 0,
+                                                  stream.baro_altitude, np.nan))
+            self.engine.prepare_baro(baro[0][baro[2]], baro[1][baro[2]])
+        pos = 0
+        for m in list(other) + [len(stream)]:
+            if m > pos:
+                a, b = stream.index[pos], stream.index[m - 1] + 1
+                self.feed_imu(stream.gyro_words[a:b], stream.accel_words[a:b])
+            if m == len(stream):
+                break
+            k, t, i = kind[m], float(stream.t[m]), stream.index[m]
+            if k == BARO:
+                self.feed_baro(t, stream.baro_altitude[i], stream.baro_status[i] == 0,
+                               None if baro is None else (baro[0][i], baro[1][i], baro[2][i]))
+            elif k == RANGER:
+                self.feed_ranger(t, stream.ranger_range[i], stream.ranger_status[i] == 0)
+            pos = m + 1
+        return self.finish()
+
+    def finish(self) -> NavRun:
+        e = self.engine
+        n_log = self.samples // self.log_every + 1
+        if len(self._nav) < n_log:
+            self._log()
+        elif self.samples % self.log_every:
+            # the last row holds the final state (the float64 loop's convention)
+            self._nav.pop(), self._sigma.pop(), self._p_ne.pop()
+            self._log()
+        t_log = self.t0 + np.arange(n_log) * self.log_every * self.dt
+        rejected = dict(e.rejected)
+        if self.baro_invalid:
+            rejected["baro invalid sample"] = self.baro_invalid
+        return NavRun(self.name, t_log, np.array(self._nav), np.array(self._sigma),
+                      np.array(self._p_ne), self.fixes, dict(e.accepted), rejected,
+                      dict(e.profile.counts), e.imu_samples_rejected,
+                      _time.perf_counter() - self._start, e.name, e.hardware_stats())
+
+
+def navigate(stream: RecordStream, cfg, *, engine: str = "reference", dem=None,
+             use_trn: bool = True, name: str = "nav", progress=None) -> NavRun:
+    """Build the engine from the stream header and run the navigator over the stream."""
+    eng = make_engine(engine, engine_setup(stream.header, cfg))
+    nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=use_trn, name=name,
+                    progress=progress)
+    return nav.run(stream)
+
+
+def _euler(q):
+    c = quat_to_dcm_array(np.asarray(q))
+    return (math.atan2(c[2, 1], c[2, 2]), -math.asin(max(-1.0, min(1.0, c[2, 0]))),
+            math.atan2(c[1, 0], c[0, 0]))
+
