@@ -38,7 +38,7 @@ import json
 import math
 from collections import Counter
 
-from navgate.gateware.banked import OPERAND_STAGES, OVERHEAD, _slot_unit
+from navgate.opflow.schedule import OPERAND_STAGES, OVERHEAD, _slot_unit
 from navgate.systems.ins_trn.pl.engines import ENGINE_UNITS, engine_image
 
 BRAM36_BITS = 36 * 1024  #: one RAMB36E1 (32 kbit data + 4 kbit parity, all usable as data)

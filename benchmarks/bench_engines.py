@@ -17,7 +17,7 @@ import json
 
 import numpy as np
 
-from navgate.gateware.scheduled import UNIT_LATENCY
+from navgate.opflow.schedule import UNIT_LATENCY
 from navgate.systems.ins_trn.pl.engines import (
     ENGINE_UNITS,
     IMU_WORDS,
@@ -66,7 +66,7 @@ def main():
         import time
 
         from navgate.gateware.native_stream import NativeStreamServer
-        from navgate.gateware.scheduled import ScheduledMachineStream
+        from navgate.opflow.machine import ScheduledMachineStream
 
         img = engine_image("ins_engines")
         rng = np.random.default_rng(0)

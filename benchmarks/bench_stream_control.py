@@ -33,9 +33,10 @@ from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
-from navgate.gateware.banked import OPERAND_STAGES, _or_all, _slot_unit, row_counter
 from navgate.hw.synth import synthesize
 from navgate.hw.verilog import emit_verilog
+from navgate.opflow.machine import _or_all, row_counter
+from navgate.opflow.schedule import OPERAND_STAGES, _slot_unit
 from navgate.systems.ins_trn.pl.engines import engine_image
 
 BANK_BITS = 3

@@ -1,5 +1,5 @@
 """True-dual-port register banks for seed 000's ``ins_engines``
-(``BankedUnits(shared_write_port=...)`` of navgate.gateware.banked, docs/seed000-engines.md §7):
+(``BankedUnits(shared_write_port=...)`` of navgate.opflow, docs/seed000-engines.md §7):
 exact cycle counts of every program, the 1-D and 2-D update and the IMU sample, microcode
 size and bank depths for separate write ports (the default), every bank true-dual-port, and
 each single bank true-dual-port; optionally the xc7z020 synthesis (navgate.hw.synth, Yosys
@@ -56,9 +56,9 @@ def main():
                                     "rom_rows": rows, "rom_width": width,
                                     "bank_depth": img.layout.bank_depth}
     if args.synth:
-        from navgate.gateware.scheduled import ScheduledMachineStream
         from navgate.hw.synth import synthesize, timing_xc7
         from navgate.hw.verilog import emit_verilog
+        from navgate.opflow.machine import ScheduledMachineStream
 
         print(f"\n{'shared banks':12s} {'LUT':>6s} {'FF':>6s} {'DSP':>4s} {'BRAM36':>7s} "
               f"{'path ns':>8s}  memory cells")

@@ -16,7 +16,7 @@ import pytest
 import navgate
 
 PACKAGE_ROOT = Path(navgate.__file__).parent
-SHARED = ("nav", "trn", "numerics", "gateware", "devices", "hw", "sim")
+SHARED = ("nav", "trn", "numerics", "gateware", "opflow", "devices", "hw", "sim")
 
 
 def _module_name(path: Path) -> str:
@@ -79,6 +79,20 @@ def test_shared_libraries_import_no_system(shared):
         for target in targets if _layer(target) in ("systems", "cli")
     )
     assert not offenders, "shared library imports a system or the CLI:\n" + "\n".join(offenders)
+
+
+def test_opflow_names_no_system():
+    """The op-program toolchain knows no client: no seed, no system package in its text."""
+    import re
+
+    files = sorted((PACKAGE_ROOT / "opflow").glob("*.py"))
+    assert len(files) >= 3
+    pattern = re.compile(r"seed ?\d|systems\.|ins_trn|attitude|kf2x2|gpsins", re.IGNORECASE)
+    offenders = [f"{path.name}:{number}: {line.strip()}"
+                 for path in files
+                 for number, line in enumerate(path.read_text().splitlines(), 1)
+                 if pattern.search(line)]
+    assert not offenders, "opflow names a client:\n" + "\n".join(offenders)
 
 
 def find_cycles(graph: dict[str, set[str]]) -> list[list[str]]:

@@ -1,11 +1,14 @@
 """``navgate build`` and ``navgate report``: Verilog, block descriptions and resource figures.
 
-``navgate build BLOCK [--target xc7z020] [--out DIR] [--timing] [--keep-work]`` writes
-``DIR/BLOCK.v``, ``DIR/BLOCK.json`` and ``DIR/BLOCK.utilization.json``, with ``--timing`` also
-``DIR/BLOCK.timing.json`` (xc7 logic-only path, ECP5 and Nexus routed proxy Fmax); Yosys and
-nextpnr work files stay in ``DIR/work/BLOCK`` only with ``--keep-work``. ``navgate build
---list`` names the blocks. ``navgate report [--timing] [--out FILE] [-j N]`` synthesises every
-block and prints one markdown table. The flow itself lives in :mod:`navgate.hw.flow`.
+``navgate build BLOCK [--target xc7z020] [--out DIR] [--timing] [--asic sg13g2 [--liberty
+FILE]] [--keep-work]`` writes ``DIR/BLOCK.v``, ``DIR/BLOCK.json`` and
+``DIR/BLOCK.utilization.json``, with ``--asic`` also ``DIR/BLOCK.asic.json`` (pre-layout IHP
+SG13G2 cells, flip-flops, area and TinyTapeout tile, :mod:`navgate.hw.asic`), with
+``--timing`` also ``DIR/BLOCK.timing.json`` (xc7 logic-only path, ECP5 and Nexus routed proxy
+Fmax); Yosys and nextpnr work files stay in ``DIR/work/BLOCK`` only with ``--keep-work``.
+``navgate build --list`` names the blocks. ``navgate report [--timing] [--asic sg13g2] [--out
+FILE] [-j N]`` synthesises every block and prints one markdown table. The flow itself lives in
+:mod:`navgate.hw.flow`.
 """
 
 from __future__ import annotations
@@ -75,7 +78,8 @@ def _parse_seeds(text: str, option: str = "--ecp5-seeds") -> tuple[int, ...]:
 
 def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Progress, task,
                keep_work: bool = False, ecp5_seeds: tuple[int, ...] = (1,),
-               nexus_seeds: tuple[int, ...] = (1,)):
+               nexus_seeds: tuple[int, ...] = (1,), asic: str | None = None,
+               liberty: Path | None = None):
     from navgate.hw.flow import build_block
     from navgate.hw.synth import SynthesisError
 
@@ -85,7 +89,7 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
     try:
         return build_block(name, out_dir, target=target, timing=timing, progress=say,
                            keep_work=keep_work, ecp5_seeds=ecp5_seeds,
-                           nexus_seeds=nexus_seeds)
+                           nexus_seeds=nexus_seeds, asic=asic, liberty=liberty)
     except SynthesisError as error:
         raise CliError(str(error)) from None
     except OSError as error:
@@ -104,10 +108,16 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
 @click.option("--nexus-seeds", default="1", show_default=True,
               help="nextpnr-nexus placer seeds for --timing (comma-separated; Fmax is the mean; "
               "a seed router2 cannot route is rerouted with router1)")
+@click.option("--asic", default=None, metavar="TECH",
+              help="also map to standard cells for a pre-layout area (choices: sg13g2)")
+@click.option("--liberty", default=None, metavar="FILE",
+              help="the Liberty file for --asic (default: "
+              "../shared/asic/sg13g2_stdcell_typ_1p20V_25C.lib)")
 @click.option("--keep-work", is_flag=True, help="keep the tool work files in OUT/work/BLOCK")
 @click.option("--list", "list_", is_flag=True, help="list the blocks and exit")
 def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: str,
-          nexus_seeds: str, keep_work: bool, list_: bool) -> None:
+          nexus_seeds: str, asic: str | None, liberty: str | None, keep_work: bool,
+          list_: bool) -> None:
     """Emit Verilog for BLOCK, describe it and synthesise it for resource figures."""
     from navgate.hw.blocks import all_blocks
 
@@ -124,6 +134,7 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
     _check_target(target)
     seeds = _parse_seeds(ecp5_seeds)
     nx_seeds = _parse_seeds(nexus_seeds, "--nexus-seeds")
+    liberty_path = _check_asic(asic, liberty)
     out_dir = Path(out)
     console = Console(stderr=True, soft_wrap=True)
     with atomic_output_dir(out_dir) as stage, _progress(console) as progress:
@@ -131,7 +142,7 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
             console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
         task = progress.add_task(block, total=1)
         built = _run_build(block, stage, target, timing, progress, task, keep_work, seeds,
-                           nx_seeds)
+                           nx_seeds, asic, liberty_path)
         progress.advance(task)
     use = built["utilization"]
     click.echo(
@@ -140,6 +151,9 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
         f"throughput {built['throughput']}/cycle"
     )
     suffixes = [".v", ".json", ".utilization.json"]
+    if "asic" in built:
+        click.echo(_asic_line(built["asic"]))
+        suffixes.append(".asic.json")
     if "timing" in built:
         for line in _timing_lines(built["timing"]):
             click.echo(line)
@@ -150,6 +164,35 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
         click.echo(f"wrote {out_dir / name}", err=True)
     if keep_work:
         click.echo(f"kept tool work files in {out_dir / 'work' / block}", err=True)
+
+
+def _check_asic(asic: str | None, liberty: str | None) -> Path | None:
+    """The Liberty file for ``--asic`` (checked before any synthesis), or None without it."""
+    from navgate.hw.asic import ASIC_TECHS, default_liberty
+
+    if asic is None:
+        if liberty is not None:
+            raise CliError("--liberty needs --asic")
+        return None
+    if asic not in ASIC_TECHS:
+        raise CliError(f"unknown ASIC technology {asic!r}; known: {', '.join(ASIC_TECHS)}")
+    path = Path(liberty) if liberty is not None else default_liberty()
+    if not path.is_file():
+        raise CliError(f"Liberty file not found: {path} (give its path with --liberty)")
+    return path.resolve()
+
+
+def _asic_line(asic: dict) -> str:
+    tile = asic["tile"] or "no IHP tile"
+    largest = list(asic["tile_percent"])[-1]
+    path = asic["timing"]
+    at = (f" at {asic['tile_percent'][asic['tile']]:.1f} %" if asic["tile"]
+          else f" ({asic['tile_percent'][largest]:.1f} % of {largest})")
+    return (f"  {asic['tech']} pre-layout: {asic['area_um2']:,.1f} um2, {asic['cells']} cells, "
+            f"{asic['flip_flops']} flip-flops; fits {tile}{at} "
+            f"(limit {100 * asic['tile_density']:.0f} %); longest path "
+            f"{path['longest_path_ns']:.2f} ns, slack {path['slack_ns']:.2f} ns "
+            f"at {path['clock_mhz']:g} MHz")
 
 
 def _timing_lines(timing: dict) -> list[str]:
@@ -195,7 +238,8 @@ def _yowasp_note(timing: bool = True) -> str:
     return YOWASP_NOTE if cold else ""
 
 
-def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1) -> str:
+def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
+                    asic: str | None = None, liberty: Path | None = None) -> str:
     """Build every block in a scratch directory (``jobs`` at a time; the tools run in child
     processes) and return the markdown table, rows in registry order. One stderr line per
     finished block, so that progress shows even when stderr is not a terminal."""
@@ -215,7 +259,8 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1) 
             def one(name: str):
                 out_dir = Path(scratch) / name
                 out_dir.mkdir()
-                return _run_build(name, out_dir, target, timing, progress, task)
+                return _run_build(name, out_dir, target, timing, progress, task,
+                                  asic=asic, liberty=liberty)
 
             with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
                 futures = {pool.submit(one, name): name for name in blocks}
@@ -243,11 +288,17 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1) 
                   "written atomically)", kind="file")
 @click.option("-j", "--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
               help="blocks synthesised in parallel")
-def report(timing: bool, target: str, out: str | None, jobs: int) -> None:
+@click.option("--asic", default=None, metavar="TECH",
+              help="add SG13G2 area, flip-flop, tile and path columns (choices: sg13g2)")
+@click.option("--liberty", default=None, metavar="FILE", help="the Liberty file for --asic")
+def report(timing: bool, target: str, out: str | None, jobs: int, asic: str | None,
+           liberty: str | None) -> None:
     """Synthesise every block and print one markdown table of resources and timing."""
     _check_target(target)
+    liberty_path = _check_asic(asic, liberty)
     out_path = check_writable_file(out) if out is not None else None
-    table = report_markdown(timing, target, Console(stderr=True, soft_wrap=True), jobs)
+    table = report_markdown(timing, target, Console(stderr=True, soft_wrap=True), jobs, asic,
+                            liberty_path)
     click.echo(table, nl=False)
     if out_path is not None:
         with atomic_output_file(out_path) as tmp:

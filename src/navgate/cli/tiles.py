@@ -136,7 +136,9 @@ def info(directory, out, quiet):
             ("coverage", f"{cov['south']:.5f} to {cov['north']:.5f} N, "
                          f"{cov['west']:.5f} to {cov['east']:.5f} E"),
             ("gaps", f"{summary['gap_posts']} posts"),
-            ("voids", f"{summary['void_posts']} posts ({100 * summary['void_fraction']:.3g} %)"),
+            ("voids", f"{summary['void_posts']} posts"),
+            ("without a height", f"{100 * summary['void_fraction']:.3g} % of the grid "
+                                 "(voids and gaps)"),
             ("heights", "{:.1f} to {:.1f} m".format(*summary["height_range_m"])),
             ("overlapping tile pairs", f"{summary['overlapping_pairs']} (shared posts agree)"),
             ("size in memory", f"{summary['size_bytes'] / mib:.2f} MiB"),

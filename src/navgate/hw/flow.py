@@ -10,6 +10,8 @@
   it is (see :func:`timing_summary`): ``xc7_logic_path_ns`` (Yosys ``sta``, logic only, with
   the path's start and end points), ``ecp5_fmax_mhz`` and ``nexus_fmax_mhz`` (routed proxies,
   each the mean over its placer seeds, with ``*_fmax_by_seed``).
+- with ``asic="sg13g2"``, ``BLOCK.asic.json``: the pre-layout IHP SG13G2 standard-cell figures
+  of :func:`navgate.hw.asic.synthesize_asic` (cells, flip-flops, area, smallest TinyTapeout tile);
 - whatever else the component delivers through its optional ``write_artifacts(out_dir, name)``
   method (a register bank writes its C header and register documentation), listed under
   ``artifacts`` in ``BLOCK.json``.
@@ -79,6 +81,8 @@ def build_block(
     ecp5_seeds: tuple[int, ...] = (ECP5_SEED,),
     nexus_seeds: tuple[int, ...] = (NEXUS_SEED,),
     models: tuple[str, ...] = TIMING_MODELS,
+    asic: str | None = None,
+    liberty: Path | None = None,
 ) -> dict[str, Any]:
     """Emit, describe and synthesise block ``name``; returns the merged description."""
     say = progress or (lambda message: None)
@@ -129,17 +133,31 @@ def build_block(
                 say(f"{name}: place and route for the Nexus timing proxy (nextpnr-nexus)")
                 nexus = timing_nexus(text, name, work / "nexus", seeds=nexus_seeds)
             timing_json = timing_summary(name, xc7, ecp5, nexus)
+        asic_json = None
+        if asic is not None:
+            from navgate.hw.asic import default_liberty, synthesize_asic
+
+            say(f"{name}: mapping to the {asic} standard cells (yosys dfflibmap, abc -liberty)")
+            asic_json = synthesize_asic(text, name, work / asic, liberty or default_liberty(),
+                                        asic)
     _write_json(out_dir / f"{name}.utilization.json", utilization)
     result = {**description, "utilization": utilization}
     if timing_json is not None:
         _write_json(out_dir / f"{name}.timing.json", timing_json)
         result["timing"] = timing_json
+    if asic_json is not None:
+        _write_json(out_dir / f"{name}.asic.json", asic_json)
+        result["asic"] = asic_json
     return result
 
 
 COLUMNS = ("block", "LUT", "FF", "DSP", "CARRY4", "BRAM36", "latency", "throughput",
            "xc7 logic path (ns)", "ECP5 routed proxy Fmax (MHz)",
            "Nexus routed proxy Fmax (MHz)")
+
+
+#: the columns ``navgate report --asic`` adds
+ASIC_COLUMNS = ("SG13G2 area (um2)", "SG13G2 FF", "IHP tile (65 %)", "SG13G2 path (ns)")
 
 
 def _number(value: float | None, digits: int) -> str:
@@ -162,7 +180,13 @@ def report_row(built: dict[str, Any]) -> list[str]:
         _number(timing.get("xc7_logic_path_ns"), 3),
         _number(timing.get("ecp5_fmax_mhz"), 1),
         _number(timing.get("nexus_fmax_mhz"), 1),
-    ]
+    ] + (asic_cells(built["asic"]) if "asic" in built else [])
+
+
+def asic_cells(asic: dict[str, Any]) -> list[str]:
+    """The :data:`ASIC_COLUMNS` entries of one block's ``BLOCK.asic.json``."""
+    return [f"{asic['area_um2']:.1f}", str(asic["flip_flops"]), asic["tile"] or "none",
+            f"{asic['timing']['longest_path_ns']:.3f}"]
 
 
 def path_line(built: dict[str, Any]) -> str | None:
@@ -183,10 +207,12 @@ TIMING_LEGEND = (
 
 
 def report_table(rows: list[list[str]], paths: list[str] | None = None) -> str:
-    """A markdown table of ``rows`` under :data:`COLUMNS`, then the critical paths if given."""
+    """A markdown table of ``rows`` under :data:`COLUMNS` (and :data:`ASIC_COLUMNS` when the
+    rows carry them), then the critical paths if given."""
+    columns = COLUMNS + (ASIC_COLUMNS if rows and len(rows[0]) > len(COLUMNS) else ())
     lines = [
-        "| " + " | ".join(COLUMNS) + " |",
-        "|" + "|".join("---" if i == 0 else "---:" for i in range(len(COLUMNS))) + "|",
+        "| " + " | ".join(columns) + " |",
+        "|" + "|".join("---" if i == 0 else "---:" for i in range(len(columns))) + "|",
     ]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     if paths:

@@ -62,13 +62,6 @@ def non_negative(name: str, value) -> float:
     return v
 
 
-def non_negative_array(name: str, value) -> np.ndarray:
-    a = finite_array(name, value)
-    if (a < 0).any():
-        raise ValueError(f"{name}: must be non-negative, got {a[a < 0].flat[0]:g}")
-    return a
-
-
 def unit_quaternion(name: str, value) -> np.ndarray:
     """A finite 4-vector of norm 1 (to :data:`QUAT_NORM_TOL`)."""
     q = finite_array(name, value, (4,))

@@ -74,7 +74,7 @@ BLOCKS: dict[str, tuple[str, str]] = {
                     "seed 000 ins_trn_top: registers, sensors, sequencer, engines, formatter, "
                     "profile DMA, interrupts"),
     # Seed 000's PL engines (navgate.systems.ins_trn.pl.engines): the banked scheduled float32
-    # datapath (navgate.gateware.banked, docs/seed000-engines.md)
+    # datapath (navgate.opflow, docs/seed000-engines.md)
     "ins_engines": ("navgate.systems.ins_trn.pl.engines:InsEngines",
                     "seed 000 INS engines: propagate + altitude/TRN updates, shared fp32 units"),
     "kalman_update_engine": ("navgate.systems.ins_trn.pl.engines:KalmanUpdateEngine",

@@ -52,7 +52,8 @@ from navgate.trn.dem import (
 #: file endings indexed as tiles (case-insensitive)
 TILE_SUFFIXES = (".tif", ".tiff", ".dt0", ".dt1", ".dt2", ".hgt")
 PRIORITIES = ("check", "first", "last")
-#: posts per side of the blocks that point queries are grouped into
+#: the most posts per side of the blocks that point queries are grouped into (smaller for
+#: small tiles, so that one block's window touches at most the four tiles around a corner)
 _BLOCK = 256
 #: how far (in posts) a tile origin may sit from the lattice and still count as on it
 _ALIGN_TOL = 1e-6
@@ -144,6 +145,8 @@ class TileStore:
         if self.nrow < 2 or self.ncol < 2:
             raise DemError(f"{self.directory}: the tiles hold fewer than 2 x 2 posts")
         self.gap_posts = self._uncovered_posts()
+        smallest = min(min(t.rows, t.cols) for t in tiles)
+        self.block = int(min(_BLOCK, max(16, smallest - 3)))
         self.overlapping_pairs = [
             (a.path.name, b.path.name) for k, a in enumerate(tiles) for b in tiles[k + 1:]
             if a.overlaps(b.row0, b.row0 + b.rows, b.col0, b.col0 + b.cols)]
@@ -271,14 +274,15 @@ class TileStore:
         fi = (self.lat_north - lat_a) / self.dlat
         fj = (lon_a - self.lon_west) / self.dlon
         inside = (fi > -1.0) & (fj > -1.0) & (fi < self.nrow) & (fj < self.ncol)
-        bi = np.where(inside, np.floor(np.clip(fi, 0, self.nrow - 1) / _BLOCK), -1)
-        bj = np.where(inside, np.floor(np.clip(fj, 0, self.ncol - 1) / _BLOCK), -1)
+        size = self.block
+        bi = np.where(inside, np.floor(np.clip(fi, 0, self.nrow - 1) / size), -1)
+        bj = np.where(inside, np.floor(np.clip(fj, 0, self.ncol - 1) / size), -1)
         for block in np.unique(np.stack([bi, bj], axis=1)[inside], axis=0):
             k = np.flatnonzero(inside & (bi == block[0]) & (bj == block[1]))
-            r_lo, c_lo = int(block[0]) * _BLOCK - 1, int(block[1]) * _BLOCK - 1
+            r_lo, c_lo = int(block[0]) * size - 1, int(block[1]) * size - 1
             r_lo, c_lo = max(r_lo, 0), max(c_lo, 0)
-            hw = self.assemble(r_lo, int(block[0] + 1) * _BLOCK + 2, c_lo,
-                               int(block[1] + 1) * _BLOCK + 2)
+            hw = self.assemble(r_lo, int(block[0] + 1) * size + 2, c_lo,
+                               int(block[1] + 1) * size + 2)
             out[k] = bilinear_many_at(hw, r_lo, c_lo, self.nrow, self.ncol, self.lat_north,
                                       self.lon_west, self.dlat, self.dlon,
                                       np.ascontiguousarray(lat_a[k]),

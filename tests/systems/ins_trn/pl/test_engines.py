@@ -19,7 +19,7 @@ from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS, programs, schedu
 
 #: exact cycles (first issue to last write) of each program on the banked machine with
 #: 4 mul + 4 add slots and a misc slot (iterative divider and square root), 8 banks of 2 read
-#: ports, split: operand port j reads read port j of a bank (navgate.gateware.banked)
+#: ports, split: operand port j reads read port j of a bank (navgate.opflow)
 CYCLES = {"propagate": 654, "alt_gate": 55, "alt_apply": 246, "trn_gate": 142,
           "trn_apply": 305}
 LAT = {"add": 8, "mul": 5, "div": 28, "sqrt": 27, "cmp": 2, "cvt": 4}  # iterative div/sqrt
@@ -170,7 +170,7 @@ def _verilator_run(img, seed: int, name: str):
     (the harness: every register and output read back and compared); the calls' run cycles
     as measured and as scheduled."""
     from navgate.gateware import verify as V
-    from navgate.gateware.scheduled import ScheduledMachineStream
+    from navgate.opflow.machine import ScheduledMachineStream
     from navgate.systems.ins_trn.pl.engines import command_vectors, stream_model
 
     rng = np.random.default_rng(seed)

@@ -13,6 +13,7 @@ from navgate.nav.calibration import (
     calibration_to_fp32,
 )
 from navgate.numerics import fp32 as F
+from navgate.opflow import ir
 from navgate.systems.ins_trn.pl import fp32_program as fp
 from navgate.systems.ins_trn.pl.fp32_exec import (
     Machine,
@@ -42,7 +43,7 @@ def _random_bits(rng, n):
 
 
 def _random_program(rng, n_regs, n_ops):
-    prog = fp.Program("random")
+    prog = ir.Program("random")
     names = [f"r{i}" for i in range(n_regs)]
     kinds = ["add", "sub", "mul", "div", "sqrt", "neg", "le", "lt"]
     for i in range(n_ops):
@@ -50,7 +51,7 @@ def _random_program(rng, n_regs, n_ops):
         srcs = tuple(names[rng.integers(len(names))] for _ in range(1 if k in ("sqrt", "neg")
                                                                      else 2))
         dst = f"t{i + 1}"
-        prog.ops.append(fp.Op(dst, k, srcs, "random"))
+        prog.ops.append(ir.Op(dst, k, srcs, "random"))
         names.append(dst)
     prog.inputs = tuple(f"r{i}" for i in range(n_regs))
     return prog
@@ -85,7 +86,7 @@ def _temp_index(machine, key, dst):
 def test_underflow_boundary_follows_the_fp32_rule():
     """Products just below 2^-126 (case 3 of numerics.fp32): zero or 2^-126 exactly as the
     specification rounds, which IEEE float32 with gradual underflow does not."""
-    prog = fp.Program("uf", [fp.Op("t1", "mul", ("a", "b"), "uf")], inputs=("a", "b"))
+    prog = ir.Program("uf", [ir.Op("t1", "mul", ("a", "b"), "uf")], inputs=("a", "b"))
     m = Machine({"p": prog})
     a = np.float32(1.0 - 2.0**-24)  # 0x3F7FFFFF
     for b_bits in (0x00800000, 0x00800001, 0x00800002):
@@ -215,7 +216,7 @@ def test_rotation_vector_series_meets_its_bound():
     theta_max = math.radians(2000.0) / 400.0
     b_cos, b_sin = fp.rotvec_series_bound(theta_max)
     assert b_cos < 1.2e-11 and b_sin < 2e-12
-    b = fp.Builder("rv", ("x", "y", "z"))
+    b = ir.Builder("rv", ("x", "y", "z"))
     w, qx, qy, qz = fp._rotvec_quat(b, "x", "y", "z")
     b.prog.outputs = {"w": w, "qx": qx, "qy": qy, "qz": qz}
     m = Machine({"rv": b.prog})
@@ -250,7 +251,7 @@ def test_covariance_propagation_multiply_budget():
 
 def test_schedule_bounds_on_a_small_program():
     """a*b + c then sqrt: critical path mul + add + sqrt; resource bound from unit counts."""
-    b = fp.Builder("x", ("a", "b", "c"))
+    b = ir.Builder("x", ("a", "b", "c"))
     t = b.add(b.mul("a", "b"), "c")
     b.sqrt(b.neg(t))
     for _ in range(5):

@@ -3,7 +3,7 @@
 Reference: seed 000 "INS Mechanization", "Covariance Propagation", "Kalman Update Engine",
 "Memory Architecture"; the programs are those of the ``fp32`` engine
 (:func:`navgate.systems.ins_trn.pl.fp32_program.programs`), scheduled by
-:mod:`navgate.gateware.scheduled` onto shared float32 units over one register file that
+:mod:`navgate.opflow.schedule` onto shared float32 units over one register file that
 holds the navigation state, the error-state/bias words, the 120 stored elements of P, their
 compensation words, the configuration the PS writes and the per-call inputs.
 docs/seed000-engines.md describes the blocks and their figures.
@@ -21,9 +21,10 @@ from functools import lru_cache
 import numpy as np
 from amaranth.sim import Simulator
 
-from navgate.gateware.banked import BankedImage, BankedUnits
-from navgate.gateware.scheduled import ScheduledMachineStream
-from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS, Program, programs
+from navgate.opflow.ir import Program
+from navgate.opflow.machine import BankedImage, ScheduledMachineStream
+from navgate.opflow.schedule import BankedUnits
+from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS, programs
 
 __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePropagator",
            "split_program", "engine_programs", "command_vectors", "stream_model",
@@ -96,7 +97,8 @@ def split_program(prog: Program, modules, name: str) -> Program:
     outputs.update({k: v for k, v in prog.outputs.items() if v in keep})
     commit = {r: t for r, t in prog.commit.items() if t in keep}
     inputs = tuple(n for n in prog.inputs if any(n in op.srcs for op in ops)) + tuple(imports)
-    return Program(name, ops=ops, inputs=inputs, commit=commit, outputs=outputs)
+    return Program(name, ops=ops, inputs=inputs, commit=commit, outputs=outputs,
+                   registers=prog.registers)
 
 
 def reuse_gate(gate: Program, apply: Program, prefix: str) -> tuple[Program, Program]:
@@ -106,7 +108,7 @@ def reuse_gate(gate: Program, apply: Program, prefix: str) -> tuple[Program, Pro
     (written in place at no cost). Both programs read the same state and inputs and the
     sequencer writes nothing between them, so the results are those of the original pair
     bit for bit (tests/systems/ins_trn/pl/test_engines.py)."""
-    from navgate.systems.ins_trn.pl.fp32_program import Op
+    from navgate.opflow.ir import Op
 
     sig = {(op.kind, op.srcs): op.dst for op in gate.ops if op.kind != "neg"}
     ren: dict = {}
@@ -128,11 +130,11 @@ def reuse_gate(gate: Program, apply: Program, prefix: str) -> tuple[Program, Pro
     if any(v.startswith(prefix + ".") for v in list(out.values()) + list(com.values())):
         raise ValueError("an apply output or commit is a gate result")
     new_apply = Program(apply.name, ops=ops, inputs=tuple(apply.inputs) + tuple(kept),
-                        commit=com, outputs=out)
+                        commit=com, outputs=out, registers=apply.registers)
     commit = dict(gate.commit)
     commit.update({k: k[len(prefix) + 1:] for k in kept})
     new_gate = Program(gate.name, ops=list(gate.ops), inputs=gate.inputs, commit=commit,
-                       outputs=dict(gate.outputs))
+                       outputs=dict(gate.outputs), registers=gate.registers)
     return new_gate, new_apply
 
 
@@ -226,7 +228,7 @@ def command_vectors(image: BankedImage, regs: dict, calls) -> dict:
     """Input arrays for :class:`ScheduledMachineStream`: write every register of ``regs``,
     then per call ``(key, inputs)``: write the inputs, run ``key``, read every persistent
     register and the program's outputs."""
-    from navgate.gateware.scheduled import CMD_READ, CMD_START, CMD_WRITE
+    from navgate.opflow.machine import CMD_READ, CMD_START, CMD_WRITE
 
     keys = list(image.programs)
     rows = [(CMD_WRITE, image.layout.fixed[n], int(v) & 0xFFFFFFFF, 0) for n, v in regs.items()]
@@ -244,7 +246,7 @@ def command_vectors(image: BankedImage, regs: dict, calls) -> dict:
 def stream_model(image: BankedImage):
     """Bit-true model of :class:`ScheduledMachineStream` over ``image`` (the register file as
     a dict, each run by :func:`navgate.systems.ins_trn.pl.fp32_exec.run_bittrue`)."""
-    from navgate.gateware.scheduled import CMD_READ, CMD_WRITE
+    from navgate.opflow.machine import CMD_READ, CMD_WRITE
     from navgate.systems.ins_trn.pl.fp32_exec import run_bittrue
 
     keys = list(image.programs)

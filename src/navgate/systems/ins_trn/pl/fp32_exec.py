@@ -1,6 +1,6 @@
 """Executing seed 000's float32 op programs: the bit-true interpreter and the compiled machine.
 
-Two executors of the same :class:`navgate.systems.ins_trn.pl.fp32_program.Program`:
+Two executors of the same :class:`navgate.opflow.ir.Program`:
 
 * :func:`run_bittrue`: every op through :mod:`navgate.numerics.fp32` on uint32 bit patterns
   (the specification; vectorised over independent lanes; slow);
@@ -24,12 +24,8 @@ import numpy as np
 from numba import njit
 
 from navgate.numerics import fp32 as F
-from navgate.systems.ins_trn.pl.fp32_program import (
-    OPCODE,
-    STATE_REGS,
-    Program,
-    const_value,
-)
+from navgate.opflow.ir import OPCODE, Program, const_value
+from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS
 
 _MIN_NORMAL = 2.0**-126
 _ZERO_BELOW = 2.0**-126 - 2.0**-151  #: magnitudes that round (24 bits) to below 2^-126

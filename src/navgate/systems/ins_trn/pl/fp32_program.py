@@ -45,18 +45,11 @@ the offset (|dlat| <= 0.02 rad: truncation < 7e-9).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
-import numpy as np
+from dataclasses import dataclass
 
 from navgate.nav.earth import E2, GAMMA_E, M_RATIO, OMEGA_IE, SOMIGLIANA_K, A, F
 from navgate.nav.eskf import N_STATES
-
-KINDS = ("add", "sub", "mul", "div", "sqrt", "neg", "cvt", "le", "lt")
-OPCODE = {k: i for i, k in enumerate(KINDS)}
-#: the arithmetic unit each kind runs on (neg is a sign flip on an operand path)
-UNIT = {"add": "add", "sub": "add", "mul": "mul", "div": "div", "sqrt": "sqrt", "neg": "wire",
-        "cvt": "cvt", "le": "cmp", "lt": "cmp"}
+from navgate.opflow.ir import UNIT, Builder, Program
 
 NAV_REGS = ("pN", "pE", "h", "vN", "vE", "vD", "q0", "q1", "q2", "q3")
 P_REGS = tuple(f"P{i}_{j}" for i in range(N_STATES) for j in range(i, N_STATES))
@@ -77,118 +70,6 @@ def p_reg(i: int, j: int) -> str:
     return f"P{min(i, j)}_{max(i, j)}"
 
 
-def const_name(value: float) -> str:
-    bits = int(np.float32(value).view(np.uint32))
-    if (bits & 0x7F800000) == 0:
-        bits &= 0x80000000
-    return f"c:{bits:08x}"
-
-
-def const_value(name: str) -> float:
-    return float(np.uint32(int(name[2:], 16)).view(np.float32))
-
-
-@dataclass(frozen=True)
-class Op:
-    """``dst = kind(*srcs)`` in ``module`` (one operation of one float32 core)."""
-
-    dst: str
-    kind: str
-    srcs: tuple
-    module: str
-
-
-@dataclass
-class Program:
-    name: str
-    ops: list = field(default_factory=list)
-    inputs: tuple = ()
-    commit: dict = field(default_factory=dict)  #: state register -> temp
-    outputs: dict = field(default_factory=dict)  #: output name -> temp
-
-    def counts(self) -> dict:
-        """Operations by kind (``neg`` is a sign flip and costs no unit)."""
-        out = {k: 0 for k in KINDS}
-        for op in self.ops:
-            out[op.kind] += 1
-        return out
-
-    def counts_by_module(self) -> dict:
-        out: dict = {}
-        for op in self.ops:
-            m = out.setdefault(op.module, {k: 0 for k in KINDS})
-            m[op.kind] += 1
-        return out
-
-    def registers(self) -> list:
-        """Every register name the program reads or writes (state, input, const, temp)."""
-        seen = dict.fromkeys(STATE_REGS)
-        for name in self.inputs:
-            seen[name] = None
-        for op in self.ops:
-            for s in op.srcs:
-                seen[s] = None
-            seen[op.dst] = None
-        return list(seen)
-
-
-class Builder:
-    """Emits SSA ops; each helper returns the name of its result."""
-
-    def __init__(self, name: str, inputs=()):
-        self.prog = Program(name, inputs=tuple(inputs))
-        self.module = name
-        self._n = 0
-
-    def _emit(self, kind, *srcs):
-        srcs = tuple(self.c(s) if isinstance(s, (int, float)) else s for s in srcs)
-        self._n += 1
-        dst = f"t{self._n}"
-        self.prog.ops.append(Op(dst, kind, srcs, self.module))
-        return dst
-
-    @staticmethod
-    def c(value: float) -> str:
-        return const_name(value)
-
-    def add(self, a, b):
-        return self._emit("add", a, b)
-
-    def sub(self, a, b):
-        return self._emit("sub", a, b)
-
-    def mul(self, a, b):
-        return self._emit("mul", a, b)
-
-    def div(self, a, b):
-        return self._emit("div", a, b)
-
-    def sqrt(self, a):
-        return self._emit("sqrt", a)
-
-    def neg(self, a):
-        return self._emit("neg", a)
-
-    def cvt(self, a):
-        return self._emit("cvt", a)
-
-    def le(self, a, b):
-        return self._emit("le", a, b)
-
-    def lt(self, a, b):
-        return self._emit("lt", a, b)
-
-    def sum(self, terms):
-        """Left-to-right sum of ``(sign, value)`` pairs (sign +1/-1; the first may be -1)."""
-        acc = None
-        for sgn, v in terms:
-            if acc is None:
-                acc = v if sgn > 0 else self.neg(v)
-            else:
-                acc = self.add(acc, v) if sgn > 0 else self.sub(acc, v)
-        return acc
-
-
 # ------------------------------------------------------------------ calibration
 
 
@@ -206,7 +87,7 @@ def emit_calibration(b: Builder, words_g, words_a):
 
 def calibration_program() -> Program:
     ins = ("wg0", "wg1", "wg2", "wa0", "wa1", "wa2")
-    b = Builder("imu_calibration", ins)
+    b = Builder("imu_calibration", ins, registers=STATE_REGS)
     g, a = emit_calibration(b, ins[:3], ins[3:])
     b.prog.outputs = {"g0": g[0], "g1": g[1], "g2": g[2], "a0": a[0], "a1": a[1], "a2": a[2]}
     return b.prog
@@ -540,7 +421,7 @@ def emit_covariance_increment(b: Builder, phi: dict, ones: set):
 def propagate_program(compensated: bool = True) -> Program:
     """One IMU sample: calibration, mechanization, Phi/Q, covariance propagation."""
     ins = ("wg0", "wg1", "wg2", "wa0", "wa1", "wa2")
-    b = Builder("propagate", ins)
+    b = Builder("propagate", ins, registers=STATE_REGS)
     g, a = emit_calibration(b, ins[:3], ins[3:])
     ft, c_old, f_n, wxyz, ixyz = emit_mechanization(b, g, a, compensated)
     phi, ones = emit_phi(b, ft, c_old, f_n, wxyz, ixyz)
@@ -595,7 +476,7 @@ def emit_correction(b: Builder, dx):
 
 def altitude_gate_program() -> Program:
     """1-D update, first half: innovation, S, NIS and the gate (sequencer reads ``accept``)."""
-    b = Builder("kalman_update_engine", ("h_meas", "r", "gate"))
+    b = Builder("kalman_update_engine", ("h_meas", "r", "gate"), registers=STATE_REGS)
     y = b.add(b.sub("h_meas", "h"), "cD")
     s = b.add(p_reg(2, 2), "r")
     inv = b.div(1.0, s)
@@ -606,7 +487,7 @@ def altitude_gate_program() -> Program:
 
 def altitude_apply_program() -> Program:
     """1-D update, second half (run when accepted): K, Joseph covariance update, feedback."""
-    b = Builder("kalman_update_engine", ("h_meas", "r"))
+    b = Builder("kalman_update_engine", ("h_meas", "r"), registers=STATE_REGS)
     y = b.add(b.sub("h_meas", "h"), "cD")
     s = b.add(p_reg(2, 2), "r")
     inv = b.div(1.0, s)
@@ -641,14 +522,14 @@ TRN_INPUTS = ("y0", "y1", "r00", "r01", "r11", "lag", "gate")
 
 
 def trn_gate_program() -> Program:
-    b = Builder("kalman_update_engine", TRN_INPUTS)
+    b = Builder("kalman_update_engine", TRN_INPUTS, registers=STATE_REGS)
     _, _, det, _, nis = _trn_common(b)
     b.prog.outputs = {"nis": nis, "accept": b.le(nis, "gate"), "positive": b.lt(0.0, det)}
     return b.prog
 
 
 def trn_apply_program() -> Program:
-    b = Builder("kalman_update_engine", TRN_INPUTS)
+    b = Builder("kalman_update_engine", TRN_INPUTS, registers=STATE_REGS)
     cols, s, _, (i00, i01, i11), _ = _trn_common(b)
     n = N_STATES
     k0 = [b.add(b.mul(cols[0][i], i00), b.mul(cols[1][i], i01)) for i in range(n)]
@@ -658,14 +539,6 @@ def trn_apply_program() -> Program:
     dx = [b.add(b.mul(k0[i], "y0"), b.mul(k1[i], "y1")) for i in range(n)]
     emit_correction(b, dx)
     b.prog.outputs = {f"dx{i}": dx[i] for i in range(N_STATES)}
-    return b.prog
-
-
-def correction_program() -> Program:
-    """Feedback of an error-state estimate written by the PS (initialisation, tests)."""
-    ins = tuple(f"dx{i}" for i in range(N_STATES))
-    b = Builder("state_correction", ins)
-    emit_correction(b, list(ins))
     return b.prog
 
 

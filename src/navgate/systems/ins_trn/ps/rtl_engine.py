@@ -19,7 +19,7 @@ import weakref
 
 import numpy as np
 
-from navgate.gateware.scheduled import CMD_READ, CMD_START, CMD_WRITE, ScheduledMachineStream
+from navgate.opflow.machine import CMD_READ, CMD_START, CMD_WRITE, ScheduledMachineStream
 from navgate.systems.ins_trn.pl.engines import IMU_WORDS, engine_image
 from navgate.systems.ins_trn.pl.fp32_exec import float_to_bits, to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CONFIG_REGS, STATE_REGS

@@ -1,17 +1,44 @@
-"""Banked scheduled float32 datapath: the list scheduler of :mod:`navgate.gateware.scheduled`
-with a register file split into single-write-port banks that map onto block RAM, and the
-Amaranth machine that executes the schedule.
+"""The op-program list scheduler of navgate's scheduled float32 datapaths: the op form
+(SSA ops, commit map, outputs), the unit kinds and latencies, the banked list scheduler with
+its port and bank rules, bank assignment and register allocation. It knows no client system:
+programs come from their clients (``systems/``); :mod:`navgate.opflow.machine` turns a
+schedule into the banked datapath and its control.
+
+Op form
+-------
+The op form shared by navgate's scheduled float32 datapaths.
+
+Programs
+--------
+A program is a list of ops with ``dst``, ``kind`` and ``srcs`` (SSA: every ``dst`` is a new
+temporary), a ``commit`` map (register <- temporary, all reads of a register in the program
+see its value at program start) and ``outputs`` (name -> temporary) -- the form the clients'
+program builders produce. Kinds: ``add sub mul div sqrt le lt
+cvt neg``; ``neg`` is a sign flip folded into its consumers' operand paths
+(:func:`_fold_negs`; it must feed arithmetic ops only). Register names that are not
+temporaries are persistent: ``c:<hex>`` constants (initial contents) and the names the
+machine's image lists. Cores: ``mul`` (Fp32Mul, 5), ``add`` (Fp32Add, add/sub, 8), ``div``,
+``sqrt``, ``cmp`` (Fp32Compare, 2, result 1.0/0.0), ``cvt`` (Fp32FromInt(32): a register
+holding a two's complement integer, 4) and ``mov`` (a one-cycle copy for commits that cannot
+be written in place).
+
+
+Banked scheduling
+-----------------
+The list scheduler for a register file split into single-write-port banks that map onto block
+RAM; :mod:`navgate.opflow.machine` is the Amaranth machine that executes the schedule.
 
 Reference: resource-constrained list scheduling with register-bank (port) constraints, as in
 clustered VLIW compilers and high-level synthesis with multi-bank memories (Gajski et al.,
 "High-Level Synthesis", 1992, ch. 7 and 8; Lapinskii, Jacome and de Veciana, "Cluster
 assignment for high-performance embedded VLIW processors", ACM TODAES 7(3), 2002). An
 earlier machine gave every unit its own read and write ports on one register file; on a
-7-series part that became flip-flops and wide multiplexers (151,653 LUT for seed 000's
+7-series part that became flip-flops and wide multiplexers (151,653 LUT for the 26-state INS
 mechanization) and it was removed. Here every bank has **one
 write port** and ``read_ports`` read ports (synchronous, not transparent), which is what a
 block RAM (one simple-dual-port RAMB18 per read port) or LUT RAM provides, and the scheduler
-keeps every cycle within those ports. docs/seed000-engines.md describes it.
+keeps every cycle within those ports. Measured on its clients in docs/ (architecture.md
+lists which document).
 
 Machine
 -------
@@ -46,7 +73,7 @@ Machine
   which that bank is not written yet (no later write may take it), so that a stream of
   writes cannot starve it. On xc7 a 32-bit true-dual-port bank is one RAMB36E1 (a RAMB18E1
   has 18-bit ports in that mode), the same block RAM as two simple-dual-port RAMB18E1: the
-  saving is the narrower microcode (docs/seed000-engines.md §7).
+  saving is the narrower microcode (measured in benchmarks/bench_tdp_banks.py).
 * Split read ports (``BankedUnits(split_ports=True)``, two ports): operand port ``j`` of
   every slot reads read port ``j`` of some bank, so an operand multiplexer has one input per
   bank (8 rather than 16 with 4 + 4 slots: on xc7 3 LUTs a bit rather than 5) and its
@@ -58,7 +85,7 @@ Machine
   of the operand); of two orders that fit, the one sharing more ports already read that
   cycle. Div, compare, convert and mov read their first source on port 0, as given.
 
-Programs and commit rules are those of :mod:`navgate.gateware.scheduled` (SSA ops, commit
+Programs and commit rules are those above (SSA ops, commit
 map read at program start, outputs): a committed temporary placed in its register's bank and
 written no earlier than that register's last read is written in place, otherwise a ``mov``
 copies it.
@@ -67,37 +94,86 @@ copies it.
 from __future__ import annotations
 
 import heapq
-from dataclasses import dataclass
-
-from amaranth.hdl import Cat, Module, Mux, Signal, unsigned
-from amaranth.lib import wiring
-from amaranth.lib.memory import Memory
-from amaranth.lib.wiring import In, Out
+from dataclasses import dataclass, field
 
 from navgate.gateware.fp32 import (
     Fp32Add,
     Fp32Compare,
     Fp32Div,
     Fp32DivIter,
-    Fp32FromInt,
     Fp32Mul,
     Fp32Sqrt,
     Fp32SqrtIter,
 )
-from navgate.gateware.scheduled import (
-    ONE_BITS,
-    UNIT_LATENCY,
-    UNIT_OF_KIND,
-    ScheduledProgram,
-    ScheduleError,
-    SOp,
-    _fold_negs,
-    _Mov,
-)
 
-__all__ = ["BankedUnits", "BankedLayout", "BankedImage", "BankedMachine", "schedule_banked",
-           "MISC_KINDS", "OVERHEAD", "assign_banks", "allocate_banked", "row_counter",
-           "RowCounter"]
+UNIT_OF_KIND = {"add": "add", "sub": "add", "mul": "mul", "div": "div", "sqrt": "sqrt",
+                "le": "cmp", "lt": "cmp", "cvt": "cvt", "mov": "mov"}
+UNIT_LATENCY = {"add": Fp32Add.LATENCY, "mul": Fp32Mul.LATENCY, "div": Fp32Div.LATENCY,
+                "sqrt": Fp32Sqrt.LATENCY, "cmp": Fp32Compare.LATENCY, "cvt": 4, "mov": 1}
+N_SRCS = {"mul": 2, "add": 2, "div": 2, "sqrt": 1, "cmp": 2, "cvt": 1, "mov": 1}
+ONE_BITS = 0x3F800000
+QNAN_BITS = 0x7FC00000
+
+
+class ScheduleError(RuntimeError):
+    """The program cannot be scheduled (unknown operand, unsupported neg use)."""
+
+
+@dataclass
+class SOp:
+    """One scheduled operation: ``dst = kind(srcs)`` on instance ``inst`` of ``unit``."""
+
+    index: int
+    dst: str
+    kind: str
+    srcs: tuple  #: ((name, flip), ...)
+    unit: str = ""
+    inst: int = 0
+    issue: int = -1
+    height: int = 0
+
+
+
+@dataclass
+class ScheduledProgram:
+    name: str
+    ops: list  #: SOp, in issue order
+    cycles: int  #: cycles from the first issue to the last write, inclusive
+    commit: dict  #: register -> temporary
+    outputs: dict  #: name -> temporary
+    direct: dict = field(default_factory=dict)  #: temporary -> register it is written into
+    last_use: dict = field(default_factory=dict)  #: temporary -> last read cycle
+
+    def unit_busy(self) -> dict:
+        out: dict = {}
+        for s in self.ops:
+            out[s.unit] = out.get(s.unit, 0) + 1
+        return out
+
+
+def _fold_negs(prog):
+    """Ops without ``neg``: every operand becomes (name, flip)."""
+    alias: dict = {}
+    out = []
+    for op in prog.ops:
+        srcs = []
+        for s in op.srcs:
+            base, flip = alias.get(s, (s, False))
+            srcs.append((base, flip))
+        if op.kind == "neg":
+            alias[op.dst] = (srcs[0][0], not srcs[0][1])
+            continue
+        out.append(SOp(len(out), op.dst, op.kind, tuple(srcs)))
+    used = set(prog.commit.values()) | set(prog.outputs.values())
+    for s in out:
+        if s.kind == "cvt" and s.srcs[0][1]:
+            used.add(s.dst)
+    bad = [d for d in alias if d in used]
+    if bad:
+        raise ScheduleError(f"{prog.name}: neg result {bad[0]} is committed, output or "
+                            "converted (only arithmetic consumers are folded)")
+    return out
+
 
 #: the cores sharing the misc issue slot, in select order
 MISC_KINDS = ("div", "sqrt", "cmp", "cvt", "mov")
@@ -527,378 +603,4 @@ def allocate_banked(scheduled: dict, fixed_names: list, bank_of: dict,
     return BankedLayout(nb, lb, fixed, nb << lb, depth, temp_addr, const_init,
                         sum(base))
 
-
-class _BankedFields:
-    """Bit positions of the control word."""
-
-    def __init__(self, units: BankedUnits, lb: int, n_sources: int, misc_kinds: tuple):
-        self.pos: dict = {}
-        off = 0
-        nb = units.banks
-        ports = 1 if units.split_ports else units.read_ports  # per bank, to one operand
-        self.sel_bits = max(1, (nb * ports - 1).bit_length())
-        self.src_bits = max(1, (n_sources - 1).bit_length())
-        self.kind_bits = max(1, (len(misc_kinds) - 1).bit_length())
-
-        def add(key, w):
-            nonlocal off
-            self.pos[key] = (off, w)
-            off += w
-
-        self.shared = units.shared
-        for b in range(nb):
-            for r in range(units.read_ports):
-                add(("ra", b, r), lb)
-            add(("we", b), 1)
-            if not self.shared(b):  # shared: the write address is port A's (read 0's) field
-                add(("wa", b), lb)
-            add(("wsrc", b), self.src_bits)
-        for slot, _ in enumerate(units.slots()):
-            add(("iss", slot), 1)
-            for j in range(2):
-                add(("sel", slot, j), self.sel_bits)
-                add(("flip", slot, j), 1)
-        add(("mod", "add"), units.add)  # one sub bit per add slot
-        add(("kind",), self.kind_bits)
-        add(("wmod",), 1)
-        self.width = off
-        self.aw = lb + max(1, (nb - 1).bit_length())
-
-    def wa(self, b: int) -> tuple:
-        """The field holding bank ``b``'s write address."""
-        return ("ra", b, 0) if self.shared(b) else ("wa", b)
-
-
-@dataclass
-class BankedImage:
-    """Everything the banked gateware is generated from: schedules, layout, microcode."""
-
-    units: BankedUnits
-    misc_kinds: tuple  #: misc cores built, in select order
-    sources: list  #: write-data sources: ("mul", k), ("add", k), (misc kind, 0)
-    programs: dict
-    layout: BankedLayout
-    base: dict
-    rom: list
-    fields: _BankedFields
-
-    @classmethod
-    def build(cls, programs: dict, units: BankedUnits, fixed_names) -> BankedImage:
-        fixed_names = list(dict.fromkeys(fixed_names))
-        consts = sorted({s for p in programs.values() for op in p.ops for s in op.srcs
-                         if s.startswith("c:")})
-        names = fixed_names + [c for c in consts if c not in fixed_names]
-        nreads: dict = {}
-        for p in programs.values():
-            for op in p.ops:
-                for s in op.srcs:
-                    nreads[s] = nreads.get(s, 0) + 1
-        bank_of = assign_banks(names, units, nreads)
-        sched = {k: schedule_banked(p, units, bank_of) for k, p in programs.items()}
-        used = {s.unit for sp in sched.values() for s in sp.ops}
-        misc_kinds = tuple(k for k in MISC_KINDS if k in used)
-        sources = ([("mul", k) for k in range(units.mul)]
-                   + [("add", k) for k in range(units.add)] + [("misc", 0)])
-        layout = allocate_banked(sched, names, bank_of, units)
-        f = _BankedFields(units, layout.local_bits, len(sources), misc_kinds)
-        lb = layout.local_bits
-        rom: list = []
-        base = {}
-        for key, sp in sched.items():
-            base[key] = len(rom)
-            rows = [0] * sp.cycles
-            addr = dict(layout.fixed)
-            addr.update(layout.temp_addr[key])
-            ports: dict = {}  # (cycle, bank) -> {local address: port}
-            for s in sp.ops:  # a shared port A writes: the reads of that cycle use port B
-                dst = layout.fixed[s.dst] if s.kind == "mov" else addr.get(s.dst)
-                if dst is not None and units.shared(dst >> lb):
-                    ports[(s.write, dst >> lb)] = {None: 0}
-
-            def put(row, fkey, value, rows=rows):
-                off, w = f.pos[fkey]
-                assert 0 <= value < (1 << w), (fkey, value)
-                assert rows[row] >> off & ((1 << w) - 1) in (0, value), (fkey, row)
-                rows[row] |= value << off
-
-            for s in sp.ops:
-                su = _slot_unit(s.unit)
-                slot = units.slot_of(su, s.inst)
-                put(s.issue, ("iss", slot), 1)
-                if su == "misc":
-                    put(s.issue, ("kind",), misc_kinds.index(s.unit))
-                for j, (name, flip) in enumerate(s.srcs):
-                    b, a = addr[name] >> lb, addr[name] & ((1 << lb) - 1)
-                    if units.split_ports:  # source j on read port j (the scheduler's rule)
-                        put(s.issue, ("ra", b, j), a)
-                        put(s.issue, ("sel", slot, j), b)
-                        put(s.issue, ("flip", slot, j), int(flip))
-                        continue
-                    used_ports = ports.setdefault((s.issue, b), {})
-                    if a not in used_ports:
-                        used_ports[a] = len(used_ports)
-                        assert used_ports[a] < units.read_ports
-                        put(s.issue, ("ra", b, used_ports[a]), a)
-                    put(s.issue, ("sel", slot, j), b * units.read_ports + used_ports[a])
-                    put(s.issue, ("flip", slot, j), int(flip))
-                if s.kind == "sub":
-                    off, _ = f.pos[("mod", "add")]
-                    rows[s.issue] |= 1 << (off + s.inst)
-                # the write source and the compare's le bit are held one row early: the
-                # machine registers them, so that the bank's write-data multiplexer and the
-                # misc result bus start from flip-flops rather than from the microcode RAM's
-                # clock-to-out (a write is never in a program's first cycle)
-                assert s.write >= 1
-                if s.kind == "le":
-                    put(s.write - 1, ("wmod",), 1)
-                dst = layout.fixed[s.dst] if s.kind == "mov" else addr.get(s.dst)
-                if dst is not None:
-                    b = dst >> lb
-                    src = sources.index((s.unit, s.inst) if su != "misc" else ("misc", 0))
-                    put(s.write, ("we", b), 1)
-                    put(s.write, f.wa(b), dst & ((1 << lb) - 1))
-                    put(s.write - 1, ("wsrc", b), src)
-            rom += rows
-        return cls(units, misc_kinds, sources, sched, layout, base, rom, f)
-
-    def cycles(self, key: str) -> int:
-        return self.programs[key].cycles
-
-    def spans(self) -> list:
-        """(first row, last row) of every program, in program order."""
-        return [(self.base[k], self.base[k] + sp.cycles - 1) for k, sp in self.programs.items()]
-
-    def output_addr(self, key: str) -> dict:
-        sp = self.programs[key]
-        return {n: self.layout.temp_addr[key][t] for n, t in sp.outputs.items()}
-
-    def machine(self, init: dict | None = None):
-        return BankedMachine(self, init)
-
-
-@dataclass
-class RowCounter:
-    """The signals of :func:`row_counter`."""
-
-    nxt: Signal  #: the row to read next: a synchronous read port's address
-    pc: Signal  #: the row whose control word the read port presents now
-    last: Signal  #: the running program's last row
-    running: Signal
-    go: Signal  #: a program starts (``start`` while not running)
-
-
-def row_counter(m: Module, spans: list, start, prog) -> RowCounter:
-    """The program counter of a straight-line control store: ``start`` while not running
-    loads the first row of program ``prog`` (``spans[prog] = (first, last)``), the counter
-    then steps a row a cycle and stops after the last row. Addressing a synchronous read
-    port with ``nxt`` makes its data the control word of row ``pc``."""
-    rw = max(1, max(last for _, last in spans).bit_length())
-    pc = Signal(rw)
-    last = Signal(rw)
-    running = Signal()
-    base_sel = Signal(rw)
-    last_sel = Signal(rw)
-    with m.Switch(prog):
-        for i, (first, end) in enumerate(spans):
-            with m.Case(i):
-                m.d.comb += [base_sel.eq(first), last_sel.eq(end)]
-    go = Signal()
-    nxt = Signal(rw)
-    m.d.comb += [go.eq(start & ~running),
-                 nxt.eq(Mux(go, base_sel, Mux(running & (pc != last), pc + 1, pc)))]
-    with m.If(go):
-        m.d.sync += [running.eq(1), pc.eq(base_sel), last.eq(last_sel)]
-    with m.Elif(running):
-        m.d.sync += pc.eq(nxt)
-        with m.If(pc == last):
-            m.d.sync += running.eq(0)
-    return RowCounter(nxt, pc, last, running, go)
-
-
-def _or_all(terms):
-    out = terms[0]
-    for t in terms[1:]:
-        out = out | t
-    return out
-
-
-class BankedMachine(wiring.Component):
-    """Executes the programs of a :class:`BankedImage`. ``start`` with ``prog`` (program
-    number, in the image's order) while not ``busy`` starts a program; ``done`` is high for
-    one cycle exactly ``cycles(prog) + 1`` cycles after ``start``. Host access while idle:
-    ``host_we``/``host_waddr``/``host_wdata`` write a register, ``host_raddr`` ->
-    ``host_rdata`` (one cycle later) reads one; host addresses are the layout's flat
-    addresses."""
-
-    def __init__(self, image: BankedImage, init: dict | None = None):
-        self.image = image
-        self.init = dict(init or {})
-        self.keys = list(image.programs)
-        aw = image.fields.aw
-        super().__init__({
-            "start": In(1), "prog": In(range(max(2, len(self.keys)))),
-            "busy": Out(1), "done": Out(1),
-            "host_we": In(1), "host_waddr": In(aw), "host_wdata": In(32),
-            "host_raddr": In(aw), "host_rdata": Out(32),
-        })
-
-    def elaborate(self, platform):
-        m = Module()
-        img = self.image
-        f = img.fields
-        u = img.units
-        lay = img.layout
-        lb = lay.local_bits
-        nb = u.banks
-        inits = [[0] * max(2, lay.bank_depth[b]) for b in range(nb)]
-        for flat, v in list(lay.const_init.items()) + list(self.init.items()):
-            b, a = lay.split(flat)
-            if a < len(inits[b]):
-                inits[b][a] = v
-        m.submodules.rom = rom = Memory(shape=unsigned(f.width), depth=len(img.rom),
-                                        init=img.rom)
-        seq = row_counter(m, img.spans(), self.start, self.prog)
-        running = seq.running
-        rp = rom.read_port()
-        m.d.comb += [self.busy.eq(running), rp.addr.eq(seq.nxt)]
-        m.d.sync += self.done.eq(running & (seq.pc == seq.last))
-        ctl = Signal(f.width)
-        m.d.comb += ctl.eq(rp.data)
-        gated = {k for k in f.pos if k[0] in ("we", "iss")}
-
-        def fld(*key):
-            off, w = f.pos[key]
-            if key in gated:  # no issue and no write while idle
-                return ctl[off:off + w] & running
-            return ctl[off:off + w]
-
-        # one cycle later: operand selects, flips, issue bits, sub bits, misc kind
-        def late(sig, name):
-            r = Signal(len(sig), name=name)
-            m.d.sync += r.eq(sig)
-            return r
-
-        host_bank = self.host_raddr[lb:]
-        host_bank_q = Signal(len(host_bank))
-        m.d.sync += host_bank_q.eq(host_bank)
-        # bank read data
-        rdata = []
-        wports = []
-        for b in range(nb):
-            mem = Memory(shape=unsigned(32), depth=max(2, lay.bank_depth[b]), init=inits[b])
-            m.submodules[f"bank{b}"] = mem
-            wp = mem.write_port()
-            wports.append(wp)
-            if u.shared(b):
-                # port A: write port and read port 0 on one address (one true-dual-port RAM)
-                host_we = self.host_we & ~running & (self.host_waddr[lb:] == b)
-                addr_a = Signal(lb, name=f"addr_a{b}")
-                m.d.comb += [addr_a.eq(Mux(running, fld("ra", b, 0),
-                                           Mux(host_we, self.host_waddr[:lb],
-                                               self.host_raddr[:lb]))),
-                             wp.en.eq(fld("we", b) | host_we), wp.addr.eq(addr_a)]
-            ports = []
-            for r in range(u.read_ports):
-                p = mem.read_port()
-                if r == 0 and u.shared(b):
-                    a = addr_a
-                else:
-                    a = fld("ra", b, r)
-                    if r == 0:
-                        a = Mux(running, a, self.host_raddr[:lb])
-                m.d.comb += p.addr.eq(a)
-                ports.append(p.data)
-            rdata.append(ports)
-        flat_ports = [d for ports in rdata for d in ports]
-        with m.Switch(host_bank_q):
-            for b in range(nb):
-                with m.Case(b):
-                    m.d.comb += self.host_rdata.eq(rdata[b][0])
-
-        def operand(slot, j):
-            sel = late(fld("sel", slot, j), f"sel{slot}_{j}")
-            flip = late(fld("flip", slot, j), f"flip{slot}_{j}")
-            v = Signal(32, name=f"op{slot}_{j}")
-            inputs = [ports[j] for ports in rdata] if u.split_ports else flat_ports
-            with m.Switch(sel):
-                for k, d in enumerate(inputs):
-                    with m.Case(k):
-                        m.d.comb += v.eq(d)
-            out = Signal(32, name=f"opr{slot}_{j}")
-            m.d.sync += out.eq(v ^ Cat(Signal(31), flip))
-            return out
-
-        src_res = {}
-        mod_off, _ = f.pos[("mod", "add")]
-        for slot, (unit, k) in enumerate(u.slots()):
-            a, bop = operand(slot, 0), operand(slot, 1)
-            iss = late(late(fld("iss", slot), f"iss{slot}a"), f"iss{slot}")
-            if unit == "mul":
-                core = Fp32Mul()
-                m.d.comb += [core.i.valid.eq(iss), core.o.ready.eq(1),
-                             core.i.payload.a.eq(a), core.i.payload.b.eq(bop)]
-                m.submodules[f"mul{k}"] = core
-                src_res[("mul", k)] = core.o.payload.r
-            elif unit == "add":
-                core = Fp32Add()
-                sub = late(late(ctl[mod_off + k], f"sub{k}a"), f"sub{k}")
-                m.d.comb += [core.i.valid.eq(iss), core.o.ready.eq(1),
-                             core.i.payload.a.eq(a), core.i.payload.b.eq(bop),
-                             core.i.payload.sub.eq(sub)]
-                m.submodules[f"add{k}"] = core
-                src_res[("add", k)] = core.o.payload.r
-            else:
-                kind = late(late(fld("kind"), "misc_kind_a"), "misc_kind")
-                misc_terms = []
-                for ki, name in enumerate(img.misc_kinds):
-                    v = Signal(name=f"{name}_valid")
-                    m.d.comb += v.eq(iss & (kind == ki))
-                    if name == "mov":
-                        core = _Mov()
-                        m.d.comb += [core.a.eq(a), core.valid_i.eq(v)]
-                        res = core.r
-                        res_valid = core.valid_o
-                    else:
-                        div, sqrt = ((Fp32DivIter, Fp32SqrtIter) if u.iterative
-                                     else (Fp32Div, Fp32Sqrt))
-                        core = {"div": div, "sqrt": sqrt, "cmp": Fp32Compare,
-                                "cvt": lambda: Fp32FromInt(32)}[name]()
-                        m.d.comb += [core.i.valid.eq(v), core.o.ready.eq(1)]
-                        if name == "cvt":
-                            m.d.comb += core.i.payload.x.eq(a)
-                        elif name == "sqrt":
-                            m.d.comb += core.i.payload.a.eq(a)
-                        else:
-                            m.d.comb += [core.i.payload.a.eq(a), core.i.payload.b.eq(bop)]
-                        if name == "cmp":
-                            o = core.o.payload
-                            res = Signal(32, name="cmp_res")
-                            # the le bit, held one row early in the microcode: a
-                            # flip-flop, not the ROM's clock-to-out, before the bus
-                            le = Signal(name="cmp_le")
-                            m.d.sync += le.eq(fld("wmod"))
-                            m.d.comb += res.eq(Mux(o.lt | (le & o.equal), ONE_BITS, 0))
-                        else:
-                            res = core.o.payload.r
-                        res_valid = core.o.valid
-                    m.submodules[name] = core
-                    misc_terms.append(Mux(res_valid, res, 0))
-                misc_res = Signal(32, name="misc_res")
-                m.d.comb += misc_res.eq(_or_all(misc_terms))
-                src_res[("misc", 0)] = misc_res
-        for b in range(nb):
-            wp = wports[b]
-            data = Signal(32, name=f"wdata{b}")
-            wsrc = Signal(len(fld("wsrc", b)), name=f"wsrc{b}")
-            m.d.sync += wsrc.eq(fld("wsrc", b))  # the microcode holds it one row early
-            with m.Switch(wsrc):
-                for k, key in enumerate(img.sources):
-                    with m.Case(k):
-                        m.d.comb += data.eq(src_res[key])
-            if not u.shared(b):
-                host = self.host_we & ~running & (self.host_waddr[lb:] == b)
-                m.d.comb += [wp.en.eq(fld("we", b) | host),
-                             wp.addr.eq(Mux(running, fld("wa", b), self.host_waddr[:lb]))]
-            m.d.comb += wp.data.eq(Mux(running, data, self.host_wdata))
-        return m
 

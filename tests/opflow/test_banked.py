@@ -1,4 +1,4 @@
-"""The banked scheduled float32 datapath (navgate.gateware.banked): exact cycle counts of
+"""The banked scheduled float32 datapath (navgate.opflow): exact cycle counts of
 small programs, rejected programs, the port constraints of every schedule (one write and
 ``read_ports`` distinct reads per bank per cycle, one issue per slot, the iterative cores'
 interval), and bit-exact execution of random programs with special values in Amaranth
@@ -12,14 +12,15 @@ import numpy as np
 import pytest
 from amaranth.sim import Simulator
 
-from navgate.gateware.banked import (
+from navgate.numerics import fp32 as F
+from navgate.opflow.machine import BankedImage
+from navgate.opflow.schedule import (
     OVERHEAD,
-    BankedImage,
+    UNIT_LATENCY,
     BankedUnits,
+    ScheduleError,
     schedule_banked,
 )
-from navgate.gateware.scheduled import UNIT_LATENCY, ScheduleError
-from navgate.numerics import fp32 as F
 
 
 @dataclass(frozen=True)
