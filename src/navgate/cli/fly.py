@@ -78,13 +78,16 @@ def _positive_float(ctx, param, value):
 @click.option("--trn-timeout", type=float, default=5.0, show_default=True,
               callback=_positive_float,
               help="With --trn-service: seconds to wait for each fix before a retry.")
+@click.option("--trn-latency", type=float, default=0.0, show_default=True,
+              help="Apply each TRN fix this many seconds after its request (simulated link "
+                   "and Pi time; deterministic). 0: at the request's time.")
 @click.option("--link-flip-rate", type=float, default=0.0, show_default=True,
               help="With --trn-service: flip bits in the PS's outgoing bytes at this rate per "
                    "byte (fault injection; every bad frame is counted).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")
 def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_sensors, no_trn,
         imu_rate, ranger, speed, trn_method, engine, record_path, trn_service, trn_timeout,
-        link_flip_rate, quiet):
+        trn_latency, link_flip_rate, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
 
     from navgate.systems.ins_trn.ps import flight
@@ -120,6 +123,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
     except (flight.RouteError, DemError) as error:
         raise CliError(str(error)) from None
     check_out_dir(out)
+    if not (math.isfinite(trn_latency) and 0.0 <= trn_latency <= 60.0):
+        raise CliError(f"--trn-latency must lie in [0, 60] s, got {trn_latency:g}")
     if not (math.isfinite(link_flip_rate) and 0.0 <= link_flip_rate <= 1.0):
         raise CliError(f"--link-flip-rate must lie in [0, 1], got {link_flip_rate:g}")
     if trn_service is None and link_flip_rate:
@@ -138,14 +143,14 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
     try:
         _fly(dem, dem_path, cfg, route, out, engine, record_path, trn_link, quiet,
              table_console, console, duration, imu_rate, seed, ideal_sensors, no_trn,
-             trn_method)
+             trn_method, trn_latency)
     finally:
         if trn_link is not None:
             trn_link.close()
 
 
 def _fly(dem, dem_path, cfg, route, out, engine, record_path, trn_link, quiet, table_console,
-         console, duration, imu_rate, seed, ideal_sensors, no_trn, trn_method):
+         console, duration, imu_rate, seed, ideal_sensors, no_trn, trn_method, trn_latency):
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from navgate.systems.ins_trn.ps import flight, report
@@ -167,7 +172,7 @@ def _fly(dem, dem_path, cfg, route, out, engine, record_path, trn_link, quiet, t
         try:
             result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
                                 stage=lambda s: bar.update(task, description=s), route=route,
-                                engine=engine, trn_link=trn_link)
+                                engine=engine, trn_link=trn_link, trn_latency_s=trn_latency)
         except simulation_errors() as error:
             raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
         except DemError as error:
@@ -175,6 +180,7 @@ def _fly(dem, dem_path, cfg, route, out, engine, record_path, trn_link, quiet, t
         bar.update(task, description="writing report", completed=total)
         summary = result.summary()
         summary["wall_time_s"] = time.perf_counter() - start
+        summary["trn_latency_s"] = trn_latency
         if trn_link is not None:
             summary["trn_link"] = trn_link.stats()
             summary["trn_link"]["service_status"] = trn_link.status()

@@ -327,3 +327,33 @@ def test_an_accepted_fix_without_finite_numbers_is_refused_and_counted(scenario)
     assert stats["invalid_fixes"] == stats["requests"] > 5
     assert not applied(run_) and np.all(np.isfinite(run_.nav))
 
+
+
+def test_link_latency_applies_each_fix_late_once_and_never_after_its_deadline(scenario):
+    dem, cfg, stream, reference = scenario
+    late = flight.fly_stream(stream, dem, cfg, trn_latency_s=2.0)["trn_aided"]
+    rows = late.fixes
+    assert rows and all(r["applied_at_s"] >= r["time_s"] + 2.0 for r in rows)
+    # applied at the first record after t_request + 2 s (records come at 50 Hz or faster)
+    assert max(r["applied_at_s"] - r["time_s"] for r in rows) < 2.0 + 0.1
+    times = applied(late)
+    assert len(times) == len(set(times)) > 0
+    # one request in flight at a time: requests at least the fix interval and the latency apart
+    starts = [r["time_s"] for r in rows]
+    gaps = np.diff(starts)
+    assert np.all(gaps >= max(cfg.fix_interval_s, 2.0) - 1e-9)
+    # a fix that would arrive after its deadline is dropped, never applied
+    from navgate.systems.ins_trn.ps.engine import make_engine
+    from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
+
+    eng = make_engine("reference", engine_setup(stream.header, cfg))
+    nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, trn_latency_s=3.0,
+                    trn_deadline_s=1.0)
+    run_ = nav.run(stream)
+    assert run_.fixes and not applied(run_)
+    late_rows = [r for r in run_.fixes if r["reason"] == "no fix: arrived after its deadline"]
+    # every fix the correlator accepted in the reference flight arrives too late here
+    assert len(late_rows) >= 3 and all(not r["accepted"] for r in late_rows)
+    with pytest.raises(ValueError, match="trn_latency_s"):
+        Navigator(make_engine("reference", engine_setup(stream.header, cfg)), cfg,
+                  t0=stream.header["t0"], dem=dem, trn_latency_s=float("nan"))
