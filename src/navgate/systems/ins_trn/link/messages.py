@@ -26,10 +26,74 @@ HEARTBEAT = 5  #: either way: {"time": float}
 ERROR = 6  #: Pi -> PS: {"id": int | None, "error": str}
 STATUS_REQUEST = 7  #: PS -> Pi: {}
 STATUS = 8  #: Pi -> PS: the service's counters
+PROFILE_FRAGMENT = 9  #: PS -> Pi: {"id", "index", "count", "data"}: a piece of a request
+
+#: bytes of packed request per fragment: at 1e-3 bit flips per byte a 2.4 kB request frame
+#: arrives whole 9 % of the time, a 256-byte fragment 77 %; the Pi keeps the fragments it
+#: has, so a retry only needs the missing ones to get through
+FRAGMENT_BYTES = 256
 
 NAMES = {HELLO: "hello", CAPABILITIES: "capabilities", PROFILE_REQUEST: "profile request",
          FIX: "fix", HEARTBEAT: "heartbeat", ERROR: "error", STATUS_REQUEST: "status request",
-         STATUS: "status"}
+         STATUS: "status", PROFILE_FRAGMENT: "profile fragment"}
+
+
+def fragments(request_id: int, body: dict, size: int = FRAGMENT_BYTES) -> list[dict]:
+    """A profile request cut into fragment bodies of ``size`` packed bytes."""
+    import msgpack
+
+    packed = msgpack.packb(body, use_bin_type=True)
+    count = max(1, -(-len(packed) // size))
+    return [{"id": int(request_id), "index": k, "count": count,
+             "data": packed[k * size:(k + 1) * size]} for k in range(count)]
+
+
+class Reassembly:
+    """The Pi's side of fragmented requests: the pieces of the last few requests, and the
+    fixes already sent (a fix lost on the way back is sent again, not recomputed)."""
+
+    KEEP = 8
+
+    def __init__(self):
+        self.pieces: dict[int, dict[int, bytes]] = {}
+        self.counts: dict[int, int] = {}
+        self.answered: dict[int, tuple] = {}
+
+    def add(self, body) -> tuple[str, object]:
+        """("complete", request body) | ("answered", cached answer) | ("partial", None)."""
+        import msgpack
+
+        if not isinstance(body, dict):
+            raise MessageError("profile fragment: body is not a map")
+        try:
+            rid, index, count = int(body["id"]), int(body["index"]), int(body["count"])
+            data = body["data"]
+        except (KeyError, TypeError, ValueError) as error:
+            raise MessageError(f"profile fragment: {error}") from None
+        if not (0 <= index < count <= 65536) or not isinstance(data, bytes | bytearray):
+            raise MessageError("profile fragment: bad index, count or data")
+        if rid in self.answered:
+            return ("answered", self.answered[rid]) if index == count - 1 else ("partial", None)
+        if self.counts.setdefault(rid, count) != count:
+            raise MessageError("profile fragment: count changed within a request")
+        self.pieces.setdefault(rid, {})[index] = bytes(data)
+        for old in sorted(self.pieces)[:-self.KEEP]:
+            self.pieces.pop(old, None)
+            self.counts.pop(old, None)
+        got = self.pieces.get(rid, {})
+        if len(got) < count:
+            return "partial", None
+        del self.pieces[rid], self.counts[rid]
+        try:
+            return "complete", msgpack.unpackb(b"".join(got[k] for k in range(count)),
+                                               raw=False)
+        except Exception as error:  # noqa: BLE001 - any decoding failure is a bad message
+            raise MessageError(f"profile fragments: {error}") from None
+
+    def remember(self, rid: int, answer: tuple) -> None:
+        self.answered[rid] = answer
+        for old in sorted(self.answered)[:-self.KEEP]:
+            del self.answered[old]
 
 
 class MessageError(ValueError):

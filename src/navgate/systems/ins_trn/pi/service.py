@@ -65,6 +65,7 @@ class TrnService:
                          "fixes_rejected": 0, "errors": 0, "bad_frames": 0,
                          "heartbeats": 0, "status_requests": 0}
         self._correlators: dict = {}
+        self._reassembly = messages.Reassembly()
 
     # -- requests ---------------------------------------------------------------------------
     def _correlator(self, method: str, config: dict, tangent):
@@ -129,6 +130,22 @@ class TrnService:
         if kind == messages.STATUS_REQUEST:
             self.counters["status_requests"] += 1
             return messages.STATUS, self.status()
+        if kind == messages.PROFILE_FRAGMENT:
+            try:
+                state, value = self._reassembly.add(frame.body)
+            except messages.MessageError as error:
+                self.counters["errors"] += 1
+                return messages.ERROR, {"id": None, "error": str(error)}
+            if state == "partial":
+                return None
+            if state == "answered":
+                self.counters["fixes_resent"] = self.counters.get("fixes_resent", 0) + 1
+                return value
+            answer = self.handle(frames.Frame(messages.PROFILE_REQUEST, frame.seq, value))
+            rid = value.get("id") if isinstance(value, dict) else None
+            if rid is not None:
+                self._reassembly.remember(int(rid), answer)
+            return answer
         if kind == messages.PROFILE_REQUEST:
             self.counters["requests"] += 1
             try:
@@ -152,7 +169,7 @@ class TrnService:
         """Answer frames on ``link`` until the peer closes it, the stop flag is set, or
         ``max_requests`` profile requests have been answered."""
         self.counters["clients"] += 1
-        bad_before = sum(link.decoder.bad.values())
+        bad_base = self.counters["bad_frames"] - sum(link.decoder.bad.values())
         try:
             while not self.stop.is_set():
                 try:
@@ -163,6 +180,8 @@ class TrnService:
                     link.send(messages.ERROR, 0, {"id": None, "error":
                                                   f"protocol version {frames.VERSION} only"})
                     return
+                finally:  # counted as they happen, so a status request sees them
+                    self.counters["bad_frames"] = bad_base + sum(link.decoder.bad.values())
                 if frame is None:
                     continue
                 answer = self.handle(frame)
@@ -173,7 +192,7 @@ class TrnService:
         except (LinkClosed, BrokenPipeError, ConnectionResetError):
             self.log("trn-serve: client closed the link")
         finally:
-            self.counters["bad_frames"] += sum(link.decoder.bad.values()) - bad_before
+            self.counters["bad_frames"] = bad_base + sum(link.decoder.bad.values())
 
     def serve_tcp(self, host: str, port: int, *, ready=None, max_requests=None) -> None:
         """Listen on host:port; one client at a time until stopped."""

@@ -66,7 +66,8 @@ class TrnLink:
     """A connection to a TRN service, with counters for the flight's summary."""
 
     def __init__(self, spec: str, *, terrain_path=None, cache_mb: float | None = None,
-                 timeout_s: float = 5.0, retries: int = 2, faults: FaultInjector | None = None):
+                 timeout_s: float = 5.0, retries: int = 2, faults: FaultInjector | None = None,
+                 fragment_bytes: int = messages.FRAGMENT_BYTES):
         if not (math.isfinite(timeout_s) and timeout_s > 0):
             raise ValueError(f"timeout_s must be positive, got {timeout_s!r}")
         self.spec = spec
@@ -76,6 +77,7 @@ class TrnLink:
         self.timeout_s = timeout_s
         self.retries = int(retries)
         self.faults = faults
+        self.fragment_bytes = int(fragment_bytes)  #: 0: one frame per request
         self.child: subprocess.Popen | None = None
         self.link: Transport | None = None
         self.seq = 0
@@ -184,7 +186,11 @@ class TrnLink:
                 if self.link is None:
                     continue
             try:
-                self._send(messages.PROFILE_REQUEST, body)
+                if self.fragment_bytes:
+                    for piece in messages.fragments(rid, body, self.fragment_bytes):
+                        self._send(messages.PROFILE_FRAGMENT, piece)
+                else:
+                    self._send(messages.PROFILE_REQUEST, body)
                 reply = self._await(rid)
             except (LinkClosed, BrokenPipeError, ConnectionResetError, OSError):
                 self._drop()
