@@ -201,7 +201,13 @@ class TinyKalmanDatapath(wiring.Component):
     LATENCY = CORDIC_LATENCY + 1
     THROUGHPUT = Fraction(1, CORDIC_INTERVAL)
 
-    def __init__(self):
+    def __init__(self, angles_cls=None):
+        #: the angle block: :class:`TinyKalmanCordic` (default) or the bit-serial
+        #: :class:`~navgate.systems.tinykalman.serial.TinyKalmanSerialCordic`
+        self.angles_cls = TinyKalmanCordic if angles_cls is None else angles_cls
+        if angles_cls is not None:
+            self.LATENCY = angles_cls.LATENCY + 1
+            self.THROUGHPUT = angles_cls.THROUGHPUT
         super().__init__({
             "i": In(stream.Signature(DATAPATH_IN)),
             "o": Out(stream.Signature(DATAPATH_OUT)),
@@ -209,7 +215,7 @@ class TinyKalmanDatapath(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.angles = angles = TinyKalmanCordic()
+        m.submodules.angles = angles = self.angles_cls()
         m.submodules.kalman = kalman = KalmanSteady()
         gx, gy, ok = Signal(16), Signal(16), Signal()
         roll_m, pitch_m, sat, ok_out = Signal(16), Signal(16), Signal(), Signal()
