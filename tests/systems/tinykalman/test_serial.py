@@ -12,6 +12,7 @@ import pytest
 
 from navgate.devices.mpu6500 import SPI_TIMING, WHO_AM_I_VALUE
 from navgate.gateware import verify as V
+from navgate.hw.asic import LIBERTY_NAME
 from navgate.systems.tinykalman import model as tk
 from navgate.systems.tinykalman import rtl_sim as R
 from navgate.systems.tinykalman.datapath import TinyKalmanDatapath
@@ -120,6 +121,7 @@ def test_serial_chip_faults_and_latency_amaranth():
     assert run.latencies == [2 + 616] * 7
 
 
+@pytest.mark.slow
 def test_serial_chip_verilator_stream_with_faults():
     n = 60
     w = synthetic_motion(n, seed=7)
@@ -165,3 +167,29 @@ def test_serial_chip_verilator_real_dividers():
     assert run.extra["violation_count"] == 0, run.extra["violations"]
     assert run.uart == model_stream(w)
     assert set(run.latencies) == {621}
+
+
+# ------------------------------------------------------------------------------ SG13G2
+
+LIBERTY = Path(__file__).resolve().parents[4] / "shared" / "asic" / LIBERTY_NAME
+
+
+@pytest.mark.skipif(not LIBERTY.is_file(), reason="SG13G2 Liberty file absent")
+def test_serial_chip_sg13g2_area_and_flip_flops(tmp_path):
+    """Yosys 0.70 + the IHP SG13G2 typical Liberty (navgate.hw.asic): the serial chip's exact
+    pre-layout area and flip-flops, and where they sit (docs/seed001-tinykalman.md)."""
+    from navgate.hw.asic import synthesize_asic
+    from navgate.hw.verilog import emit_verilog
+    from navgate.systems.tinykalman.top import TinyKalmanSerialTop
+
+    name = "tinykalman_serial_top"
+    got = synthesize_asic(emit_verilog(TinyKalmanSerialTop(), name), name, tmp_path, LIBERTY)
+    assert round(got["area_um2"], 1) == 28820.7
+    assert got["flip_flops"] == 278 and got["latches"] == 0
+    assert got["tile"] == "1x2" and got["tile_percent"]["1x1"] == 92.0
+    ffs = got["flip_flops_by_register"]
+    assert sum(ffs.values()) == 278
+    # the bit-serial CORDIC: two 18-bit circulating registers, no 16-bit staging of ax
+    assert ffs["core.datapath.angles.x"] == ffs["core.datapath.angles.y"] == 18
+    assert not any("ax_neg" in k for k in ffs)
+    assert got["timing"]["longest_path_ns"] == pytest.approx(4.356, abs=1e-3)

@@ -74,7 +74,12 @@ class TinyKalmanSerialCordic(wiring.Component):
     LATENCY = SERIAL_CORDIC_LATENCY
     THROUGHPUT = Fraction(1, SERIAL_CORDIC_LATENCY + 1)
 
-    def __init__(self):
+    def __init__(self, held_input: bool = False):
+        #: ``held_input``: the producer holds ``i.payload`` from the handshake until the output
+        #: is taken (the chip's SPI master does: its word register changes only during the next
+        #: burst, a sample period later); ax is then read again for the pitch pass instead of
+        #: being kept in a 16-bit register. False (default): any stream producer.
+        self.held_input = held_input
         super().__init__({
             "i": In(stream.Signature(SERIAL_ANGLES_IN)),
             "o": Out(stream.Signature(SERIAL_ANGLES_OUT)),
@@ -93,7 +98,12 @@ class TinyKalmanSerialCordic(wiring.Component):
         sx, sy = Signal(), Signal()  # signs of x and y at the start of the pass
         k = Signal(range(W))  # bit within the pass
         p = Signal(range(PASSES))  # 0: pre-rotation, 1..16: iteration p - 1
-        ax_neg = Signal(signed(16))
+        if self.held_input:
+            ax_in = self.i.payload.ax
+            ax_neg = Signal(signed(16))
+            m.d.comb += ax_neg.eq(-((ax_in >> 1) + (ax_in >> 2) + (ax_in >> 4)))
+        else:
+            ax_neg = Signal(signed(16))
         roll = Signal(signed(ab))
         sat = Signal()
 
@@ -170,8 +180,9 @@ class TinyKalmanSerialCordic(wiring.Component):
         with m.Switch(phase):
             with m.Case(_Phase.IDLE):
                 with m.If(self.i.valid):
-                    ax = self.i.payload.ax
-                    m.d.sync += ax_neg.eq(-((ax >> 1) + (ax >> 2) + (ax >> 4)))
+                    if not self.held_input:
+                        ax = self.i.payload.ax
+                        m.d.sync += ax_neg.eq(-((ax >> 1) + (ax >> 2) + (ax >> 4)))
                     m.d.sync += load(self.i.payload.az >> 1, self.i.payload.ay >> 1)
                     m.d.sync += phase.eq(_Phase.ROLL)
             with m.Case(_Phase.OUT):

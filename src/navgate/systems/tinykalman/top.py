@@ -123,8 +123,9 @@ class TinyKalmanCore(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         m.submodules.spi = spi = self.spi
+        serial = self.variant == "serial"
         m.submodules.datapath = datapath = TinyKalmanDatapath(
-            TinyKalmanSerialCordic if self.variant == "serial" else None)
+            TinyKalmanSerialCordic if serial else None, held_input=serial)
         m.submodules.uart = uart = self.uart
 
         sending = Signal()
@@ -152,7 +153,12 @@ class TinyKalmanCore(wiring.Component):
                          self.sat.eq(datapath.o.payload.sat)]
         # filter -> packet -> UART
         index = Signal(range(PACKET_LEN))
-        roll, pitch = Signal(16), Signal(16)
+        if serial:
+            # the serial chip sends the filter state itself (it holds until the next sample's
+            # update, after this packet: sample_period >= min_sample_period)
+            roll, pitch = datapath.o.payload.roll, datapath.o.payload.pitch
+        else:
+            roll, pitch = Signal(16), Signal(16)
         packet = Array([Const(HEADER[0], 8), Const(HEADER[1], 8), roll[8:], roll[:8],
                         pitch[8:], pitch[:8]])
         m.d.comb += [
@@ -161,8 +167,11 @@ class TinyKalmanCore(wiring.Component):
             uart.i.payload.eq(packet[index]),
         ]
         with m.If(datapath.o.valid & ~sending):
-            m.d.sync += [roll.eq(datapath.o.payload.roll), pitch.eq(datapath.o.payload.pitch),
-                         sending.eq(1), index.eq(0)]
+            if serial:
+                m.d.sync += [sending.eq(1), index.eq(0)]
+            else:
+                m.d.sync += [roll.eq(datapath.o.payload.roll),
+                             pitch.eq(datapath.o.payload.pitch), sending.eq(1), index.eq(0)]
         with m.If(sending & uart.i.ready):
             m.d.sync += index.eq(index + 1)
             with m.If(index == PACKET_LEN - 1):
