@@ -8,9 +8,8 @@ parallel column runs :class:`TinyKalmanDatapath` with the parallel angle block, 
 column with the bit-serial one (:mod:`navgate.systems.tinykalman.serial`), both in Verilator;
 the two must be equal (same arithmetic) and equal to the integer model.
 
-Run from the checkout root: ``python benchmarks/bench_tinykalman_settled.py`` (about a
-4.4 min wall, 1.5 min CPU,
-on the shared machine with both Verilator builds uncached).
+Run from the checkout root: ``python benchmarks/bench_tinykalman_settled.py`` (4.4 min wall,
+1.5 min CPU, on the shared machine with both Verilator builds uncached).
 """
 
 from __future__ import annotations
