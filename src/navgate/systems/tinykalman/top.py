@@ -21,6 +21,11 @@ that fails the WHO_AM_I check leaves the filter state unchanged and the packet r
 (the model's :class:`~navgate.systems.tinykalman.model.TinyKalman` does the same). The chip
 keeps streaming whatever the sensor does.
 
+``variant``: ``"parallel"`` (default, the word-parallel iterative CORDIC) or ``"serial"``
+(:mod:`navgate.systems.tinykalman.serial`'s bit-serial CORDIC; the SPI master's word register
+is then the only copy of the burst and the packet bytes come from the filter state; registered
+as block ``tinykalman_serial_top``, :func:`TinyKalmanSerialTop`). Same pins and bytes.
+
 Elaboration parameters: ``spi_div`` (clocks per SCLK half period, default 5: 1 MHz),
 ``baud_div`` (clocks per UART bit, default 1042: 9596.9 baud), ``sample_period`` (clocks);
 ``sample_period >= min_sample_period(spi_div, baud_div)`` so that each sample's packet is out
