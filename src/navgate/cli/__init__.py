@@ -39,6 +39,7 @@ COMMANDS: dict[str, str] = {
     "replay": "navgate.cli.replay:replay",
     "tinykalman": "navgate.cli.tinykalman:tinykalman",
     "tiles": "navgate.cli.tiles:tiles",
+    "trn-serve": "navgate.cli.trn_serve:trn_serve",
 }
 
 

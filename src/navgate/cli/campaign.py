@@ -22,6 +22,7 @@ from navgate.cli.common import (
     out_option,
     write_summary,
 )
+from navgate.cli.extras import require
 
 
 @click.command()
@@ -68,6 +69,7 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
         raise CliError(f"--duration must be in (0, 14400] s, got {duration:g}")
     if workers < 1 or workers > 256:
         raise CliError(f"--workers must be between 1 and 256, got {workers}")
+    require("dask.distributed", "navgate campaign")  # the campaign extra; one line if absent
     trns = tuple(dict.fromkeys(trns)) or ("pmf",)
     for t in trns:
         if t not in METHODS:

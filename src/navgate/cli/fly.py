@@ -71,13 +71,26 @@ def _positive_float(ctx, param, value):
                    "flies too, for the comparison in summary.json.")
 @click.option("--record", "record_path", type=click.Path(dir_okay=False), default=None,
               help="Also write the sensor record stream to this log file (navgate replay).")
+@click.option("--trn-service", "trn_service", default=None,
+              metavar="tcp://HOST:PORT|serial:PORT[@BAUD]|spawn",
+              help="Correlate on a TRN service (navgate trn-serve, seed 000's Pi 5) instead of "
+                   "in this process; spawn starts one on a pseudo-terminal.")
+@click.option("--trn-timeout", type=float, default=5.0, show_default=True,
+              callback=_positive_float,
+              help="With --trn-service: seconds to wait for each fix before a retry.")
+@click.option("--trn-latency", type=float, default=0.0, show_default=True,
+              help="Apply each TRN fix this many seconds after its request (simulated link "
+                   "and Pi time; deterministic). 0: at the request's time.")
+@click.option("--link-flip-rate", type=float, default=0.0, show_default=True,
+              help="With --trn-service: flip bits in the PS's outgoing bytes at this rate per "
+                   "byte (fault injection; every bad frame is counted).")
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")
 def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_sensors, no_trn,
-        imu_rate, ranger, speed, trn_method, engine, record_path, quiet):
+        imu_rate, ranger, speed, trn_method, engine, record_path, trn_service, trn_timeout,
+        trn_latency, link_flip_rate, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from navgate.systems.ins_trn.ps import flight, report
+    from navgate.systems.ins_trn.ps import flight
     from navgate.trn.dem import DemError
     from navgate.trn.tiles import load_terrain
 
@@ -110,6 +123,39 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
     except (flight.RouteError, DemError) as error:
         raise CliError(str(error)) from None
     check_out_dir(out)
+    if not (math.isfinite(trn_latency) and 0.0 <= trn_latency <= 60.0):
+        raise CliError(f"--trn-latency must lie in [0, 60] s, got {trn_latency:g}")
+    if not (math.isfinite(link_flip_rate) and 0.0 <= link_flip_rate <= 1.0):
+        raise CliError(f"--link-flip-rate must lie in [0, 1], got {link_flip_rate:g}")
+    if trn_service is None and link_flip_rate:
+        raise CliError("--link-flip-rate needs --trn-service")
+    trn_link = None
+    if trn_service is not None and not no_trn:
+        from navgate.systems.ins_trn.link.faults import FaultInjector
+        from navgate.systems.ins_trn.ps.trn_link import LinkError, TrnLink
+
+        faults = FaultInjector(seed=seed, flip_rate=link_flip_rate) if link_flip_rate else None
+        try:
+            trn_link = TrnLink(trn_service, terrain_path=dem_path, cache_mb=tile_cache_mb,
+                               timeout_s=trn_timeout, faults=faults)
+        except LinkError as error:
+            raise CliError(str(error)) from None
+    try:
+        _fly(dem, dem_path, cfg, route, out, engine, record_path, trn_link, quiet,
+             table_console, console, duration, imu_rate, seed, ideal_sensors, no_trn,
+             trn_method, trn_latency)
+    finally:
+        if trn_link is not None:
+            trn_link.close()
+
+
+def _fly(dem, dem_path, cfg, route, out, engine, record_path, trn_link, quiet, table_console,
+         console, duration, imu_rate, seed, ideal_sensors, no_trn, trn_method, trn_latency):
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from navgate.systems.ins_trn.ps import flight, report
+    from navgate.trn.dem import DemError
+
     console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
                   f"({dem.shape[0]} x {dem.shape[1]} posts), seed {seed}"
                   + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors")
@@ -126,7 +172,7 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         try:
             result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
                                 stage=lambda s: bar.update(task, description=s), route=route,
-                                engine=engine)
+                                engine=engine, trn_link=trn_link, trn_latency_s=trn_latency)
         except simulation_errors() as error:
             raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
         except DemError as error:
@@ -134,6 +180,10 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         bar.update(task, description="writing report", completed=total)
         summary = result.summary()
         summary["wall_time_s"] = time.perf_counter() - start
+        summary["trn_latency_s"] = trn_latency
+        if trn_link is not None:
+            summary["trn_link"] = trn_link.stats()
+            summary["trn_link"]["service_status"] = trn_link.status()
         files = report.write_report(result, stage)
         if record_path is not None:
             from navgate.systems.ins_trn.ps.records import write_log

@@ -44,6 +44,7 @@ forms z = trn - ins and subtracts K z, which is the same thing with y = ins - tr
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -232,7 +233,13 @@ def run_propagation(nav, bias_a, bias_g, p, gyro, accel, k0, k1, dt, q_diag,
     return bad
 
 
+@functools.lru_cache(maxsize=64)
 def chi2_gate(probability: float, dof: int) -> float:
+    """Chi-square gate: the ``probability`` quantile with ``dof`` degrees of freedom.
+
+    Cached per (probability, dof): the value depends on the configuration only, and
+    ``scipy.stats.chi2.ppf`` was 57 % of each barometer update's cost (issue 32).
+    """
     from scipy.stats import chi2
 
     return float(chi2.ppf(probability, dof))

@@ -52,6 +52,8 @@ from navgate.trn.dem import (
 #: file endings indexed as tiles (case-insensitive)
 TILE_SUFFIXES = (".tif", ".tiff", ".dt0", ".dt1", ".dt2", ".hgt")
 PRIORITIES = ("check", "first", "last")
+#: the fewest post intervals a side of a tile made by split_dem (smaller tiles only cost I/O)
+MIN_TILE_CELLS = 8
 #: the most posts per side of the blocks that point queries are grouped into (smaller for
 #: small tiles, so that one block's window touches at most the four tiles around a corner)
 _BLOCK = 256
@@ -411,9 +413,9 @@ def split_dem(dem: Dem, rows: int, cols: int, out_dir: Path) -> list[Path]:
     nrow, ncol = dem.shape
     if rows < 1 or cols < 1:
         raise ValueError(f"tile counts must be at least 1, got {rows} x {cols}")
-    if (nrow - 1) // rows < 1 or (ncol - 1) // cols < 1:
+    if (nrow - 1) // rows < MIN_TILE_CELLS or (ncol - 1) // cols < MIN_TILE_CELLS:
         raise ValueError(f"a {nrow} x {ncol}-post DEM cannot be cut into {rows} x {cols} "
-                         "tiles of at least 2 x 2 posts")
+                         f"tiles of at least {MIN_TILE_CELLS + 1} x {MIN_TILE_CELLS + 1} posts")
     if dem.edges_deg is not None:
         west, north, dlon, dlat = dem.edges_deg
     else:
@@ -438,3 +440,7 @@ def split_dem(dem: Dem, rows: int, cols: int, out_dir: Path) -> list[Path]:
                 dst.write(block, 1)
             written.append(path)
     return written
+
+
+#: the name the TRN service's brief uses for :func:`load_terrain`
+open_terrain = load_terrain

@@ -160,6 +160,18 @@ def test_spd_inverse_handles_scales_and_zero_states():
     np.testing.assert_allclose(D @ inv[:4, :4] @ D, want, rtol=1e-10)
 
 
+@pytest.mark.parametrize("bad, what", [
+    (np.full((3, 3), np.nan), "non-finite"),
+    (-np.eye(3), "positive semi-definite"),
+    (np.array([[1.0, 0.5, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]), "symmetric"),
+    (np.ones((3, 2)), "shape"),
+])
+def test_spd_inverse_rejects_what_is_not_a_covariance(bad, what):
+    # before: NaN and -I both came back as all zeros (a silent "no information")
+    with pytest.raises(ValueError, match=f"^P: .*{what}"):
+        smoother.spd_inverse(bad)
+
+
 def test_bad_lag_is_rejected():
     F, Qc, P0, R = model()
     with pytest.raises(ValueError):

@@ -1,7 +1,9 @@
 """The seed 003 circuit as an attitude engine for ``navgate ahrs --engine fp32|rtl``.
 
-``fp32`` runs the float32 bit-true model :class:`navgate.systems.attitude.mahony_fp32.
-MahonyCircuitFP32` sample by sample; ``rtl`` runs the gateware
+``fp32`` runs the float32 bit-true model compiled
+(:class:`navgate.systems.attitude.compiled.CompiledSolve`, bit-identical to
+:class:`navgate.systems.attitude.mahony_fp32.MahonyCircuitFP32`) over the whole log; ``rtl``
+runs the gateware
 (:class:`navgate.systems.attitude.top.AttitudeStream`) compiled by Verilator
 (:mod:`navgate.systems.attitude.native_sim`). Both see the same float32 words and the same
 parameters, so they produce the same bits (the tests check it), and the same CSV.
@@ -77,21 +79,12 @@ def run_circuit(log: ImuLog, engine: str, *, axes: str = "auto", kp: float = 1.0
     if engine not in ENGINES:
         raise ValueError(f"engine must be one of {ENGINES}, got {engine!r}")
     (acc, mag, gyro), params, axes = circuit_inputs(log, axes, kp, ki)
-    n = len(acc)
     if engine == "fp32":
-        from navgate.systems.attitude.mahony_fp32 import MahonyCircuitFP32
-        circ = MahonyCircuitFP32(params)
-        out = np.zeros((n, 7), dtype=np.uint32)
-        bad = sat = 0
+        from navgate.systems.attitude.compiled import CompiledSolve
+        circ = CompiledSolve(params)
         t0 = time.perf_counter()
-        col = lambda a, k, j: a[k, j:j + 1]  # noqa: E731
-        for k in range(n):
-            r = circ.solve([col(acc, k, j) for j in range(3)], [col(mag, k, j) for j in range(3)],
-                           [col(gyro, k, j) for j in range(3)])
-            out[k, :4] = [int(v[0]) for v in r.q]
-            out[k, 4:] = [int(r.euler.pitch[0]), int(r.euler.roll[0]), int(r.euler.yaw[0])]
-            bad += int(r.invalid[0])
-            sat += int(r.euler.saturated[0])
+        out, flags = circ.run(acc, mag, gyro)
+        bad, sat = int(np.sum(flags[:, 0])), int(np.sum(flags[:, 1]))
         secs = time.perf_counter() - t0
         res = _result(log, axes, _f(out[:, :4]), _f(out[:, 4]), _f(out[:, 5]), _f(out[:, 6]))
         return CircuitRun(res, params, bad, sat, secs)

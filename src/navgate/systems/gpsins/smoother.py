@@ -35,6 +35,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from navgate.nav import validate
+
 
 @njit(cache=True)
 def interval_smooth(Pj, Fs, dt, Pinv, targets, dPs):
@@ -123,7 +125,10 @@ def spd_inverse(P: np.ndarray) -> np.ndarray:
     to m^2 of height), through its correlation matrix; states with zero variance (a sensor
     error the model does not have) get zero rows and columns, and a correlation matrix that
     is singular (a direction without uncertainty) gets its pseudo-inverse (eigenvalues below
-    1e-12 of the largest dropped): the pseudo-inverse throughout."""
+    1e-12 of the largest dropped): the pseudo-inverse throughout. ``P`` must be finite,
+    symmetric and positive semi-definite (``ValueError`` naming it otherwise): a NaN or a
+    negative variance would otherwise come back as a zero row, a silent "no information"."""
+    P = validate.covariance("P", P)
     d = np.sqrt(np.clip(np.diag(P), 0.0, None))
     keep = d > 0
     out = np.zeros_like(P)

@@ -1,6 +1,6 @@
-"""Seed 000's float32 op programs: the compiled machine against numerics.fp32 op by op, the
-calibration against nav.calibration's float32 face, series bounds, and the updates against
-the float64 reference from the same state."""
+"""Seed 000's float32 op programs on opflow's executors: the compiled calibration against
+nav.calibration's float32 face, the engine's programs compiled against bit-true, series bounds,
+and the updates against the float64 reference from the same state."""
 
 import math
 
@@ -14,88 +14,14 @@ from navgate.nav.calibration import (
 )
 from navgate.numerics import fp32 as F
 from navgate.opflow import ir
-from navgate.systems.ins_trn.pl import fp32_program as fp
-from navgate.systems.ins_trn.pl.fp32_exec import (
+from navgate.opflow.execute import (
     Machine,
     execute,
     float_to_bits,
     floats_to_bits,
     run_bittrue,
 )
-
-SPECIAL = np.array([0x00000000, 0x80000000, 0x3F800000, 0xBF800000, 0x7F800000, 0xFF800000,
-                    0x7FC00000, 0x00800000, 0x80800000, 0x00800001, 0x7F7FFFFF, 0xFF7FFFFF,
-                    0x1F800000, 0x20000000, 0x5F800000, 0x3F800001, 0x3F7FFFFF, 0x00FFFFFF],
-                   dtype=np.uint32)
-
-
-def _random_bits(rng, n):
-    """Normal float32 patterns over a wide exponent range, plus special values."""
-    sign = rng.integers(0, 2, n, dtype=np.uint32) << np.uint32(31)
-    exp = rng.integers(1, 255, n, dtype=np.uint32)
-    narrow = rng.random(n) < 0.6  # many operands near 1: cancellation and exact results
-    exp[narrow] = rng.integers(110, 145, narrow.sum(), dtype=np.uint32)
-    frac = rng.integers(0, 1 << 23, n, dtype=np.uint32)
-    bits = sign | (exp << np.uint32(23)) | frac
-    pick = rng.random(n) < 0.15
-    bits[pick] = rng.choice(SPECIAL, pick.sum())
-    return bits
-
-
-def _random_program(rng, n_regs, n_ops):
-    prog = ir.Program("random")
-    names = [f"r{i}" for i in range(n_regs)]
-    kinds = ["add", "sub", "mul", "div", "sqrt", "neg", "le", "lt"]
-    for i in range(n_ops):
-        k = kinds[rng.integers(len(kinds))]
-        srcs = tuple(names[rng.integers(len(names))] for _ in range(1 if k in ("sqrt", "neg")
-                                                                     else 2))
-        dst = f"t{i + 1}"
-        prog.ops.append(ir.Op(dst, k, srcs, "random"))
-        names.append(dst)
-    prog.inputs = tuple(f"r{i}" for i in range(n_regs))
-    return prog
-
-
-def test_compiled_machine_matches_numerics_fp32_op_by_op_on_random_programs():
-    rng = np.random.default_rng(2026)
-    n_regs, n_ops, lanes = 24, 600, 48
-    prog = _random_program(rng, n_regs, n_ops)
-    init = {f"r{i}": F.flush_subnormal(_random_bits(rng, lanes)) for i in range(n_regs)}
-    _, _, want = run_bittrue(prog, {}, init, lanes)
-    m = Machine({"p": prog})
-    c = m.compiled["p"]
-    checked = 0
-    for lane in range(lanes):
-        for name, bits in init.items():
-            m.regs[m.index[name]] = float(np.uint32(bits[lane]).view(np.float32))
-        execute(m.regs, c.ops)
-        for op in prog.ops:
-            got = float_to_bits(m.regs[_temp_index(m, "p", op.dst)])
-            assert got == int(want[op.dst][lane]), (lane, op, hex(got),
-                                                     hex(int(want[op.dst][lane])))
-            checked += 1
-    assert checked == lanes * n_ops
-
-
-def _temp_index(machine, key, dst):
-    prog = machine.compiled[key].prog
-    return machine.compiled[key].ops[[op.dst for op in prog.ops].index(dst), 1]
-
-
-def test_underflow_boundary_follows_the_fp32_rule():
-    """Products just below 2^-126 (case 3 of numerics.fp32): zero or 2^-126 exactly as the
-    specification rounds, which IEEE float32 with gradual underflow does not."""
-    prog = ir.Program("uf", [ir.Op("t1", "mul", ("a", "b"), "uf")], inputs=("a", "b"))
-    m = Machine({"p": prog})
-    a = np.float32(1.0 - 2.0**-24)  # 0x3F7FFFFF
-    for b_bits in (0x00800000, 0x00800001, 0x00800002):
-        b = np.uint32(b_bits).view(np.float32)
-        m.regs[m.index["a"]] = float(a)
-        m.regs[m.index["b"]] = float(b)
-        execute(m.regs, m.compiled["p"].ops)
-        want = F.fp32_mul(np.uint32(a.view(np.uint32)), np.uint32(b_bits))
-        assert float_to_bits(m.regs[m.compiled["p"].ops[0, 1]]) == int(want)
+from navgate.systems.ins_trn.pl import fp32_program as fp
 
 
 def test_calibration_program_is_bit_identical_to_apply_calibration_fp32():
@@ -203,7 +129,7 @@ def test_engine_programs_compiled_equal_bittrue(key):
         execute(m.regs, c.ops)
         for name, idx in c.outputs.items():
             assert float_to_bits(m.regs[idx]) == int(outputs[name][lane]), name
-        from navgate.systems.ins_trn.pl.fp32_exec import commit
+        from navgate.opflow.execute import commit
 
         commit(m.regs, c.table)
         for k in fp.STATE_REGS:

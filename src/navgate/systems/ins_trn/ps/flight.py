@@ -133,7 +133,7 @@ def record_stream(dem: Dem, cfg: FlightConfig, route: Route | None = None):
 
 
 def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None,
-        engine: str = "reference") -> FlightResult:
+        engine: str = "reference", trn_link=None, trn_latency_s: float = 0.0) -> FlightResult:
     """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done.
 
     ``engine``: the PL engine (``reference`` or ``fp32``); with a non-reference engine the
@@ -149,7 +149,8 @@ def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | N
     data = simulate_sensors(route, dem, cfg)
     init = initial_estimate(data, cfg)
     stream = flight_stream(data, dem, cfg, init)
-    runs = fly_stream(stream, dem, cfg, engine=engine, progress=progress, stage=stage)
+    runs = fly_stream(stream, dem, cfg, engine=engine, progress=progress, stage=stage,
+                      trn_link=trn_link, trn_latency_s=trn_latency_s)
     reference_runs = None
     if engine != "reference":
         reference_runs = fly_stream(stream, dem, cfg, engine="reference", stage=stage)
@@ -160,7 +161,7 @@ def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | N
 
 
 def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progress=None,
-               stage=None) -> dict:
+               stage=None, trn_link=None, trn_latency_s: float = 0.0) -> dict:
     """The INS-only and (cfg.trn) INS+TRN runs over one record stream."""
     runs = {}
     if stage:
@@ -171,7 +172,8 @@ def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progr
         if stage:
             stage(f"navigating: INS + TRN ({engine})")
         runs["trn_aided"] = navigate(stream, cfg, engine=engine, dem=dem, use_trn=True,
-                                     name="trn_aided", progress=progress)
+                                     name="trn_aided", progress=progress, trn_link=trn_link,
+                                     trn_latency_s=trn_latency_s)
     return runs
 
 

@@ -22,6 +22,7 @@ in one call with the same result) and talks to the PL only through
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time as _time
 from dataclasses import dataclass
@@ -89,7 +90,8 @@ class Navigator:
     """The PS side of seed 000 over one PL engine."""
 
     def __init__(self, engine: PlEngine, cfg, *, t0: float, dem=None, use_trn: bool = True,
-                 name: str = "nav", progress=None):
+                 name: str = "nav", progress=None, trn_link=None,
+                 trn_latency_s: float = 0.0, trn_deadline_s: float = 30.0):
         self.engine = engine
         self.cfg = cfg
         self.use_trn = bool(use_trn) and dem is not None
@@ -101,13 +103,24 @@ class Navigator:
         self.baro_sigma = max(sensors.Barometer(sensors.BMP390).altitude_noise_m, 0.05)
         self.ranger_unit = pl_sensors.ranger_unit(cfg.ranger)
         self.tangent = engine.setup.reference
-        self.correlator = make_correlator(cfg, dem, self.tangent) if self.use_trn else None
+        self.correlator = None
+        if self.use_trn:  # the Pi's service over the link, or the correlator in this process
+            self.correlator = (trn_link.correlator(cfg, self.tangent) if trn_link is not None
+                               else make_correlator(cfg, dem, self.tangent))
         if self.use_trn:
             from navgate.trn.correlators import make_monitor
 
             self.monitor = make_monitor(self.correlator)
         else:
             self.monitor = None
+        for arg, value in (("trn_latency_s", trn_latency_s), ("trn_deadline_s", trn_deadline_s)):
+            if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{arg} must be a finite number of seconds >= 0, got {value!r}")
+        #: a fix is applied this long after its request (the link and the Pi's time), and
+        #: dropped when that is later than ``trn_deadline_s`` after the request
+        self.trn_latency_s = float(trn_latency_s)
+        self.trn_deadline_s = float(trn_deadline_s)
+        self._pending = None  #: (apply time, request time, result, sigma_max)
         self.fixes: list = []
         self.last_fix_t = -math.inf
         self.h_baro = math.nan
@@ -174,7 +187,8 @@ class Navigator:
         status = e.profile_push(time=t, h_baro=float(self.h_baro), slant_range=float(slant_range),
                                 range_valid=bool(valid), roll=roll, pitch=pitch,
                                 pos_n=float(pn), pos_e=float(pe))
-        if status == ACCEPTED and t - self.last_fix_t >= self.cfg.fix_interval_s:
+        if (status == ACCEPTED and t - self.last_fix_t >= self.cfg.fix_interval_s
+                and self._pending is None):  # one request in flight at a time
             self.last_fix_t = t
             self._fix(t)
 
@@ -183,14 +197,33 @@ class Navigator:
         p2 = e.read_p_horizontal()
         sigma_max = math.sqrt(max(np.linalg.eigvalsh(p2).max(), 0.0))
         result = self.correlator.correlate(e.profile_read(), sigma_max, prior_cov=p2)
+        if self.trn_latency_s > 0:
+            self._pending = (t + self.trn_latency_s, t, result, sigma_max)
+        else:
+            self._apply(result, t, t, sigma_max)
+
+    def _due(self, t):
+        """Apply the fix in flight once its time has come (simulated link latency)."""
+        if self._pending is not None and t >= self._pending[0]:
+            _, t_request, result, sigma_max = self._pending
+            self._pending = None
+            self._apply(result, t_request, t, sigma_max)
+
+    def _apply(self, result, t_request, t, sigma_max):
+        e = self.engine
         row = result.as_row()
         row["applied"] = False
         row["nis"] = math.nan
+        row["applied_at_s"] = t
         upd = y = None
+        if result.accepted and t - t_request > self.trn_deadline_s:
+            result = dataclasses.replace(result, accepted=False,
+                                         reason="no fix: arrived after its deadline")
+            row.update(accepted=False, reason=result.reason)
         if result.accepted:
-            # y = p_ins - p_fix = -shift, measured lag_s ago
+            # y = p_ins - p_fix = -shift, measured lag_s ago (plus the link's latency)
             y = np.array([result.ins_n - result.fix_n, result.ins_e - result.fix_e])
-            lag = result.lag_s if self.cfg.lag_compensation else 0.0
+            lag = result.lag_s + (t - t_request) if self.cfg.lag_compensation else 0.0
             upd = e.update_trn(y, result.cov, lag)
             row["nis"] = upd.nis
             row["applied"] = upd.accepted
@@ -207,6 +240,8 @@ class Navigator:
 
     def feed(self, kind, t, payload):
         """One record: kind (records.IMU/BARO/RANGER/TRUTH), time, payload tuple."""
+        if kind != IMU:
+            self._due(t)
         if kind == IMU:
             self.feed_imu(np.asarray(payload[0]).reshape(1, 3),
                           np.asarray(payload[1]).reshape(1, 3))
@@ -232,6 +267,7 @@ class Navigator:
             if m == len(stream):
                 break
             k, t, i = kind[m], float(stream.t[m]), stream.index[m]
+            self._due(t)
             if k == BARO:
                 self.feed_baro(t, stream.baro_altitude[i], stream.baro_status[i] == 0,
                                None if baro is None else (baro[0][i], baro[1][i], baro[2][i]))
@@ -242,6 +278,12 @@ class Navigator:
 
     def finish(self) -> NavRun:
         e = self.engine
+        if self._pending is not None:  # the flight ended before the fix arrived
+            _, t_request, result, sigma_max = self._pending
+            self._pending = None
+            self._apply(dataclasses.replace(result, accepted=False,
+                                            reason="no fix: the flight ended before it arrived"),
+                        t_request, t_request, sigma_max)
         n_log = self.samples // self.log_every + 1
         if len(self._nav) < n_log:
             self._log()
@@ -260,11 +302,14 @@ class Navigator:
 
 
 def navigate(stream: RecordStream, cfg, *, engine: str = "reference", dem=None,
-             use_trn: bool = True, name: str = "nav", progress=None) -> NavRun:
-    """Build the engine from the stream header and run the navigator over the stream."""
+             use_trn: bool = True, name: str = "nav", progress=None, trn_link=None,
+             trn_latency_s: float = 0.0) -> NavRun:
+    """Build the engine from the stream header and run the navigator over the stream
+    (``trn_link``: a :class:`~navgate.systems.ins_trn.ps.trn_link.TrnLink` to correlate on
+    the Pi's service instead of in this process)."""
     eng = make_engine(engine, engine_setup(stream.header, cfg))
     nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=use_trn, name=name,
-                    progress=progress)
+                    progress=progress, trn_link=trn_link, trn_latency_s=trn_latency_s)
     return nav.run(stream)
 
 

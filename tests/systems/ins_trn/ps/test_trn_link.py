@@ -1,0 +1,359 @@
+"""The PS <-> Pi link end to end: flights over the TRN service equal the in-process flight on a
+clean link; absent, killed, corrupting, stale, absurd and foreign-version services leave the
+flight complete, INS-only while there are no fixes, and every fault counted."""
+
+from __future__ import annotations
+
+import json
+import math
+import socket
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from navgate.cli import main
+from navgate.sim.flight import FlightConfig
+from navgate.systems.ins_trn.link import frames, messages
+from navgate.systems.ins_trn.link.faults import FaultInjector
+from navgate.systems.ins_trn.link.transport import LinkClosed, from_socket
+from navgate.systems.ins_trn.pi.service import TrnService
+from navgate.systems.ins_trn.ps import flight
+from navgate.systems.ins_trn.ps.trn_link import UNAVAILABLE, LinkError, TrnLink
+from navgate.trn.dem import Dem
+from navgate.trn.tiles import TileStore, split_dem
+
+DURATION = 60.0
+
+
+def run(args, capsys):
+    code = 0
+    try:
+        main([str(a) for a in args])
+    except SystemExit as exit_:
+        code = exit_.code
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def one_line(err):
+    lines = [ln for ln in err.splitlines() if ln.strip() and "compiling Numba" not in ln]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class ServiceThread:
+    """A TrnService on 127.0.0.1 in a thread (the Pi, without a process start-up)."""
+
+    def __init__(self, terrain, port=0, max_requests=None):
+        self.service = TrnService(terrain, log=lambda line: None)
+        self.address = None
+        ready = threading.Event()
+
+        def on_ready(addr):
+            self.address = addr
+            ready.set()
+
+        self.thread = threading.Thread(
+            target=self.service.serve_tcp, args=("127.0.0.1", port),
+            kwargs={"ready": on_ready, "max_requests": max_requests}, daemon=True)
+        self.thread.start()
+        assert ready.wait(10)
+
+    @property
+    def spec(self):
+        return f"tcp://127.0.0.1:{self.address[1]}"
+
+    def stop(self):
+        self.service.stop.set()
+        self.thread.join(10)
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    dem = Dem.default()
+    cfg = FlightConfig(duration_s=DURATION)
+    route, data, stream = flight.record_stream(dem, cfg)
+    reference = flight.fly_stream(stream, dem, cfg)["trn_aided"]
+    return dem, cfg, stream, reference
+
+
+def fly_over(scenario, link):
+    dem, cfg, stream, _ = scenario
+    return flight.fly_stream(stream, dem, cfg, trn_link=link)["trn_aided"]
+
+
+def applied(run):
+    return [f["time_s"] for f in run.fixes if f["applied"]]
+
+
+def test_flight_over_tcp_and_tiles_equals_the_flight_in_one_process(scenario, tmp_path):
+    dem, _, _, reference = scenario
+    split_dem(dem, 2, 2, tmp_path)
+    pi = ServiceThread(TileStore(tmp_path, cache_mb=0.5))
+    try:
+        with TrnLink(pi.spec) as link:
+            run_ = fly_over(scenario, link)
+            stats = link.stats()
+    finally:
+        pi.stop()
+    assert np.array_equal(run_.nav, reference.nav)
+    assert np.array_equal(run_.sigma, reference.sigma)
+    assert [f["time_s"] for f in run_.fixes] == [f["time_s"] for f in reference.fixes]
+    assert stats["requests"] == stats["replies"] == len(reference.fixes) > 5
+    assert stats["unavailable"] == stats["bad_frames"] == stats["retries"] == 0
+    assert pi.service.counters["requests"] == len(reference.fixes)
+
+
+def test_fly_spawn_equals_the_default_flight(tmp_path, capsys):
+    """One command, three computers: the Pi service as a child on a pseudo-terminal."""
+    code, _, err = run(["fly", "--duration", DURATION, "--quiet", "--out", tmp_path / "a"],
+                       capsys)
+    assert code == 0, err
+    code, _, err = run(["fly", "--duration", DURATION, "--quiet", "--trn-service", "spawn",
+                        "--out", tmp_path / "b"], capsys)
+    assert code == 0, err
+    assert ((tmp_path / "a" / "trajectory.csv").read_bytes()
+            == (tmp_path / "b" / "trajectory.csv").read_bytes())
+    summary = json.loads((tmp_path / "b" / "summary.json").read_text())
+    link = summary["trn_link"]
+    assert link["requests"] == link["replies"] > 5 and link["unavailable"] == 0
+    assert link["service_status"]["requests"] == link["requests"]
+
+
+def test_absent_service_means_ins_only_and_counted(scenario):
+    with TrnLink(f"tcp://127.0.0.1:{free_port()}", timeout_s=0.2) as link:
+        run_ = fly_over(scenario, link)
+        stats = link.stats()
+    assert stats["absent_at_start"] == 1
+    assert stats["unavailable"] == stats["requests"] == len(run_.fixes) > 5
+    assert not applied(run_)
+    assert all(f["reason"] == UNAVAILABLE for f in run_.fixes)
+
+
+def test_service_killed_and_restarted_mid_flight(scenario):
+    dem = scenario[0]
+    port = free_port()
+    first = ServiceThread(dem, port=port, max_requests=3)
+    restarted = []
+
+    def restart():  # the Pi reboots: a new service on the same port once the first has gone
+        first.thread.join(60)
+        time.sleep(0.3)
+        restarted.append(ServiceThread(dem, port=port))
+
+    supervisor = threading.Thread(target=restart, daemon=True)
+    supervisor.start()
+    try:
+        with TrnLink(f"tcp://127.0.0.1:{port}", timeout_s=0.5, retries=2) as link:
+            run_ = fly_over(scenario, link)
+            stats = link.stats()
+    finally:
+        supervisor.join(10)
+        for pi in restarted:
+            pi.stop()
+    times = applied(run_)
+    assert len(times) == len(set(times))  # no fix applied twice
+    assert stats["replies"] >= 3 and stats["reconnects"] >= 1
+    reference = scenario[3]
+    assert len(run_.fixes) == len(reference.fixes)  # every attempt made, answered or not
+
+
+def test_corrupted_bytes_are_counted_and_the_flight_completes(scenario):
+    pi = ServiceThread(scenario[0])
+    try:
+        faults = FaultInjector(seed=7, flip_rate=1e-4)
+        with TrnLink(pi.spec, timeout_s=0.3, retries=3, faults=faults) as link:
+            run_ = fly_over(scenario, link)
+            stats = link.stats()
+    finally:
+        pi.stop()
+    bad = pi.service.counters["bad_frames"]
+    corrupted = stats["injected_faults"]["corrupted_frames"]
+    # every corrupted request is rejected by the service's CRC and costs the PS one timeout
+    assert corrupted > 0 and bad == corrupted and stats["timeouts"] == corrupted
+    assert stats["retries"] <= stats["timeouts"]
+    assert stats["replies"] + stats["unavailable"] == stats["requests"]
+    assert stats["replies"] >= stats["requests"] - 1
+    assert np.all(np.isfinite(run_.nav))
+    times = applied(run_)
+    assert len(times) == len(set(times))
+
+
+class FakeService:
+    """A peer on 127.0.0.1 that answers hello and then each request with ``answer(body)``."""
+
+    def __init__(self, answer, version=frames.VERSION):
+        self.server = socket.create_server(("127.0.0.1", 0))
+        self.port = self.server.getsockname()[1]
+        self.answer = answer
+        self.version = version
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _send(self, link, kind, seq, body):
+        if self.version == frames.VERSION:
+            link.send(kind, seq, body)
+            return
+        import struct
+        import zlib
+
+        import msgpack
+        from cobs import cobs
+
+        payload = msgpack.packb(body, use_bin_type=True)
+        raw = frames.HEADER.pack(self.version, kind, seq, len(payload)) + payload
+        wire = cobs.encode(raw + struct.pack(">I", zlib.crc32(raw))) + b"\x00"
+        socket.socket(fileno=socket.dup(link.fd)).sendall(wire)
+
+    def _run(self):
+        self.server.settimeout(10)
+        try:
+            sock, _ = self.server.accept()
+        except OSError:
+            return
+        link = from_socket(sock)
+        try:
+            while True:
+                frame = link.recv(10)
+                if frame is None:
+                    return
+                if frame.kind == messages.HELLO:
+                    self._send(link, messages.CAPABILITIES, frame.seq, {"methods": ["pmf"]})
+                elif frame.kind == messages.PROFILE_REQUEST:
+                    self._send(link, *self.answer(frame))
+        except (LinkClosed, OSError):
+            return
+        finally:
+            link.close()
+            self.server.close()
+
+
+def _fix_from_real_service(terrain, frame, **changes):
+    body = TrnService(terrain, log=lambda line: None).correlate(frame.body)
+    body["result"].update(changes)
+    return body
+
+
+def test_a_reply_for_another_request_is_never_applied(scenario):
+    dem = scenario[0]
+
+    def answer(frame):
+        body = _fix_from_real_service(dem, frame)
+        body["id"] += 1000  # a late reply to some other request
+        return messages.FIX, frame.seq, body
+
+    fake = FakeService(answer)
+    with TrnLink(f"tcp://127.0.0.1:{fake.port}", timeout_s=0.3, retries=0) as link:
+        run_ = fly_over(scenario, link)
+        stats = link.stats()
+    assert stats["stale_replies"] == stats["requests"] > 5
+    assert not applied(run_)
+
+
+def test_an_absurd_fix_is_stopped_by_the_filter_gate(scenario):
+    dem = scenario[0]
+
+    def answer(frame):  # claims a 20 km error with a 1 m sigma
+        body = _fix_from_real_service(dem, frame, accepted=True, reason="", lag_s=0.0,
+                                      ins_n=0.0, ins_e=0.0, fix_n=20000.0, fix_e=-20000.0)
+        body["result"]["cov"] = {"shape": [2, 2],
+                                 "data": messages.pack_array(np.eye(2))}
+        return messages.FIX, frame.seq, body
+
+    fake = FakeService(answer)
+    with TrnLink(f"tcp://127.0.0.1:{fake.port}", timeout_s=2.0) as link:
+        run_ = fly_over(scenario, link)
+    # the chi-square gate stops it; only after max_consecutive_gated refusals does the
+    # integrity monitor declare divergence and reopen P, the designed response to a filter
+    # that disagrees with persistent fixes
+    assert run_.fixes[0]["reason"] == "rejected by chi-square gate"
+    gated = sum(f["reason"] == "rejected by chi-square gate" for f in run_.fixes)
+    assert gated >= 2 * len(applied(run_)) and gated >= 3
+    assert all(math.isfinite(x) for x in run_.nav[-1])
+
+
+def test_a_peer_of_another_protocol_version_is_refused(capsys, tmp_path):
+    fake = FakeService(lambda frame: None, version=frames.VERSION + 1)
+    with pytest.raises(LinkError, match="another protocol version"):
+        TrnLink(f"tcp://127.0.0.1:{fake.port}", timeout_s=2.0)
+    fake2 = FakeService(lambda frame: None, version=frames.VERSION + 1)
+    code, _, err = run(["fly", "--duration", "5", "--trn-service",
+                        f"tcp://127.0.0.1:{fake2.port}", "--out", tmp_path], capsys)
+    assert code == 2 and "protocol version" in one_line(err)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["fly", "--duration", "5", "--trn-service", "udp://x:1"], "tcp://HOST:PORT"),
+    (["fly", "--duration", "5", "--link-flip-rate", "0.1"], "needs --trn-service"),
+    (["trn-serve", "--serial", "/dev/navgate-no-such-port"], "serial"),
+    (["trn-serve"], "exactly one of"),
+    (["trn-serve", "--listen", "tcp://127.0.0.1:99999"], "tcp://HOST:PORT"),
+    (["trn-serve", "--listen", "tcp://127.0.0.1:7700", "--tiles", "/nonexistent/dir"],
+     "not found"),
+])
+def test_bad_link_options_are_one_line_exit_2(args, needle, capsys, tmp_path):
+    code, _, err = run([*args, *(["--out", tmp_path] if args[0] == "fly" else [])], capsys)
+    assert code == 2, err
+    assert needle in one_line(err)
+
+
+def test_a_port_in_use_is_one_line_exit_2(capsys):
+    with socket.create_server(("127.0.0.1", 0)) as busy:
+        port = busy.getsockname()[1]
+        code, _, err = run(["trn-serve", "--listen", f"tcp://127.0.0.1:{port}"], capsys)
+    assert code == 2 and "cannot listen" in one_line(err)
+
+
+def test_an_accepted_fix_without_finite_numbers_is_refused_and_counted(scenario):
+    dem = scenario[0]
+
+    def answer(frame):
+        body = _fix_from_real_service(dem, frame, accepted=True, reason="",
+                                      fix_n=float("nan"))
+        return messages.FIX, frame.seq, body
+
+    fake = FakeService(answer)
+    with TrnLink(f"tcp://127.0.0.1:{fake.port}", timeout_s=2.0) as link:
+        run_ = fly_over(scenario, link)
+        stats = link.stats()
+    assert stats["invalid_fixes"] == stats["requests"] > 5
+    assert not applied(run_) and np.all(np.isfinite(run_.nav))
+
+
+
+def test_link_latency_applies_each_fix_late_once_and_never_after_its_deadline(scenario):
+    dem, cfg, stream, reference = scenario
+    late = flight.fly_stream(stream, dem, cfg, trn_latency_s=2.0)["trn_aided"]
+    rows = late.fixes
+    assert rows and all(r["applied_at_s"] >= r["time_s"] + 2.0 for r in rows)
+    # applied at the first record after t_request + 2 s (records come at 50 Hz or faster)
+    assert max(r["applied_at_s"] - r["time_s"] for r in rows) < 2.0 + 0.1
+    times = applied(late)
+    assert len(times) == len(set(times)) > 0
+    # one request in flight at a time: requests at least the fix interval and the latency apart
+    starts = [r["time_s"] for r in rows]
+    gaps = np.diff(starts)
+    assert np.all(gaps >= max(cfg.fix_interval_s, 2.0) - 1e-9)
+    # a fix that would arrive after its deadline is dropped, never applied
+    from navgate.systems.ins_trn.ps.engine import make_engine
+    from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
+
+    eng = make_engine("reference", engine_setup(stream.header, cfg))
+    nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, trn_latency_s=3.0,
+                    trn_deadline_s=1.0)
+    run_ = nav.run(stream)
+    assert run_.fixes and not applied(run_)
+    late_rows = [r for r in run_.fixes if r["reason"] == "no fix: arrived after its deadline"]
+    # every fix the correlator accepted in the reference flight arrives too late here
+    assert len(late_rows) >= 3 and all(not r["accepted"] for r in late_rows)
+    with pytest.raises(ValueError, match="trn_latency_s"):
+        Navigator(make_engine("reference", engine_setup(stream.header, cfg)), cfg,
+                  t0=stream.header["t0"], dem=dem, trn_latency_s=float("nan"))
