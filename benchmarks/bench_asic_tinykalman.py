@@ -6,8 +6,8 @@ flow of ``navgate build BLOCK --asic sg13g2``). Prints a table and writes
 
 Run from the checkout root (the Liberty file is ``../shared/asic``, or give its path as the
 first argument): ``python benchmarks/bench_asic_tinykalman.py`` (about half a minute).
-Only the parallel chip (``tinykalman_top``) exists so far; the serial variant of issue 30 is
-not built yet.
+Rows: the parallel chip (``tinykalman_top``) and the serial chip (``tinykalman_serial_top``,
+the bit-serial CORDIC of :mod:`navgate.systems.tinykalman.serial`) and their blocks.
 """
 
 from __future__ import annotations
@@ -21,12 +21,15 @@ from pathlib import Path
 from navgate.hw.asic import TILES, default_liberty, synthesize_asic
 from navgate.hw.verilog import emit_verilog
 from navgate.systems.tinykalman.datapath import KalmanSteady, TinyKalmanCordic
+from navgate.systems.tinykalman.serial import TinyKalmanSerialCordic
 from navgate.systems.tinykalman.spi import Mpu6500Spi
-from navgate.systems.tinykalman.top import TinyKalmanTop
+from navgate.systems.tinykalman.top import TinyKalmanSerialTop, TinyKalmanTop
 from navgate.systems.tinykalman.uart import UartTx
 
 BLOCKS = {
     "tinykalman_top": TinyKalmanTop,
+    "tinykalman_serial_top": TinyKalmanSerialTop,
+    "serial_cordic": TinyKalmanSerialCordic,
     "mpu6500_spi": Mpu6500Spi,
     "tinykalman_cordic": TinyKalmanCordic,
     "kalman_steady": KalmanSteady,
@@ -35,7 +38,7 @@ BLOCKS = {
 
 
 def main() -> None:
-    liberty = Path(sys.argv[1]) if len(sys.argv) > 1 else default_liberty()
+    liberty = Path(sys.argv[1]) if len(sys.argv) > 1 and sys.argv[1] != "-" else default_liberty()
     if not liberty.is_file():
         sys.exit(f"Liberty file not found: {liberty}")
     rows = {}
@@ -45,7 +48,10 @@ def main() -> None:
     print(header)
     print("-" * len(header))
     with tempfile.TemporaryDirectory() as tmp:
+        only = set(sys.argv[2:])  # optional block names after the Liberty path
         for name, factory in BLOCKS.items():
+            if only and name not in only:
+                continue
             t0 = time.perf_counter()
             got = synthesize_asic(emit_verilog(factory(), name), name, Path(tmp) / name, liberty)
             got["seconds"] = round(time.perf_counter() - t0, 1)
@@ -60,7 +66,8 @@ def main() -> None:
           + "; fit at 65 % density; longest path: Liberty NLDM pass, pre-layout, ideal clock")
     out = Path("navgate-out/bench/bench_asic_tinykalman.json")
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps({"liberty": liberty.name, "blocks": rows}, indent=2) + "\n")
+    out.write_text(json.dumps({"liberty": liberty.name, "blocks": rows}, indent=2,
+                              default=str) + "\n")
     print(f"wrote {out}")
 
 

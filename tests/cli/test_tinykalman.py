@@ -88,7 +88,23 @@ def test_rtl_engine_equals_model_byte_for_byte(tmp_path, capsys):
     assert (tmp_path / "r" / "uart.bin").read_bytes() == (tmp_path / "m" / "uart.bin").read_bytes()
     s = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert s["rtl"]["equal_to_model"] is True and s["rtl"]["who_am_i_failures"] == 0
-    assert s["rtl"]["latency_cycles"] == [42]
+    assert s["rtl"]["latency_cycles"] == [42] and s["rtl"]["variant"] == "parallel"
+
+
+def test_rtl_engine_serial_variant_equals_model(tmp_path, capsys):
+    """--variant serial: the bit-serial chip, same bytes, its own latency (2 + 616 clocks)."""
+    log = tmp_path / "log.csv"
+    write_log(log, n=8)
+    code, _, err = run_cli([log, "--engine", "model", "--out", tmp_path / "m", "--quiet"],
+                           capsys)
+    assert code == 0, err
+    code, _, err = run_cli([log, "--engine", "rtl", "--variant", "serial", "--out",
+                            tmp_path / "r", "--quiet"], capsys)
+    assert code == 0, err
+    assert (tmp_path / "r" / "uart.bin").read_bytes() == (tmp_path / "m" / "uart.bin").read_bytes()
+    s = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert s["rtl"]["variant"] == "serial" and s["rtl"]["latency_cycles"] == [618]
+    assert s["rtl"]["equal_to_model"] is True
 
 
 def test_decode_file_resynchronises_and_counts(tmp_path, capsys):
@@ -143,6 +159,7 @@ def test_decode_serial_with_pyserial(tmp_path, capsys, monkeypatch):
     (["decode", "/nonexistent/x.bin"], "cannot read"),
     (["/nonexistent/log.csv"], "no such file"),
     (["log.csv", "--engine", "fpga"], "Invalid value"),
+    (["log.csv", "--engine", "rtl", "--variant", "bitwise"], "Invalid value"),
 ])
 def test_bad_input_is_one_line(args, text, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)

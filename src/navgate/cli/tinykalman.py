@@ -16,6 +16,7 @@ its counters.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import time
 from pathlib import Path
 
@@ -62,11 +63,17 @@ def _write_roll_pitch(path: Path, angles, t=None) -> None:
               show_default=True,
               help="Log axes: flu = the part's own (+1 g on z when level, x-io logs), frd (-1 g "
                    "on z); auto = flu for x-io headers, frd for plain ones.")
+@click.option("--variant", type=click.Choice(["parallel", "serial"]), default="parallel",
+              show_default=True,
+              help="Chip for --engine rtl: parallel (word-parallel iterative CORDIC, 45 clocks "
+                   "CS_N -> first start bit) or serial (bit-serial CORDIC, 28.8k um2 instead of "
+                   "45.4k in SG13G2, 621 clocks). Same arithmetic, byte-identical UART stream; "
+                   "the default keeps the chip earlier runs recorded and simulates faster.")
 @click.option("--limit", type=int, default=None, help="Use only the first N samples.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False),
               default="navgate-out/tinykalman", show_default=True, help="Output directory.")
 @click.option("--quiet", is_flag=True, help="No table.")
-def run(log_csv, engine, sim, axes, limit, out_dir, quiet):
+def run(log_csv, engine, sim, variant, axes, limit, out_dir, quiet):
     """Run an IMU log (CSV) through TinyKalman; write words, uart.bin, roll/pitch, summary."""
     from rich.console import Console
     from rich.table import Table
@@ -111,10 +118,11 @@ def run(log_csv, engine, sim, axes, limit, out_dir, quiet):
             run_verilator,
         )
 
-        console.print(f"running {n} samples through the chip ({sim}) ...")
+        cfg = dataclasses.replace(FAST, variant=variant)
+        console.print(f"running {n} samples through the {variant} chip ({sim}) ...")
         runner = run_verilator if sim == "verilator" else run_amaranth
         try:
-            res = runner(words.bursts(), n, FAST)
+            res = runner(words.bursts(), n, cfg)
         except VerifyError as error:
             raise CliError(str(error).splitlines()[0]) from None
         stream = res.uart
@@ -125,7 +133,8 @@ def run(log_csv, engine, sim, axes, limit, out_dir, quiet):
         if first_bad is None and len(stream) != len(model_bytes):
             first_bad = min(len(stream), len(model_bytes))
         rtl_info = {
-            "simulator": sim, "config": FAST.params(), "timing": timing(**FAST.params()),
+            "simulator": sim, "variant": variant, "config": cfg.params(),
+            "timing": timing(**cfg.params()),
             "rtl_seconds": round(res.seconds, 3), "clock_cycles": res.cycles,
             "equal_to_model": stream == model_bytes, "first_differing_byte": first_bad,
             "equal_to_model_on_words_read": stream == from_log,

@@ -32,6 +32,8 @@ BLOCKS: dict[str, tuple[str, str]] = {
         "seed 000 altitude profile FIFO (64 x 128 bit, one RAMB18) with AXI4 burst DMA to DDR"),
     "tinykalman_top": ("navgate.systems.tinykalman.top:TinyKalmanTop",
                        "seed 001 TinyKalman chip, TinyTapeout user module (10 MHz, 100 Hz loop)"),
+    "tinykalman_serial_top": ("navgate.systems.tinykalman.top:TinyKalmanSerialTop",
+                              "seed 001 TinyKalman chip, bit-serial CORDIC (one SG13G2 tile)"),
     "mpu6500_spi": ("navgate.systems.tinykalman.spi:Mpu6500Spi",
                     "seed 001 MPU-6500 SPI master: WHO_AM_I + 14-byte burst, mode 3, 1 MHz"),
     "kalman_steady": ("navgate.systems.tinykalman.datapath:KalmanSteady",

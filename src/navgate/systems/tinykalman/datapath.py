@@ -201,7 +201,19 @@ class TinyKalmanDatapath(wiring.Component):
     LATENCY = CORDIC_LATENCY + 1
     THROUGHPUT = Fraction(1, CORDIC_INTERVAL)
 
-    def __init__(self):
+    def __init__(self, angles_cls=None, held_input: bool = False):
+        #: the angle block: :class:`TinyKalmanCordic` (default) or the bit-serial
+        #: :class:`~navgate.systems.tinykalman.serial.TinyKalmanSerialCordic`
+        self.angles_cls = TinyKalmanCordic if angles_cls is None else angles_cls
+        #: ``held_input`` (serial chip only): the producer (the SPI master's word register)
+        #: holds ``i.payload`` until the output is taken, so gx, gy, ok and ax are read from it
+        #: and not copied into registers here
+        self.held_input = held_input
+        if held_input and angles_cls is None:
+            raise ValueError("TinyKalmanDatapath: held_input needs the serial angle block")
+        if angles_cls is not None:
+            self.LATENCY = angles_cls.LATENCY + 1
+            self.THROUGHPUT = angles_cls.THROUGHPUT
         super().__init__({
             "i": In(stream.Signature(DATAPATH_IN)),
             "o": Out(stream.Signature(DATAPATH_OUT)),
@@ -209,7 +221,10 @@ class TinyKalmanDatapath(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.angles = angles = TinyKalmanCordic()
+        if self.held_input:
+            m.submodules.angles = angles = self.angles_cls(held_input=True)
+        else:
+            m.submodules.angles = angles = self.angles_cls()
         m.submodules.kalman = kalman = KalmanSteady()
         gx, gy, ok = Signal(16), Signal(16), Signal()
         roll_m, pitch_m, sat, ok_out = Signal(16), Signal(16), Signal(), Signal()
@@ -221,8 +236,11 @@ class TinyKalmanDatapath(wiring.Component):
             angles.i.valid.eq(self.i.valid),
             self.i.ready.eq(angles.i.ready),
         ]
-        with m.If(self.i.valid & angles.i.ready):
-            m.d.sync += [gx.eq(p.gx), gy.eq(p.gy), ok.eq(p.ok)]
+        if self.held_input:
+            m.d.comb += [gx.eq(p.gx), gy.eq(p.gy), ok.eq(p.ok)]
+        else:
+            with m.If(self.i.valid & angles.i.ready):
+                m.d.sync += [gx.eq(p.gx), gy.eq(p.gy), ok.eq(p.ok)]
         ap = angles.o.payload
         m.d.comb += [
             kalman.i.payload.roll_m.eq(ap.roll),

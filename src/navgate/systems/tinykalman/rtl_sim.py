@@ -54,14 +54,16 @@ class SimConfig:
     spi_div: int = 2
     baud_div: int = 4
     sample_period: int | None = None  #: default: the shortest legal one
+    variant: str = "parallel"  #: "parallel" or "serial" (top.VARIANTS)
 
     @property
     def period(self) -> int:
-        return self.sample_period or min_sample_period(self.spi_div, self.baud_div)
+        return self.sample_period or min_sample_period(self.spi_div, self.baud_div,
+                                                       self.variant)
 
     def params(self) -> dict:
         return {"spi_div": self.spi_div, "baud_div": self.baud_div,
-                "sample_period": self.period}
+                "sample_period": self.period, "variant": self.variant}
 
     def top(self) -> TinyKalmanTop:
         return TinyKalmanTop(**self.params())

@@ -21,6 +21,11 @@ that fails the WHO_AM_I check leaves the filter state unchanged and the packet r
 (the model's :class:`~navgate.systems.tinykalman.model.TinyKalman` does the same). The chip
 keeps streaming whatever the sensor does.
 
+``variant``: ``"parallel"`` (default, the word-parallel iterative CORDIC) or ``"serial"``
+(:mod:`navgate.systems.tinykalman.serial`'s bit-serial CORDIC; the SPI master's word register
+is then the only copy of the burst and the packet bytes come from the filter state; registered
+as block ``tinykalman_serial_top``, :func:`TinyKalmanSerialTop`). Same pins and bytes.
+
 Elaboration parameters: ``spi_div`` (clocks per SCLK half period, default 5: 1 MHz),
 ``baud_div`` (clocks per UART bit, default 1042: 9596.9 baud), ``sample_period`` (clocks);
 ``sample_period >= min_sample_period(spi_div, baud_div)`` so that each sample's packet is out
@@ -37,11 +42,12 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.systems.tinykalman.datapath import CORDIC_LATENCY, TinyKalmanDatapath
 from navgate.systems.tinykalman.model import HEADER, PACKET_LEN, WHO_AM_I_VALUE
+from navgate.systems.tinykalman.serial import SERIAL_CORDIC_LATENCY, TinyKalmanSerialCordic
 from navgate.systems.tinykalman.spi import Mpu6500Spi, spi_cycles
 from navgate.systems.tinykalman.uart import BAUD_DIV_9600_AT_10MHZ, UartTx
 
-__all__ = ["TinyKalmanCore", "TinyKalmanTop", "min_sample_period", "timing", "CLK_HZ",
-           "TT_MODULE_NAME"]
+__all__ = ["TinyKalmanCore", "TinyKalmanTop", "TinyKalmanSerialTop", "min_sample_period",
+           "timing", "CLK_HZ", "TT_MODULE_NAME", "VARIANTS", "cordic_latency"]
 
 CLK_HZ = 10_000_000
 TT_MODULE_NAME = "tt_um_navgate_tinykalman"
@@ -50,20 +56,33 @@ DEFAULT_SAMPLE_PERIOD = CLK_HZ // 100
 #: clocks from CS_N rising (end of the burst) to the first start bit: the CS_N-high gap
 #: (spi_div), the SPI result register (1), CORDIC (37), filter (1), packet register and UART
 #: start bit (1); measured in the tests
-_LATENCY_FIXED = 1 + CORDIC_LATENCY + 1 + 1
+#: ``variant``: "parallel" (the iterative CORDIC, word-parallel) or "serial" (the bit-serial
+#: CORDIC of :mod:`navgate.systems.tinykalman.serial`, the chip that fits one SG13G2 tile)
+VARIANTS = ("parallel", "serial")
 
 
-def min_sample_period(spi_div: int, baud_div: int) -> int:
+def cordic_latency(variant: str = "parallel") -> int:
+    """Clocks from the angle block's accepted input to its valid output."""
+    if variant == "parallel":
+        return CORDIC_LATENCY
+    if variant == "serial":
+        return SERIAL_CORDIC_LATENCY
+    raise ValueError(f"TinyKalman: variant must be one of {', '.join(VARIANTS)}; "
+                     f"got {variant!r}")
+
+
+def min_sample_period(spi_div: int, baud_div: int, variant: str = "parallel") -> int:
     """Shortest sample period for which a sample's packet is sent before the next starts."""
-    return spi_cycles(spi_div) + CORDIC_LATENCY + 8 + 10 * PACKET_LEN * baud_div
+    return spi_cycles(spi_div) + cordic_latency(variant) + 8 + 10 * PACKET_LEN * baud_div
 
 
 def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
-           sample_period: int = DEFAULT_SAMPLE_PERIOD, clk_hz: int = CLK_HZ) -> dict:
+           sample_period: int = DEFAULT_SAMPLE_PERIOD, clk_hz: int = CLK_HZ,
+           variant: str = "parallel") -> dict:
     """Per-sample schedule in clocks (and seconds): SPI, latency from CS_N rising to the first
     start bit, packet time, busy time and the slack inside the sample period."""
     spi = spi_cycles(spi_div)
-    latency = spi_div + _LATENCY_FIXED
+    latency = spi_div + 1 + cordic_latency(variant) + 1 + 1
     packet = 10 * PACKET_LEN * baud_div
     # start pulse is the cycle the timer is 0; CS_N falls 1 clock later; CS_N rises at
     # spi - spi_div (the end of the burst's hold phase, before the gap)
@@ -71,7 +90,7 @@ def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MH
     first_start = cs_rise + latency
     busy = first_start + packet
     return {
-        "clk_hz": clk_hz, "spi_div": spi_div, "baud_div": baud_div,
+        "variant": variant, "clk_hz": clk_hz, "spi_div": spi_div, "baud_div": baud_div,
         "sample_period": sample_period, "spi_cycles": spi, "cs_rise_cycle": cs_rise,
         "latency_cs_rise_to_start_bit": latency, "packet_cycles": packet,
         "busy_cycles": busy, "slack_cycles": sample_period - busy,
@@ -84,15 +103,17 @@ class TinyKalmanCore(wiring.Component):
     """The chip's logic on plain pins, in the ``sync`` domain (reset active high)."""
 
     def __init__(self, spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
-                 sample_period: int = DEFAULT_SAMPLE_PERIOD):
-        need = min_sample_period(spi_div, baud_div)
+                 sample_period: int = DEFAULT_SAMPLE_PERIOD, variant: str = "parallel"):
+        need = min_sample_period(spi_div, baud_div, variant)
+        self.variant = variant
         if not isinstance(sample_period, int) or sample_period < need:
             raise ValueError(f"TinyKalman: sample_period must be an integer >= {need} clocks "
                              f"for spi_div={spi_div}, baud_div={baud_div}; got {sample_period!r}")
         self.spi = Mpu6500Spi(spi_div)
         self.uart = UartTx(baud_div)
         self.spi_div, self.baud_div, self.sample_period = spi_div, baud_div, sample_period
-        self.LATENCY = timing(spi_div, baud_div, sample_period)["latency_cs_rise_to_start_bit"]
+        self.LATENCY = timing(spi_div, baud_div, sample_period,
+                              variant=variant)["latency_cs_rise_to_start_bit"]
         self.THROUGHPUT = Fraction(1, sample_period)
         super().__init__({
             "miso": In(1),
@@ -107,7 +128,9 @@ class TinyKalmanCore(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         m.submodules.spi = spi = self.spi
-        m.submodules.datapath = datapath = TinyKalmanDatapath()
+        serial = self.variant == "serial"
+        m.submodules.datapath = datapath = TinyKalmanDatapath(
+            TinyKalmanSerialCordic if serial else None, held_input=serial)
         m.submodules.uart = uart = self.uart
 
         sending = Signal()
@@ -135,7 +158,12 @@ class TinyKalmanCore(wiring.Component):
                          self.sat.eq(datapath.o.payload.sat)]
         # filter -> packet -> UART
         index = Signal(range(PACKET_LEN))
-        roll, pitch = Signal(16), Signal(16)
+        if serial:
+            # the serial chip sends the filter state itself (it holds until the next sample's
+            # update, after this packet: sample_period >= min_sample_period)
+            roll, pitch = datapath.o.payload.roll, datapath.o.payload.pitch
+        else:
+            roll, pitch = Signal(16), Signal(16)
         packet = Array([Const(HEADER[0], 8), Const(HEADER[1], 8), roll[8:], roll[:8],
                         pitch[8:], pitch[:8]])
         m.d.comb += [
@@ -144,8 +172,11 @@ class TinyKalmanCore(wiring.Component):
             uart.i.payload.eq(packet[index]),
         ]
         with m.If(datapath.o.valid & ~sending):
-            m.d.sync += [roll.eq(datapath.o.payload.roll), pitch.eq(datapath.o.payload.pitch),
-                         sending.eq(1), index.eq(0)]
+            if serial:
+                m.d.sync += [sending.eq(1), index.eq(0)]
+            else:
+                m.d.sync += [roll.eq(datapath.o.payload.roll),
+                             pitch.eq(datapath.o.payload.pitch), sending.eq(1), index.eq(0)]
         with m.If(sending & uart.i.ready):
             m.d.sync += index.eq(index + 1)
             with m.If(index == PACKET_LEN - 1):
@@ -157,9 +188,10 @@ class TinyKalmanTop(wiring.Component):
     """TinyKalman as a TinyTapeout user module (seed 001 pinout), 10 MHz."""
 
     def __init__(self, spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
-                 sample_period: int = DEFAULT_SAMPLE_PERIOD):
-        self.core = TinyKalmanCore(spi_div, baud_div, sample_period)
-        self.params = {"spi_div": spi_div, "baud_div": baud_div, "sample_period": sample_period}
+                 sample_period: int = DEFAULT_SAMPLE_PERIOD, variant: str = "parallel"):
+        self.core = TinyKalmanCore(spi_div, baud_div, sample_period, variant)
+        self.params = {"spi_div": spi_div, "baud_div": baud_div, "sample_period": sample_period,
+                       "variant": variant}
         self.LATENCY = self.core.LATENCY
         self.THROUGHPUT = self.core.THROUGHPUT
         super().__init__({
@@ -188,3 +220,10 @@ class TinyKalmanTop(wiring.Component):
             self.uio_oe.eq(0b0000_0011),
         ]
         return m
+
+
+def TinyKalmanSerialTop(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
+                        sample_period: int = DEFAULT_SAMPLE_PERIOD) -> TinyKalmanTop:
+    """The serial chip (block ``tinykalman_serial_top``): :class:`TinyKalmanTop` with the
+    bit-serial CORDIC (:mod:`navgate.systems.tinykalman.serial`), same pins and packets."""
+    return TinyKalmanTop(spi_div, baud_div, sample_period, variant="serial")

@@ -1,0 +1,195 @@
+"""Seed 001 serial TinyKalman (``tinykalman_serial_top``, navgate.systems.tinykalman.serial):
+the bit-serial CORDIC bit-exact against the integer model (directed quadrants, +-180 deg,
+extremes, saturation, random vectors; Amaranth and Verilator), the whole serial chip at pin
+level against the model through the MPU-6500 device model (faults, latency, 10k samples and
+the x-io log under -m slow)."""
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from navgate.devices.mpu6500 import SPI_TIMING, WHO_AM_I_VALUE
+from navgate.gateware import verify as V
+from navgate.hw.asic import LIBERTY_NAME
+from navgate.systems.tinykalman import model as tk
+from navgate.systems.tinykalman import rtl_sim as R
+from navgate.systems.tinykalman.datapath import TinyKalmanDatapath
+from navgate.systems.tinykalman.rtl_sim import datapath_inputs, datapath_model, directed_angles
+from navgate.systems.tinykalman.run import Words, model_stream, synthetic_motion, words_from_imu
+from navgate.systems.tinykalman.serial import SERIAL_CORDIC_LATENCY, TinyKalmanSerialCordic
+from navgate.systems.tinykalman.top import (
+    TinyKalmanTop,
+    cordic_latency,
+    min_sample_period,
+    timing,
+)
+
+LOG = Path(os.environ.get("NAVGATE_SHARED_DATA",
+                          Path(__file__).resolve().parents[4] / "shared" / "data")
+           ) / "fusion_sensor_data.csv"
+
+SERIAL_FAST = R.SimConfig(variant="serial")
+
+
+def angles_model(s):
+    roll, pitch, _, sat = tk.accel_angles(s["ax"], s["ay"], s["az"])
+    return {"roll": roll, "pitch": pitch, "sat": sat.astype(np.int64)}
+
+
+def wrap_cases():
+    """Vectors at +-180 deg and the axes: ay = 0 with az < 0 (exactly 180 deg), ay = small
+    beside it (the wrap), the four axes, the corners and the word extremes."""
+    e = (-32768, -32767, -200, -3, -1, 0, 1, 2, 200, 32767)
+    ay, az = np.meshgrid(e, e)
+    ax = np.resize(np.array([-32768, 32767, 0, 1, -1, 12345]), ay.size)
+    return {"ax": ax, "ay": ay.ravel(), "az": az.ravel()}
+
+
+def test_serial_cordic_directed_quadrants_wrap_and_extremes():
+    ins = directed_angles()
+    w = wrap_cases()
+    ins = {k: np.concatenate([ins[k], w[k]]) for k in ins}
+    exp = angles_model(ins)
+    assert {(np.sign(a), np.sign(b)) for a, b in zip(ins["az"], ins["ay"], strict=True)} >= {
+        (1, 1), (1, -1), (-1, 1), (-1, -1)}
+    assert exp["sat"].any() and not exp["sat"].all()
+    assert (exp["roll"] == -32768).any(), "the set must hit exactly 180 deg"
+    assert (exp["roll"] > 32000).any() and (exp["roll"] < -32000).any()
+    res = V.verify(TinyKalmanSerialCordic(), angles_model, ins, valid_prob=0.6,
+                   ready_prob=0.7, seed=3, backend="verilator")
+    res.assert_ok()
+    assert res.latency == TinyKalmanSerialCordic.LATENCY == SERIAL_CORDIC_LATENCY == 613
+
+
+def test_serial_cordic_amaranth_random_stalls():
+    """Amaranth's own simulator, random vectors and random valid/ready."""
+    rng = np.random.default_rng(21)
+    ins = {k: rng.integers(-32768, 32768, 40) for k in ("ax", "ay", "az")}
+    res = V.verify(TinyKalmanSerialCordic(), angles_model, ins, valid_prob=0.5, ready_prob=0.5,
+                   seed=4)
+    res.assert_ok()
+    assert res.latency == 613
+
+
+@pytest.mark.parametrize("n", [300, pytest.param(20_000, marks=pytest.mark.slow)])
+def test_serial_cordic_verilator_random_full_rate(n):
+    rng = np.random.default_rng(11)
+    ins = {k: rng.integers(-32768, 32768, n) for k in ("ax", "ay", "az")}
+    res = V.verify(TinyKalmanSerialCordic(), angles_model, ins, backend="verilator")
+    res.assert_ok()
+    assert res.cycles == n * 614  # THROUGHPUT = 1/614
+
+
+def test_serial_datapath_verilator_random_with_rejected_samples():
+    w = synthetic_motion(500, seed=2)
+    rng = np.random.default_rng(9)
+    ok = (rng.random(500) > 0.05).astype(np.int64)
+    ins = datapath_inputs(w, ok)
+    assert datapath_model(ins)["sat"].any()
+    res = V.verify(TinyKalmanDatapath(TinyKalmanSerialCordic), datapath_model, ins,
+                   backend="verilator")
+    res.assert_ok()
+    assert res.latency == 614
+
+
+def test_serial_timing_budget_and_parameters():
+    """The serial chip at 10 MHz: latency CS_N rising -> first start bit, slack in 10 ms."""
+    t = timing(variant="serial")
+    assert t["latency_cs_rise_to_start_bit"] == 5 + 1 + 613 + 2 == 621
+    assert t["slack_cycles"] == 100_000 - (1386 + 621 + 62520) == 35473
+    assert t["baud"] == pytest.approx(9596.93, abs=0.01)
+    assert cordic_latency("serial") == 613 and cordic_latency("parallel") == 37
+    with pytest.raises(ValueError, match="variant"):
+        cordic_latency("bitwise")
+    with pytest.raises(ValueError):
+        TinyKalmanTop(2, 4, min_sample_period(2, 4, "serial") - 1, variant="serial")
+
+
+def test_serial_chip_faults_and_latency_amaranth():
+    """Stuck MISO, missing part, wrong part: the serial chip holds the filter, repeats the
+    held angles and flags uio_out[0], like the parallel chip; latency 2 + 616 clocks."""
+    w = synthetic_motion(7, seed=5)
+    faults = {2: "stuck0", 3: "absent", 4: "who_am_i", 5: None}
+    run = R.run_amaranth(w.bursts(), 7, SERIAL_FAST, faults=faults)
+    exp, whos = R.expected_stream(run.device.log, 7)
+    assert whos == [0x70, 0x70, 0x00, 0xFF, 0x71, 0x70, 0x70]
+    assert run.uart == exp
+    flags = run.extra["uio_out_at_packet_start"]
+    assert [f & 1 for f in flags] == [0, 0, 1, 1, 1, 0, 0]
+    assert run.latencies == [2 + 616] * 7
+
+
+@pytest.mark.slow
+def test_serial_chip_verilator_stream_with_faults():
+    n = 60
+    w = synthetic_motion(n, seed=7)
+    faults = {20: "stuck0", 23: None, 40: "absent", 42: None, 50: "who_am_i", 51: "stuck1",
+              52: None}
+    run = R.run_verilator(w.bursts(), n, SERIAL_FAST, faults=faults)
+    exp, whos = R.expected_stream(run.extra["log"], n)
+    assert len(run.uart) == 6 * n and run.uart == exp
+    assert [k for k, v in enumerate(whos) if v != WHO_AM_I_VALUE] == [20, 21, 22, 40, 41, 50, 51]
+    assert set(run.latencies) == {2 + 616}
+    assert run.uart[:6 * 20] == model_stream(Words(w.words[:20], 0))
+
+
+def real_words(n=None):
+    from navgate.sim.imu_log import read_imu_csv
+
+    log = read_imu_csv(LOG)
+    n = len(log) if n is None else n
+    return words_from_imu(log.acc[:n], log.gyro[:n])
+
+
+@pytest.mark.slow
+def test_serial_chip_verilator_10k_synthetic():
+    w = synthetic_motion(10_000, seed=2)
+    run = R.run_verilator(w.bursts(), len(w), SERIAL_FAST)
+    assert run.uart == model_stream(w)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not LOG.exists(), reason="real log not present")
+def test_serial_chip_verilator_real_log_all():
+    w = real_words()
+    run = R.run_verilator(w.bursts(), len(w), SERIAL_FAST)
+    assert run.uart == model_stream(w)
+
+
+@pytest.mark.slow
+def test_serial_chip_verilator_real_dividers():
+    """The serial chip as taped out: 1 MHz SCLK against the data sheet, 9596.9 baud, 10 ms."""
+    cfg = R.SimConfig(spi_div=5, baud_div=1042, sample_period=100_000, variant="serial")
+    w = synthetic_motion(3, seed=1)
+    run = R.run_verilator(w.bursts(), 3, cfg, timing=SPI_TIMING)
+    assert run.extra["violation_count"] == 0, run.extra["violations"]
+    assert run.uart == model_stream(w)
+    assert set(run.latencies) == {621}
+
+
+# ------------------------------------------------------------------------------ SG13G2
+
+LIBERTY = Path(__file__).resolve().parents[4] / "shared" / "asic" / LIBERTY_NAME
+
+
+@pytest.mark.skipif(not LIBERTY.is_file(), reason="SG13G2 Liberty file absent")
+def test_serial_chip_sg13g2_area_and_flip_flops(tmp_path):
+    """Yosys 0.70 + the IHP SG13G2 typical Liberty (navgate.hw.asic): the serial chip's exact
+    pre-layout area and flip-flops, and where they sit (docs/seed001-tinykalman.md)."""
+    from navgate.hw.asic import synthesize_asic
+    from navgate.hw.verilog import emit_verilog
+    from navgate.systems.tinykalman.top import TinyKalmanSerialTop
+
+    name = "tinykalman_serial_top"
+    got = synthesize_asic(emit_verilog(TinyKalmanSerialTop(), name), name, tmp_path, LIBERTY)
+    assert round(got["area_um2"], 1) == 28820.7
+    assert got["flip_flops"] == 278 and got["latches"] == 0
+    assert got["tile"] == "1x2" and got["tile_percent"]["1x1"] == 92.0
+    ffs = got["flip_flops_by_register"]
+    assert sum(ffs.values()) == 278
+    # the bit-serial CORDIC: two 18-bit circulating registers, no 16-bit staging of ax
+    assert ffs["core.datapath.angles.x"] == ffs["core.datapath.angles.y"] == 18
+    assert not any("ax_neg" in k for k in ffs)
+    assert got["timing"]["longest_path_ns"] == pytest.approx(4.356, abs=1e-3)
