@@ -12,28 +12,9 @@ import pytest
 import rasterio
 from rasterio.transform import from_origin
 
-from navgate.cli import main
 from navgate.trn.dem import Dem, DemError
 from navgate.trn.pmf import PointMassCorrelator
 from navgate.trn.tiles import TileStore, load_terrain, split_dem
-
-
-def run(args, capsys):
-    code = 0
-    try:
-        main([str(a) for a in args])
-    except SystemExit as exit_:
-        code = exit_.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-def one_error_line(err: str) -> str:
-    lines = [ln for ln in err.splitlines()
-             if ln.strip() and "compiling Numba kernels" not in ln]
-    assert len(lines) == 1, err
-    assert "Traceback" not in err and "internal error" not in err, err
-    return lines[0]
 
 
 @pytest.fixture(scope="module")
@@ -128,21 +109,21 @@ def test_pmf_on_tiles_equals_pmf_on_the_merged_dem(dem, split33):
     assert abs(a.shift_n - 40.0) < 30 and abs(a.shift_e + 25.0) < 30  # it found the offset
 
 
-def _fly(args, capsys, out):
-    code, _, err = run(["fly", "--duration", "60", "--quiet", "--out", out, *args], capsys)
+def _fly(navgate_run, args, out):
+    code, _, err = navgate_run(["fly", "--duration", "60", "--quiet", "--out", out, *args])
     assert code == 0, err
     return json.loads((out / "summary.json").read_text()), (out / "trajectory.csv").read_bytes()
 
 
-def test_flight_over_2x2_and_3x3_tile_sets_equals_the_flight_over_the_dem(tmp_path, capsys):
+def test_flight_over_2x2_and_3x3_tile_sets_equals_the_flight_over_the_dem(tmp_path, navgate_run):
     """tiles split default -> fly --dem DIR: the same trajectory, byte for byte (60 s)."""
-    base, base_traj = _fly([], capsys, tmp_path / "whole")
+    base, base_traj = _fly(navgate_run, [], tmp_path / "whole")
     for grid, cap in (("2x2", "0.4"), ("3x3", "0.3")):
         tiles = tmp_path / f"t{grid}"
-        code, _, err = run(["tiles", "split", "default", "--into", grid, "--out", tiles,
-                            "--quiet"], capsys)
+        code, _, err = navgate_run(["tiles", "split", "default", "--into", grid, "--out", tiles,
+                            "--quiet"])
         assert code == 0, err
-        summary, traj = _fly(["--dem", tiles, "--tile-cache-mb", cap], capsys,
+        summary, traj = _fly(navgate_run, ["--dem", tiles, "--tile-cache-mb", cap],
                              tmp_path / f"fly{grid}")
         assert traj == base_traj
         for run_name in ("ins_only", "trn_aided"):
@@ -155,21 +136,21 @@ def test_flight_over_2x2_and_3x3_tile_sets_equals_the_flight_over_the_dem(tmp_pa
 
 
 @pytest.mark.slow
-def test_ten_minute_flight_over_tiles_equals_the_flight_over_the_dem(tmp_path, capsys):
-    code, _, err = run(["fly", "--quiet", "--out", tmp_path / "whole"], capsys)
+def test_ten_minute_flight_over_tiles_equals_the_flight_over_the_dem(tmp_path, navgate_run):
+    code, _, err = navgate_run(["fly", "--quiet", "--out", tmp_path / "whole"])
     assert code == 0, err
     for grid in ("2x2", "3x3"):
         tiles = tmp_path / f"t{grid}"
-        assert run(["tiles", "split", "default", "--into", grid, "--out", tiles], capsys)[0] == 0
-        code, _, err = run(["fly", "--quiet", "--dem", tiles, "--out", tmp_path / grid], capsys)
+        assert navgate_run(["tiles", "split", "default", "--into", grid, "--out", tiles])[0] == 0
+        code, _, err = navgate_run(["fly", "--quiet", "--dem", tiles, "--out", tmp_path / grid])
         assert code == 0, err
         assert ((tmp_path / grid / "trajectory.csv").read_bytes()
                 == (tmp_path / "whole" / "trajectory.csv").read_bytes())
 
 
 def test_tiles_info_reports_coverage_gaps_and_the_cache_a_route_needs(split33, tmp_path,
-                                                                       capsys):
-    code, out, err = run(["tiles", "info", split33, "--out", tmp_path / "info"], capsys)
+                                                                       navgate_run):
+    code, out, err = navgate_run(["tiles", "info", split33, "--out", tmp_path / "info"])
     assert code == 0, err
     assert "344 x 403" in out and "3 x 3 arc-s" in out
     info = json.loads((tmp_path / "info" / "tiles.json").read_text())
@@ -181,7 +162,7 @@ def test_tiles_info_reports_coverage_gaps_and_the_cache_a_route_needs(split33, t
     for f in split33.glob("*.tif"):
         if f.name != "tile_r1_c1.tif":
             (gap / f.name).write_bytes(f.read_bytes())
-    code, out, err = run(["tiles", "info", gap, "--out", tmp_path / "gapinfo"], capsys)
+    code, out, err = navgate_run(["tiles", "info", gap, "--out", tmp_path / "gapinfo"])
     assert code == 0, err
     info = json.loads((tmp_path / "gapinfo" / "tiles.json").read_text())
     centre = TileStore(split33).tiles[4]
@@ -235,7 +216,7 @@ def test_voids_are_nan_never_zero(tmp_path):
     ("misaligned", "not on the posts"),
     ("projected", "geographic"),
 ])
-def test_bad_tile_directories_are_one_line_exit_2(tmp_path, capsys, case, needle):
+def test_bad_tile_directories_are_one_line_exit_2(tmp_path, navgate_run, case, needle):
     res = 1 / 1200
     d = tmp_path / case
     d.mkdir()
@@ -256,9 +237,9 @@ def test_bad_tile_directories_are_one_line_exit_2(tmp_path, capsys, case, needle
             dst.write(h.astype("float32"), 1)
     for args in (["tiles", "info", d], ["fly", "--dem", d, "--duration", "5",
                                         "--out", tmp_path / "o"]):
-        code, _, err = run(args, capsys)
+        code, _, err = navgate_run(args)
         assert code == 2, err
-        assert needle in one_error_line(err)
+        assert needle in navgate_run.one_line(err)
     with pytest.raises(DemError):
         load_terrain(d)
 
@@ -268,14 +249,14 @@ def test_bad_tile_directories_are_one_line_exit_2(tmp_path, capsys, case, needle
     (["--into", "2by2"], "ROWSxCOLS"),
     (["--into", "200x200"], "cannot be cut"),
 ])
-def test_split_refuses_impossible_grids(tmp_path, capsys, args, needle):
-    code, _, err = run(["tiles", "split", "default", *args, "--out", tmp_path / "t"], capsys)
+def test_split_refuses_impossible_grids(tmp_path, navgate_run, args, needle):
+    code, _, err = navgate_run(["tiles", "split", "default", *args, "--out", tmp_path / "t"])
     assert code == 2
-    assert needle in one_error_line(err)
+    assert needle in navgate_run.one_line(err)
     assert not (tmp_path / "t").exists()
 
 
-def test_tile_options_need_a_tile_directory(tmp_path, capsys):
-    code, _, err = run(["fly", "--tile-cache-mb", "1", "--duration", "5", "--out", tmp_path],
-                       capsys)
-    assert code == 2 and "tile directory" in one_error_line(err)
+def test_tile_options_need_a_tile_directory(tmp_path, navgate_run):
+    code, _, err = navgate_run(["fly", "--tile-cache-mb", "1", "--duration", "5",
+                                "--out", tmp_path])
+    assert code == 2 and "tile directory" in navgate_run.one_line(err)

@@ -13,7 +13,6 @@ import time
 import numpy as np
 import pytest
 
-from navgate.cli import main
 from navgate.sim.flight import FlightConfig
 from navgate.systems.ins_trn.link import frames, messages
 from navgate.systems.ins_trn.link.faults import FaultInjector
@@ -27,20 +26,8 @@ from navgate.trn.tiles import TileStore, split_dem
 DURATION = 60.0
 
 
-def run(args, capsys):
-    code = 0
-    try:
-        main([str(a) for a in args])
-    except SystemExit as exit_:
-        code = exit_.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
-def one_line(err):
-    lines = [ln for ln in err.splitlines() if ln.strip() and "compiling Numba" not in ln]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0]
 
 
 def free_port() -> int:
@@ -112,13 +99,12 @@ def test_flight_over_tcp_and_tiles_equals_the_flight_in_one_process(scenario, tm
     assert pi.service.counters["requests"] == len(reference.fixes)
 
 
-def test_fly_spawn_equals_the_default_flight(tmp_path, capsys):
+def test_fly_spawn_equals_the_default_flight(tmp_path, navgate_run):
     """One command, three computers: the Pi service as a child on a pseudo-terminal."""
-    code, _, err = run(["fly", "--duration", DURATION, "--quiet", "--out", tmp_path / "a"],
-                       capsys)
+    code, _, err = navgate_run(["fly", "--duration", DURATION, "--quiet", "--out", tmp_path / "a"])
     assert code == 0, err
-    code, _, err = run(["fly", "--duration", DURATION, "--quiet", "--trn-service", "spawn",
-                        "--out", tmp_path / "b"], capsys)
+    code, _, err = navgate_run(["fly", "--duration", DURATION, "--quiet", "--trn-service", "spawn",
+                        "--out", tmp_path / "b"])
     assert code == 0, err
     assert ((tmp_path / "a" / "trajectory.csv").read_bytes()
             == (tmp_path / "b" / "trajectory.csv").read_bytes())
@@ -285,14 +271,14 @@ def test_an_absurd_fix_is_stopped_by_the_filter_gate(scenario):
     assert all(math.isfinite(x) for x in run_.nav[-1])
 
 
-def test_a_peer_of_another_protocol_version_is_refused(capsys, tmp_path):
+def test_a_peer_of_another_protocol_version_is_refused(navgate_run, tmp_path):
     fake = FakeService(lambda frame: None, version=frames.VERSION + 1)
     with pytest.raises(LinkError, match="another protocol version"):
         TrnLink(f"tcp://127.0.0.1:{fake.port}", timeout_s=2.0)
     fake2 = FakeService(lambda frame: None, version=frames.VERSION + 1)
-    code, _, err = run(["fly", "--duration", "5", "--trn-service",
-                        f"tcp://127.0.0.1:{fake2.port}", "--out", tmp_path], capsys)
-    assert code == 2 and "protocol version" in one_line(err)
+    code, _, err = navgate_run(["fly", "--duration", "5", "--trn-service",
+                        f"tcp://127.0.0.1:{fake2.port}", "--out", tmp_path])
+    assert code == 2 and "protocol version" in navgate_run.one_line(err)
 
 
 @pytest.mark.parametrize("args, needle", [
@@ -304,17 +290,17 @@ def test_a_peer_of_another_protocol_version_is_refused(capsys, tmp_path):
     (["trn-serve", "--listen", "tcp://127.0.0.1:7700", "--tiles", "/nonexistent/dir"],
      "not found"),
 ])
-def test_bad_link_options_are_one_line_exit_2(args, needle, capsys, tmp_path):
-    code, _, err = run([*args, *(["--out", tmp_path] if args[0] == "fly" else [])], capsys)
+def test_bad_link_options_are_one_line_exit_2(args, needle, navgate_run, tmp_path):
+    code, _, err = navgate_run([*args, *(["--out", tmp_path] if args[0] == "fly" else [])])
     assert code == 2, err
-    assert needle in one_line(err)
+    assert needle in navgate_run.one_line(err)
 
 
-def test_a_port_in_use_is_one_line_exit_2(capsys):
+def test_a_port_in_use_is_one_line_exit_2(navgate_run):
     with socket.create_server(("127.0.0.1", 0)) as busy:
         port = busy.getsockname()[1]
-        code, _, err = run(["trn-serve", "--listen", f"tcp://127.0.0.1:{port}"], capsys)
-    assert code == 2 and "cannot listen" in one_line(err)
+        code, _, err = navgate_run(["trn-serve", "--listen", f"tcp://127.0.0.1:{port}"])
+    assert code == 2 and "cannot listen" in navgate_run.one_line(err)
 
 
 def test_an_accepted_fix_without_finite_numbers_is_refused_and_counted(scenario):
