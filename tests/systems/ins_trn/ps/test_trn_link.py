@@ -348,3 +348,23 @@ def test_link_latency_applies_each_fix_late_once_and_never_after_its_deadline(sc
     with pytest.raises(ValueError, match="trn_latency_s"):
         Navigator(make_engine("reference", engine_setup(stream.header, cfg)), cfg,
                   t0=stream.header["t0"], dem=dem, trn_latency_s=float("nan"))
+
+
+@pytest.mark.slow
+def test_ten_minute_flights_over_spawn_and_tcp_equal_the_flight_in_one_process(tmp_path,
+                                                                             navgate_run):
+    code, _, err = navgate_run(["fly", "--quiet", "--out", tmp_path / "a"])
+    assert code == 0, err
+    code, _, err = navgate_run(["fly", "--quiet", "--trn-service", "spawn",
+                                "--out", tmp_path / "b"])
+    assert code == 0, err
+    whole = (tmp_path / "a" / "trajectory.csv").read_bytes()
+    assert (tmp_path / "b" / "trajectory.csv").read_bytes() == whole
+    pi = ServiceThread(Dem.default())
+    try:
+        code, _, err = navgate_run(["fly", "--quiet", "--trn-service", pi.spec,
+                                    "--out", tmp_path / "c"])
+    finally:
+        pi.stop()
+    assert code == 0, err
+    assert (tmp_path / "c" / "trajectory.csv").read_bytes() == whole
