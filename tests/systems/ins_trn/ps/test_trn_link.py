@@ -163,12 +163,13 @@ def test_corrupted_bytes_are_counted_and_the_flight_completes(scenario):
         pi.stop()
     bad = pi.service.counters["bad_frames"]
     corrupted = stats["injected_faults"]["corrupted_frames"]
-    # every corrupted fragment is rejected by the service's CRC; an attempt with any of them
-    # missing costs the PS one timeout, and the retry completes the request
-    assert corrupted > 0 and bad == corrupted and 0 < stats["timeouts"] <= corrupted
-    assert stats["retries"] <= stats["timeouts"]
+    # every corrupted fragment is rejected by the service's CRC (a flip that makes a zero
+    # byte splits one into two bad frames); an attempt with any fragment missing costs the PS
+    # a timeout, and a retry completes the request with the fragments the Pi kept
+    assert corrupted > 0 and corrupted <= bad <= 2 * corrupted
+    assert 0 < stats["timeouts"] and stats["retries"] <= stats["timeouts"]
     assert stats["replies"] + stats["unavailable"] == stats["requests"]
-    assert stats["replies"] >= stats["requests"] - 1
+    assert stats["unavailable"] <= 2
     assert np.all(np.isfinite(run_.nav))
     times = applied(run_)
     assert len(times) == len(set(times))
@@ -245,7 +246,9 @@ def test_a_reply_for_another_request_is_never_applied(scenario):
     with TrnLink(f"tcp://127.0.0.1:{fake.port}", timeout_s=0.3, retries=0) as link:
         run_ = fly_over(scenario, link)
         stats = link.stats()
-    assert stats["stale_replies"] == stats["requests"] > 5
+    # (the last stale reply may still be on its way when the flight ends)
+    assert stats["requests"] - 1 <= stats["stale_replies"] <= stats["requests"]
+    assert stats["requests"] > 5
     assert not applied(run_)
 
 
