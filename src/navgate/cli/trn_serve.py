@@ -42,8 +42,9 @@ def _cache(ctx, param, value):
 def trn_serve(tiles_path, cache_mb, listen, serial_port, baud, fd, max_requests):
     """Serve terrain correlation to the PS over TCP or a serial link (seed 000's Pi 5)."""
     from navgate.systems.ins_trn.link.transport import Transport, open_serial
-    from navgate.systems.ins_trn.pi.service import TrnService, load_terrain
+    from navgate.systems.ins_trn.pi.service import TrnService
     from navgate.trn.dem import DemError
+    from navgate.trn.tiles import load_terrain
 
     chosen = [x for x in (listen, serial_port, fd) if x is not None]
     if len(chosen) != 1:

@@ -441,6 +441,3 @@ def split_dem(dem: Dem, rows: int, cols: int, out_dir: Path) -> list[Path]:
             written.append(path)
     return written
 
-
-#: the name the TRN service's brief uses for :func:`load_terrain`
-open_terrain = load_terrain

@@ -36,14 +36,6 @@ from navgate.systems.ins_trn.link.transport import LinkClosed, Transport, from_s
 POLL_S = 0.2
 
 
-def load_terrain(path=None, cache_mb: float | None = None, priority: str = "check"):
-    """The service's terrain: a tile directory (the DTED cache), one DEM file, or the
-    embedded default (``None``)."""
-    from navgate.trn.tiles import load_terrain as _load
-
-    return _load(path, cache_mb=cache_mb, priority=priority)
-
-
 def _config(cls, values: dict):
     known = {f.name for f in fields(cls)}
     unknown = sorted(set(values) - known)
