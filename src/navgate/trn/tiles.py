@@ -440,4 +440,3 @@ def split_dem(dem: Dem, rows: int, cols: int, out_dir: Path) -> list[Path]:
                 dst.write(block, 1)
             written.append(path)
     return written
-
