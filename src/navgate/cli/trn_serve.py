@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 
 import click
 
@@ -41,7 +40,7 @@ def _cache(ctx, param, value):
               help="Stop after answering this many profile requests.")
 def trn_serve(tiles_path, cache_mb, listen, serial_port, baud, fd, max_requests):
     """Serve terrain correlation to the PS over TCP or a serial link (seed 000's Pi 5)."""
-    from navgate.systems.ins_trn.link.transport import Transport, open_serial
+    from navgate.systems.ins_trn.link.transport import Transport, open_serial, parse_tcp
     from navgate.systems.ins_trn.pi.service import TrnService
     from navgate.trn.dem import DemError
     from navgate.trn.tiles import load_terrain
@@ -51,10 +50,10 @@ def trn_serve(tiles_path, cache_mb, listen, serial_port, baud, fd, max_requests)
         raise CliError("give exactly one of --listen tcp://HOST:PORT, --serial PORT, --fd N")
     host = port = None
     if listen is not None:
-        m = re.fullmatch(r"tcp://([^:/]+):(\d{1,5})", listen)
-        if not m or int(m.group(2)) > 65535:
+        address = parse_tcp(listen)
+        if address is None:
             raise CliError(f"--listen must be tcp://HOST:PORT, got {listen!r}")
-        host, port = m.group(1), int(m.group(2))
+        host, port = address
     if cache_mb is not None and (tiles_path is None or not os.path.isdir(tiles_path)):
         raise CliError("--cache-mb needs --tiles to be a tile directory")
     try:

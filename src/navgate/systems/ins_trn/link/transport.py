@@ -8,6 +8,7 @@ Serial ports use pyserial, imported only when a serial port is opened.
 from __future__ import annotations
 
 import os
+import re
 import select
 import socket
 import time
@@ -65,6 +66,14 @@ class Transport:
         if self._closer is not None:
             self._closer()
             self._closer = None
+
+
+def parse_tcp(spec: str) -> tuple[str, int] | None:
+    """``tcp://HOST:PORT`` -> (host, port) with 0 <= port <= 65535; None for anything else."""
+    m = re.fullmatch(r"tcp://([^:/]+):(\d{1,5})", spec)
+    if m is None or int(m.group(2)) > 65535:
+        return None
+    return m.group(1), int(m.group(2))
 
 
 def from_socket(sock: socket.socket, **kw) -> Transport:

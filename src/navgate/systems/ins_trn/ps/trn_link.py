@@ -33,6 +33,7 @@ from navgate.systems.ins_trn.link.transport import (
     Transport,
     connect_tcp,
     open_serial,
+    parse_tcp,
     pty_pair,
 )
 
@@ -52,9 +53,9 @@ def parse_spec(spec: str) -> tuple:
     baud); ``spawn`` -> ("spawn",)."""
     if spec == "spawn":
         return ("spawn",)
-    m = re.fullmatch(r"tcp://([^:/]+):(\d{1,5})", spec)
-    if m and 0 < int(m.group(2)) < 65536:
-        return ("tcp", m.group(1), int(m.group(2)))
+    address = parse_tcp(spec)
+    if address is not None and address[1] > 0:
+        return ("tcp", *address)
     m = re.fullmatch(r"serial:([^@]+)(?:@(\d+))?", spec)
     if m:
         return ("serial", m.group(1), int(m.group(2) or 921600))
