@@ -7,6 +7,7 @@ too small for the route, bad option values) ends with one line on stderr and exi
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from pathlib import Path
@@ -89,8 +90,9 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         imu_rate, ranger, speed, trn_method, engine, record_path, trn_service, trn_timeout,
         trn_latency, link_flip_rate, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from navgate.systems.ins_trn.ps import flight
+    from navgate.systems.ins_trn.ps import flight, report
     from navgate.trn.dem import DemError
     from navgate.trn.tiles import load_terrain
 
@@ -140,69 +142,55 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
                                timeout_s=trn_timeout, faults=faults)
         except LinkError as error:
             raise CliError(str(error)) from None
-    try:
-        _fly(dem, dem_path, cfg, route, out, engine, record_path, trn_link, quiet,
-             table_console, console, duration, imu_rate, seed, ideal_sensors, no_trn,
-             trn_method, trn_latency)
-    finally:
-        if trn_link is not None:
-            trn_link.close()
-
-
-def _fly(dem, dem_path, cfg, route, out, engine, record_path, trn_link, quiet, table_console,
-         console, duration, imu_rate, seed, ideal_sensors, no_trn, trn_method, trn_latency):
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-
-    from navgate.systems.ins_trn.ps import flight, report
-    from navgate.trn.dem import DemError
-
-    console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
-                  f"({dem.shape[0]} x {dem.shape[1]} posts), seed {seed}"
-                  + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors")
-                  + ("" if no_trn else f", TRN {trn_method}"))
-    runs = 1 if no_trn else 2
-    total = runs * int(round(duration * imu_rate))
-    start = time.perf_counter()
-    columns = (TextColumn("{task.description}"), BarColumn(),
-               TextColumn("{task.percentage:>3.0f}%"))
-    with numba_note(console), atomic_output_dir(out, inputs=[dem_path]) as stage, Progress(
-            *columns, TimeElapsedColumn(), console=console, disable=quiet,
-            transient=False) as bar:
-        task = bar.add_task("simulating sensors", total=total)
-        try:
-            result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
-                                stage=lambda s: bar.update(task, description=s), route=route,
-                                engine=engine, trn_link=trn_link, trn_latency_s=trn_latency)
-        except simulation_errors() as error:
-            raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
-        except DemError as error:
-            raise CliError(str(error)) from None
-        bar.update(task, description="writing report", completed=total)
-        summary = result.summary()
-        summary["wall_time_s"] = time.perf_counter() - start
-        summary["trn_latency_s"] = trn_latency
-        if trn_link is not None:
-            summary["trn_link"] = trn_link.stats()
-            summary["trn_link"]["service_status"] = trn_link.status()
-        files = report.write_report(result, stage)
-        if record_path is not None:
-            from navgate.systems.ins_trn.ps.records import write_log
-
-            if dem_path is not None and Path(record_path).resolve() == Path(dem_path).resolve():
-                raise CliError(f"--record {record_path} would overwrite the input DEM")
+    # the link (if any) stays open for the flight and is closed whatever happens
+    with trn_link if trn_link is not None else contextlib.nullcontext():
+        console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
+                      f"({dem.shape[0]} x {dem.shape[1]} posts), seed {seed}"
+                      + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors")
+                      + ("" if no_trn else f", TRN {trn_method}"))
+        runs = 1 if no_trn else 2
+        total = runs * int(round(duration * imu_rate))
+        start = time.perf_counter()
+        columns = (TextColumn("{task.description}"), BarColumn(),
+                   TextColumn("{task.percentage:>3.0f}%"))
+        with numba_note(console), atomic_output_dir(out, inputs=[dem_path]) as stage, Progress(
+                *columns, TimeElapsedColumn(), console=console, disable=quiet,
+                transient=False) as bar:
+            task = bar.add_task("simulating sensors", total=total)
             try:
-                write_log(result.stream, record_path)
-            except OSError as error:
-                raise CliError(f"cannot write {record_path}: {error.strerror}") from None
-            summary["record_log"] = str(record_path)
-        write_summary(stage, summary)
-    _print_table(table_console, summary)
-    console.print(f"wrote summary.json, {', '.join(p.name for p in files.values())} in {out}",
-                  highlight=False)
-    bad = non_finite_keys(summary)
-    if bad:
-        raise CliError(f"the run produced non-finite results ({', '.join(bad[:4])}); "
-                       f"check the DEM heights and options (files in {out})")
+                result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
+                                    stage=lambda s: bar.update(task, description=s), route=route,
+                                    engine=engine, trn_link=trn_link, trn_latency_s=trn_latency)
+            except simulation_errors() as error:
+                raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
+            except DemError as error:
+                raise CliError(str(error)) from None
+            bar.update(task, description="writing report", completed=total)
+            summary = result.summary()
+            summary["wall_time_s"] = time.perf_counter() - start
+            summary["trn_latency_s"] = trn_latency
+            if trn_link is not None:
+                summary["trn_link"] = trn_link.stats()
+                summary["trn_link"]["service_status"] = trn_link.status()
+            files = report.write_report(result, stage)
+            if record_path is not None:
+                from navgate.systems.ins_trn.ps.records import write_log
+
+                if dem_path is not None and Path(record_path).resolve() == Path(dem_path).resolve():
+                    raise CliError(f"--record {record_path} would overwrite the input DEM")
+                try:
+                    write_log(result.stream, record_path)
+                except OSError as error:
+                    raise CliError(f"cannot write {record_path}: {error.strerror}") from None
+                summary["record_log"] = str(record_path)
+            write_summary(stage, summary)
+        _print_table(table_console, summary)
+        console.print(f"wrote summary.json, {', '.join(p.name for p in files.values())} in {out}",
+                      highlight=False)
+        bad = non_finite_keys(summary)
+        if bad:
+            raise CliError(f"the run produced non-finite results ({', '.join(bad[:4])}); "
+                           f"check the DEM heights and options (files in {out})")
 
 
 def _print_table(console, s):
