@@ -43,13 +43,8 @@ def requests_of_a_flight(n: int) -> list[dict]:
         return original(body)
 
     service.correlate = capture
-    addr = []
-    ready = threading.Event()
-    thread = threading.Thread(target=service.serve_tcp, args=("127.0.0.1", 0), daemon=True,
-                              kwargs={"ready": lambda a: (addr.append(a), ready.set())})
-    thread.start()
-    ready.wait(10)
-    with TrnLink(f"tcp://127.0.0.1:{addr[0][1]}") as link:
+    thread, spec = service.start_tcp()
+    with TrnLink(spec) as link:
         flight.fly_stream(stream, dem, cfg, trn_link=link)
     service.stop.set()
     thread.join(10)
@@ -62,7 +57,8 @@ def measure(link_factory, bodies, service) -> dict:
     for body in bodies:
         s0, r0 = link.sent_bytes, link.received_bytes
         t0 = time.perf_counter()
-        link.send(messages.PROFILE_REQUEST, body["id"] & 0xFFFF, body)
+        for piece in messages.fragments(body["id"], body):  # as the PS sends it
+            link.send(messages.PROFILE_FRAGMENT, piece["index"], piece)
         while True:
             frame = link.recv(30)
             if frame is not None and frame.kind == messages.FIX:

@@ -35,12 +35,7 @@ RESTART_AFTER = 15  #: the service stops after this many requests and comes back
 class Pi:
     def __init__(self, dem, port, max_requests=None):
         self.service = TrnService(dem, log=lambda line: None)
-        ready = threading.Event()
-        self.thread = threading.Thread(
-            target=self.service.serve_tcp, args=("127.0.0.1", port), daemon=True,
-            kwargs={"ready": lambda a: ready.set(), "max_requests": max_requests})
-        self.thread.start()
-        ready.wait(10)
+        self.thread, _ = self.service.start_tcp(port=port, max_requests=max_requests)
 
 
 class DroppingLink(TrnLink):

@@ -41,22 +41,7 @@ class ServiceThread:
 
     def __init__(self, terrain, port=0, max_requests=None):
         self.service = TrnService(terrain, log=lambda line: None)
-        self.address = None
-        ready = threading.Event()
-
-        def on_ready(addr):
-            self.address = addr
-            ready.set()
-
-        self.thread = threading.Thread(
-            target=self.service.serve_tcp, args=("127.0.0.1", port),
-            kwargs={"ready": on_ready, "max_requests": max_requests}, daemon=True)
-        self.thread.start()
-        assert ready.wait(10)
-
-    @property
-    def spec(self):
-        return f"tcp://127.0.0.1:{self.address[1]}"
+        self.thread, self.spec = self.service.start_tcp(port=port, max_requests=max_requests)
 
     def stop(self):
         self.service.stop.set()

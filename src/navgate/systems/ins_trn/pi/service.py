@@ -214,6 +214,21 @@ class TrnService:
         finally:
             server.close()
 
+    def start_tcp(self, host: str = "127.0.0.1", port: int = 0, *,
+                  max_requests: int | None = None, timeout_s: float = 10.0):
+        """:meth:`serve_tcp` in a daemon thread, for a PS and a Pi in one process (tests,
+        benchmarks); returns the thread and the ``tcp://HOST:PORT`` it listens on."""
+        ready = threading.Event()
+        address = []
+        thread = threading.Thread(
+            target=self.serve_tcp, args=(host, port), daemon=True,
+            kwargs={"ready": lambda a: (address.append(a), ready.set()),
+                    "max_requests": max_requests})
+        thread.start()
+        if not ready.wait(timeout_s):
+            raise OSError(f"the TRN service did not start listening on {host}:{port}")
+        return thread, f"tcp://{address[0][0]}:{address[0][1]}"
+
     def stop_on_signals(self) -> None:
         """SIGTERM / SIGINT set the stop flag (the loop ends after the request in hand)."""
         def handler(signum, _frame):
