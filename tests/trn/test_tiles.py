@@ -156,6 +156,12 @@ def test_tiles_info_reports_coverage_gaps_and_the_cache_a_route_needs(split33, t
     info = json.loads((tmp_path / "info" / "tiles.json").read_text())
     assert info["tile_count"] == 9 and info["gap_posts"] == 0 and info["void_posts"] == 0
     assert info["route_cache_bytes"] == 4 * info["largest_tile_bytes"]
+    # tiles share their edge posts: a column of tiles adds up to the DEM's rows plus the
+    # shared ones, and the file names say where each tile sits
+    assert sorted(t["file"] for t in info["tiles"]) == [
+        f"tile_r{a}_c{b}.tif" for a in range(3) for b in range(3)]
+    assert sum(t["rows"] for t in info["tiles"][::3]) == 344 + 2
+    assert sum(t["cols"] for t in info["tiles"][:3]) == 403 + 2
     # a tile set with its centre tile missing: the gap is counted, queries there are NaN
     gap = tmp_path / "gap"
     gap.mkdir()
@@ -211,6 +217,7 @@ def test_voids_are_nan_never_zero(tmp_path):
 
 @pytest.mark.parametrize("case, needle", [
     ("empty", "no DEM tiles"),
+    ("disagree", "disagree"),
     ("corrupt", "not a readable DEM"),
     ("mixed", "different post spacing"),
     ("misaligned", "not on the posts"),
@@ -224,6 +231,9 @@ def test_bad_tile_directories_are_one_line_exit_2(tmp_path, navgate_run, case, n
     if case == "corrupt":
         write_tile(d / "good.tif", h, -84.0, 36.5, res)
         (d / "bad.dt1").write_bytes(b"UHL1" + bytes(range(200)))
+    elif case == "disagree":  # a shared column of posts with two different heights
+        write_tile(d / "a.tif", h, -84.0, 36.5, res)
+        write_tile(d / "b.tif", h + 1.0, -84.0 + 19 * res, 36.5, res)
     elif case == "mixed":
         write_tile(d / "a.tif", h, -84.0, 36.5, res)
         write_tile(d / "b.tif", h, -84.0 + 19 * res, 36.5, res / 3)
@@ -241,7 +251,7 @@ def test_bad_tile_directories_are_one_line_exit_2(tmp_path, navgate_run, case, n
         assert code == 2, err
         assert needle in navgate_run.one_line(err)
     with pytest.raises(DemError):
-        load_terrain(d)
+        load_terrain(d).scan()  # refused when opened, or (overlaps) on the first full pass
 
 
 @pytest.mark.parametrize("args, needle", [
