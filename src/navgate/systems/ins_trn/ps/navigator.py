@@ -15,7 +15,11 @@ in one call with the same result) and talks to the PL only through
   registers and pushes the entry (``engine.profile_push``); on an accepted entry, when the
   fix schedule allows (one attempt per ``fix_interval_s``), the correlator runs on the
   profile snapshot with the search window from the horizontal covariance, and an accepted
-  fix goes to ``engine.update_trn``; the applied correction shifts the stored profile.
+  fix goes to ``engine.update_trn``; the applied correction shifts the stored profile. The
+  correlator is in this process or, through a ``trn_link``
+  (:mod:`navgate.systems.ins_trn.ps.trn_link`), on the Pi's TRN service; with
+  ``trn_latency_s`` a fix is applied that long after its request (one request in flight),
+  and dropped past ``trn_deadline_s``.
 - logging: the state, the square roots of P's diagonal and P_NE are logged every
   ``imu_rate / log_rate`` IMU samples, after every record stamped at that time.
 """
@@ -103,16 +107,13 @@ class Navigator:
         self.baro_sigma = max(sensors.Barometer(sensors.BMP390).altitude_noise_m, 0.05)
         self.ranger_unit = pl_sensors.ranger_unit(cfg.ranger)
         self.tangent = engine.setup.reference
-        self.correlator = None
+        self.correlator = self.monitor = None
         if self.use_trn:  # the Pi's service over the link, or the correlator in this process
-            self.correlator = (trn_link.correlator(cfg, self.tangent) if trn_link is not None
-                               else make_correlator(cfg, dem, self.tangent))
-        if self.use_trn:
             from navgate.trn.correlators import make_monitor
 
+            self.correlator = (trn_link.correlator(cfg, self.tangent) if trn_link is not None
+                               else make_correlator(cfg, dem, self.tangent))
             self.monitor = make_monitor(self.correlator)
-        else:
-            self.monitor = None
         for arg, value in (("trn_latency_s", trn_latency_s), ("trn_deadline_s", trn_deadline_s)):
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{arg} must be a finite number of seconds >= 0, got {value!r}")
