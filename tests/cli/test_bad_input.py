@@ -449,7 +449,7 @@ def test_unexpected_exception_is_one_line(monkeypatch, capsys, tmp_path):
 def test_library_warnings_are_one_line_each(capsys):
     import warnings
 
-    from navgate.cli.common import warning_handler
+    from navgate.cli.warnings import warning_handler
 
     with warning_handler("navgate x"):
         np.log(np.zeros(2))  # RuntimeWarning: divide by zero

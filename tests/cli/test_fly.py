@@ -88,7 +88,7 @@ def test_unwritable_output_directory(tmp_path):
 
 def test_hardware_line_reports_the_simulated_pl():
     """The fly/replay line for a simulated PL's counts (summary "hardware")."""
-    from navgate.cli.common import hardware_line
+    from navgate.cli.console import hardware_line
 
     line = hardware_line({"simulated_cycles": 322_200_000, "cycles_per_imu_sample": 1342.4,
                           "update_interrupts": 15040, "profile_dmas": 108,

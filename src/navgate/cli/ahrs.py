@@ -15,13 +15,9 @@ import click
 import numpy as np
 from rich.table import Table
 
-from navgate.cli.common import (
-    CliError,
-    atomic_output_file,
-    consoles,
-    numba_note,
-    out_option,
-)
+from navgate.cli.console import consoles, numba_note
+from navgate.cli.errors import CliError
+from navgate.cli.outputs import atomic_output_file, out_option
 
 
 def _nonneg(ctx, param, value):

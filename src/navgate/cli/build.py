@@ -24,8 +24,8 @@ import click
 from rich.console import Console
 from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-from navgate.cli.common import (
-    CliError,
+from navgate.cli.errors import CliError
+from navgate.cli.outputs import (
     atomic_output_dir,
     atomic_output_file,
     check_writable_file,

@@ -12,17 +12,11 @@ import math
 
 import click
 
-from navgate.cli.common import (
-    CliError,
-    atomic_output_dir,
-    check_out_dir,
-    consoles,
-    default_out_dir,
-    non_finite_keys,
-    out_option,
-    write_summary,
-)
+from navgate.cli.console import consoles
+from navgate.cli.errors import CliError
 from navgate.cli.extras import require
+from navgate.cli.outputs import atomic_output_dir, check_out_dir, default_out_dir, out_option
+from navgate.cli.summary import non_finite_keys, write_summary
 
 
 @click.command()

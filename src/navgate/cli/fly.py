@@ -14,19 +14,10 @@ from pathlib import Path
 
 import click
 
-from navgate.cli.common import (
-    CliError,
-    atomic_output_dir,
-    check_out_dir,
-    consoles,
-    default_out_dir,
-    hardware_line,
-    non_finite_keys,
-    numba_note,
-    out_option,
-    simulation_errors,
-    write_summary,
-)
+from navgate.cli.console import consoles, hardware_line, numba_note
+from navgate.cli.errors import CliError, simulation_errors
+from navgate.cli.outputs import atomic_output_dir, check_out_dir, default_out_dir, out_option
+from navgate.cli.summary import non_finite_keys, write_summary
 
 
 def _positive_float(ctx, param, value):

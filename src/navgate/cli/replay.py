@@ -12,13 +12,10 @@ import time
 
 import click
 
-from navgate.cli.common import (
-    CliError,
-    hardware_line,
-    prepare_out_dir,
-    simulation_errors,
-    write_summary,
-)
+from navgate.cli.console import hardware_line
+from navgate.cli.errors import CliError, simulation_errors
+from navgate.cli.outputs import prepare_out_dir
+from navgate.cli.summary import write_summary
 
 
 @click.command()

@@ -17,15 +17,10 @@ import re
 
 import click
 
-from navgate.cli.common import (
-    CliError,
-    atomic_output_dir,
-    check_out_dir,
-    consoles,
-    default_out_dir,
-    out_option,
-    write_summary,
-)
+from navgate.cli.console import consoles
+from navgate.cli.errors import CliError
+from navgate.cli.outputs import atomic_output_dir, check_out_dir, default_out_dir, out_option
+from navgate.cli.summary import write_summary
 
 
 @click.group()

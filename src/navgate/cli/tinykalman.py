@@ -23,7 +23,9 @@ from pathlib import Path
 import click
 import numpy as np
 
-from navgate.cli.common import CliError, prepare_out_dir, write_summary
+from navgate.cli.errors import CliError
+from navgate.cli.outputs import prepare_out_dir
+from navgate.cli.summary import write_summary
 
 
 class _ImpliedRunGroup(click.Group):

@@ -14,7 +14,7 @@ import os
 
 import click
 
-from navgate.cli.common import CliError
+from navgate.cli.errors import CliError
 
 
 def _cache(ctx, param, value):
