@@ -28,6 +28,7 @@ from navgate.cli.errors import CliError
 from navgate.cli.outputs import (
     atomic_output_dir,
     atomic_output_file,
+    check_not_input,
     check_writable_file,
     out_option,
 )
@@ -120,7 +121,9 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
           list_: bool) -> None:
     """Emit Verilog for BLOCK, describe it and synthesise it for resource figures."""
     from navgate.hw.blocks import all_blocks
+    from navgate.hw.synth import allow_tools
 
+    allow_tools()  # an earlier report in this process may have cancelled the tools
     blocks = all_blocks()
     if list_:
         width = max(len(name) for name in blocks)
@@ -137,7 +140,8 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
     liberty_path = _check_asic(asic, liberty)
     out_dir = Path(out)
     console = Console(stderr=True, soft_wrap=True)
-    with atomic_output_dir(out_dir) as stage, _progress(console) as progress:
+    with atomic_output_dir(out_dir, inputs=[liberty_path]) as stage, \
+            _progress(console) as progress:
         if _yowasp_note(timing):
             console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
         task = progress.add_task(block, total=1)
@@ -262,7 +266,11 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
                 return _run_build(name, out_dir, target, timing, progress, task,
                                   asic=asic, liberty=liberty)
 
-            with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+            from navgate.hw.synth import allow_tools, cancel_tools
+
+            allow_tools()
+            pool = ThreadPoolExecutor(max_workers=max(1, jobs))
+            try:
                 futures = {pool.submit(one, name): name for name in blocks}
                 for future in as_completed(futures):
                     name = futures[future]
@@ -275,6 +283,14 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
                     progress.console.print(f"[{len(rows)}/{len(blocks)}] {name} done "
                                            f"({time.perf_counter() - start:.0f} s)",
                                            highlight=False)
+            except BaseException:
+                # the first Ctrl-C (or a failed block) stops the report: no queued block
+                # starts and the running tools are killed, rather than every block started
+                # running to its end while the interrupt waits
+                cancel_tools()
+                pool.shutdown(wait=False, cancel_futures=True)
+                raise
+            pool.shutdown(wait=True)
     return report_table([rows[name] for name in blocks],
                         [paths[name] for name in blocks if name in paths])
 
@@ -297,9 +313,11 @@ def report(timing: bool, target: str, out: str | None, jobs: int, asic: str | No
     _check_target(target)
     liberty_path = _check_asic(asic, liberty)
     out_path = check_writable_file(out) if out is not None else None
+    if out_path is not None:
+        check_not_input(out_path, [liberty_path])
     table = report_markdown(timing, target, Console(stderr=True, soft_wrap=True), jobs, asic,
                             liberty_path)
     click.echo(table, nl=False)
     if out_path is not None:
-        with atomic_output_file(out_path) as tmp:
+        with atomic_output_file(out_path, inputs=[liberty_path]) as tmp:
             tmp.write_text(table)

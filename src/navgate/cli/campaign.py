@@ -15,8 +15,17 @@ import click
 from navgate.cli.console import consoles
 from navgate.cli.errors import CliError
 from navgate.cli.extras import require
-from navgate.cli.outputs import atomic_output_dir, check_out_dir, default_out_dir, out_option
+from navgate.cli.outputs import (
+    atomic_output_dir,
+    check_not_input,
+    check_out_dir,
+    default_out_dir,
+    out_option,
+)
 from navgate.cli.summary import non_finite_keys, write_summary
+
+#: the most runs (seeds x configurations) one campaign takes
+MAX_RUNS = 100_000
 
 
 @click.command()
@@ -74,6 +83,13 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
             raise CliError(f"--ranger: unknown preset {r!r}; choose from "
                            f"{', '.join(RANGER_PRESETS)}")
     dems = tuple(dict.fromkeys(dems)) or ("default",)
+    n_planned = len(seed_list) * len(dems) * len(trns) * len(rangers)
+    if n_planned > MAX_RUNS:
+        raise CliError(f"{len(seed_list)} seeds x {len(dems) * len(trns) * len(rangers)} "
+                       f"configurations = {n_planned:,} runs, more than the {MAX_RUNS:,} one "
+                       "campaign runs")
+    check_out_dir(out)
+    check_not_input(out, [d for d in dems if d != "default"])
     # every DEM must load and hold the route before any worker starts
     for d in dems:
         try:
@@ -82,7 +98,6 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
         except (DemError, RouteError) as error:
             raise CliError(str(error)) from None
     spec = camp.Campaign.build(seed_list, dems, trns, rangers, duration_s=duration)
-    check_out_dir(out)
     table_console, console = consoles(quiet)
     n_runs = len(spec.tasks())
     console.print(f"[bold]navgate campaign[/]: {len(seed_list)} seeds x "

@@ -16,7 +16,15 @@ import click
 
 from navgate.cli.console import consoles, hardware_line, numba_note
 from navgate.cli.errors import CliError, simulation_errors
-from navgate.cli.outputs import atomic_output_dir, check_out_dir, default_out_dir, out_option
+from navgate.cli.outputs import (
+    check_not_input,
+    check_out_dir,
+    check_writable_file,
+    default_out_dir,
+    out_option,
+    reject_empty,
+    staged_outputs,
+)
 from navgate.cli.summary import non_finite_keys, write_summary
 
 
@@ -62,6 +70,7 @@ def _positive_float(ctx, param, value):
                    "fpga-sim equal fp32 bit for bit. With fp32/rtl/fpga-sim the reference "
                    "flies too, for the comparison in summary.json.")
 @click.option("--record", "record_path", type=click.Path(dir_okay=False), default=None,
+              callback=reject_empty,
               help="Also write the sensor record stream to this log file (navgate replay).")
 @click.option("--trn-service", "trn_service", default=None,
               metavar="tcp://HOST:PORT|serial:PORT[@BAUD]|spawn",
@@ -116,6 +125,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
     except (flight.RouteError, DemError) as error:
         raise CliError(str(error)) from None
     check_out_dir(out)
+    if record_path is not None:
+        _check_record(record_path, out, dem_path)
     if not (math.isfinite(trn_latency) and 0.0 <= trn_latency <= 60.0):
         raise CliError(f"--trn-latency must lie in [0, 60] s, got {trn_latency:g}")
     if not (math.isfinite(link_flip_rate) and 0.0 <= link_flip_rate <= 1.0):
@@ -144,9 +155,12 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         start = time.perf_counter()
         columns = (TextColumn("{task.description}"), BarColumn(),
                    TextColumn("{task.percentage:>3.0f}%"))
-        with numba_note(console), atomic_output_dir(out, inputs=[dem_path]) as stage, Progress(
+        records = [] if record_path is None else [record_path]
+        with numba_note(console), staged_outputs(out, files=records,
+                                                 inputs=[dem_path]) as staging, Progress(
                 *columns, TimeElapsedColumn(), console=console, disable=quiet,
                 transient=False) as bar:
+            stage = staging.dir
             task = bar.add_task("simulating sensors", total=total)
             try:
                 result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
@@ -167,21 +181,37 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
             if record_path is not None:
                 from navgate.systems.ins_trn.ps.records import write_log
 
-                if dem_path is not None and Path(record_path).resolve() == Path(dem_path).resolve():
-                    raise CliError(f"--record {record_path} would overwrite the input DEM")
-                try:
-                    write_log(result.stream, record_path)
-                except OSError as error:
-                    raise CliError(f"cannot write {record_path}: {error.strerror}") from None
+                bar.update(task, description="writing the record log")
+                write_log(result.stream, staging.file(record_path))
                 summary["record_log"] = str(record_path)
             write_summary(stage, summary)
         _print_table(table_console, summary)
         console.print(f"wrote summary.json, {', '.join(p.name for p in files.values())} in {out}",
                       highlight=False)
+        if record_path is not None:
+            console.print(f"wrote the sensor record log {record_path} "
+                          f"({len(result.stream):,} records; navgate replay {record_path})",
+                          highlight=False)
         bad = non_finite_keys(summary)
         if bad:
             raise CliError(f"the run produced non-finite results ({', '.join(bad[:4])}); "
                            f"check the DEM heights and options (files in {out})")
+
+
+#: the files fly writes into --out (navgate.systems.ins_trn.ps.report.write_report)
+REPORT_FILES = ("summary.json", "trajectory.csv", "trn_fixes.csv", "track.png", "errors.png")
+
+
+def _check_record(record_path, out, dem_path) -> None:
+    """--record FILE, checked before the flight: a regular file or absent (never a FIFO,
+    device or directory), in a directory that exists, not the DEM, not one of the files the
+    run writes into --out."""
+    record = Path(record_path)
+    check_writable_file(record)
+    check_not_input(record, [dem_path])
+    if record.parent.resolve() == Path(out).resolve() and record.name in REPORT_FILES:
+        raise CliError(f"--record {record_path} is one of the files this run writes into "
+                       f"--out {out}; choose another name")
 
 
 def _print_table(console, s):

@@ -33,7 +33,8 @@ def default_out_dir(command: str) -> str:
     return f"navgate-out/{command}"
 
 
-def _reject_empty(ctx, param, value):
+def reject_empty(ctx, param, value):
+    """Click callback of every output option: ``''`` (or blanks) is an error."""
     if value is not None and not str(value).strip():
         raise click.BadParameter("must not be empty")
     return value
@@ -42,7 +43,7 @@ def _reject_empty(ctx, param, value):
 def out_option(default: str | None, help: str, kind: str = "dir"):
     """The ``--out`` option of a command: rejects ``''``; ``kind`` is "dir" or "file"."""
     ptype = click.Path(file_okay=(kind == "file"), dir_okay=(kind == "dir"))
-    return click.option("--out", "out", type=ptype, default=default, callback=_reject_empty,
+    return click.option("--out", "out", type=ptype, default=default, callback=reject_empty,
                          show_default=default is not None, help=help)
 
 
@@ -158,69 +159,113 @@ def _translate(error: OSError, stage: Path, final: Path) -> CliError:
     return CliError(os_error_message(error))
 
 
-@contextlib.contextmanager
-def atomic_output_dir(out: str | Path, inputs: Iterable[str | Path | None] = ()
-                      ) -> Iterator[Path]:
-    """Yield a staging directory; on success move everything in it into ``out``.
+class Staging:
+    """Where a run writes: :attr:`dir`, the staging directory of ``--out`` (None when the run
+    has no output directory), and :meth:`file`, the staged path of one extra output file."""
 
-    The staging directory sits beside ``out`` (same file system, so the final moves are
-    renames). On any exception (including KeyboardInterrupt and a full disk) the staging
-    directory is removed and ``out`` is left exactly as it was. Before anything is moved,
-    every destination is checked: none may be a directory where a file goes, nor one of
-    ``inputs``. Files already in ``out`` that this run does not produce are left alone.
+    def __init__(self, directory: Path | None, files: dict[Path, Path]):
+        self.dir = directory
+        self._files = files
+
+    def file(self, final: str | Path) -> Path:
+        """The staging path of the extra output ``final`` (as given to :func:`staged_outputs`)."""
+        return self._files[Path(final)]
+
+
+def _check_destination(dest: Path, inputs: list) -> None:
+    if dest.is_dir() and not dest.is_symlink():
+        raise CliError(f"cannot write {dest}: a directory is in the way")
+    _regular_or_absent(dest)
+    check_not_input(dest, inputs)
+
+
+@contextlib.contextmanager
+def staged_outputs(out: str | Path | None = None, files: Iterable[str | Path] = (),
+                   inputs: Iterable[str | Path | None] = ()) -> Iterator[Staging]:
+    """The one staging path: yield a :class:`Staging`; commit everything on success.
+
+    ``out`` is an output directory (its staging directory sits beside it), ``files`` are
+    extra output files elsewhere (such as ``fly --record FILE``; each staged beside its final
+    path). Everything is on the final path's file system, so the commit is a series of
+    renames, made with SIGINT held off. On any exception (KeyboardInterrupt and a full disk
+    included) the staging is removed and every target is left exactly as it was. Checked
+    before the block runs: ``out`` is a directory or absent, each extra file is a regular file
+    or absent and none is an input. Checked before anything is moved: no destination is a
+    directory, a device, a FIFO or a symbolic link, none is one of ``inputs``, and no two
+    outputs share a path. Files already in ``out`` that this run does not produce are left
+    alone; an extra file the block deleted from its staging path is not committed.
     """
-    out = Path(out)
     inputs = list(inputs)
-    if out.exists() and not out.is_dir():
-        raise CliError(f"output path {out} exists and is not a directory")
-    stage = _stage_beside(out, directory=True)
+    out = Path(out) if out is not None else None
+    finals = [Path(f) for f in files]
+    if out is not None:
+        check_out_dir(out)
+        check_not_input(out, inputs)  # never write into an input directory
+    for final in finals:
+        if final.is_dir() and not final.is_symlink():
+            raise CliError(f"cannot write {final}: it is a directory")
+        _regular_or_absent(final)
+        check_not_input(final, inputs)
+        _check_ancestors(final, False)
+    made: list[Path] = []
     try:
+        stage = _stage_beside(out, directory=True) if out is not None else None
+        if stage is not None:
+            made.append(stage)
+        staged = {}
+        for final in finals:
+            staged[final] = _stage_beside(final, directory=False)
+            made.append(staged[final])
         try:
-            yield stage
+            yield Staging(stage, staged)
         except OSError as error:
-            raise _translate(error, stage, out) from None
-        files = sorted(p for p in stage.rglob("*") if not p.is_dir())
-        moves = [(p, out / p.relative_to(stage)) for p in files]
+            for final, path in ((out, stage), *((f, p) for f, p in staged.items())):
+                if path is not None and str(error.filename or "").startswith(str(path)):
+                    raise _translate(error, path, final) from None
+            raise CliError(os_error_message(error)) from None
+        moves = []
+        if stage is not None:
+            moves += [(p, out / p.relative_to(stage))
+                      for p in sorted(stage.rglob("*")) if not p.is_dir()]
+        moves += [(path, final) for final, path in staged.items() if path.exists()]
+        seen: dict[Path, Path] = {}
         for _, dest in moves:
-            if dest.is_dir():
-                raise CliError(f"cannot write {dest}: a directory is in the way")
-            _regular_or_absent(dest)
-            check_not_input(dest, inputs)
+            _check_destination(dest, inputs)
+            key = dest.resolve()
+            if key in seen:
+                raise CliError(f"two outputs of this run would be written to {dest}")
+            seen[key] = dest
         try:
+            for final, path in staged.items():
+                if path.exists():
+                    _set_mode(path, final)
             with _sigint_held():
-                out.mkdir(parents=True, exist_ok=True)
+                if out is not None:
+                    out.mkdir(parents=True, exist_ok=True)
                 for src, dest in moves:
                     dest.parent.mkdir(parents=True, exist_ok=True)
                     os.replace(src, dest)
         except OSError as error:
-            raise _translate(error, stage, out) from None
+            raise CliError(os_error_message(error)) from None
     finally:
-        _remove(stage)
+        for path in made:
+            _remove(path)
+
+
+@contextlib.contextmanager
+def atomic_output_dir(out: str | Path, inputs: Iterable[str | Path | None] = ()
+                      ) -> Iterator[Path]:
+    """:func:`staged_outputs` for one output directory: yield its staging directory."""
+    with staged_outputs(out, inputs=inputs) as staging:
+        yield staging.dir
 
 
 @contextlib.contextmanager
 def atomic_output_file(path: str | Path, inputs: Iterable[str | Path | None] = ()
                        ) -> Iterator[Path]:
-    """Yield a temporary file path beside ``path``; on success rename it onto ``path``."""
-    path = Path(path)
-    if path.is_dir():
-        raise CliError(f"cannot write {path}: it is a directory")
-    _regular_or_absent(path)
-    check_not_input(path, inputs)
-    stage = _stage_beside(path, directory=False)
-    try:
-        try:
-            yield stage
-        except OSError as error:
-            raise _translate(error, stage, path) from None
-        try:
-            _set_mode(stage, path)
-            with _sigint_held():
-                os.replace(stage, path)
-        except OSError as error:
-            raise _translate(error, stage, path) from None
-    finally:
-        _remove(stage)
+    """:func:`staged_outputs` for one output file: yield its staging path (beside it)."""
+    with staged_outputs(files=[path], inputs=inputs) as staging:
+        yield staging.file(path)
 
 
 def check_writable_file(path: str | Path) -> Path:
@@ -241,15 +286,3 @@ def check_writable_file(path: str | Path) -> Path:
     except OSError as error:
         raise CliError(f"cannot write {p}: {error.strerror or error}") from None
     return p
-
-
-def prepare_out_dir(path: str | Path) -> Path:
-    """Create the output directory (and parents), failing with a clear CliError."""
-    out = Path(path)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as error:
-        raise CliError(f"cannot create output directory {out}: {error.strerror}") from None
-    if not out.is_dir():
-        raise CliError(f"output path {out} exists and is not a directory")
-    return out

@@ -9,12 +9,14 @@ the log holds truth records, both runs are scored exactly as ``navgate fly`` sco
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import click
 
 from navgate.cli.console import hardware_line
 from navgate.cli.errors import CliError, simulation_errors
-from navgate.cli.outputs import prepare_out_dir
+from navgate.cli.inputs import regular_input
+from navgate.cli.outputs import check_out_dir, default_out_dir, out_option, staged_outputs
 from navgate.cli.summary import write_summary
 
 
@@ -27,10 +29,9 @@ from navgate.cli.summary import write_summary
 @click.option("--dem", "dem_path", type=click.Path(dir_okay=True), default=None,
               help="DEM for TRN (default: the embedded Jacksboro fault DEM).")
 @click.option("--no-trn", is_flag=True, help="Run INS-only (with baro) and skip TRN.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="navgate-replay",
-              show_default=True, help="Output directory.")
+@out_option(default_out_dir("replay"), "Output directory (written atomically).")
 @click.option("--quiet", is_flag=True, help="No table on stdout.")
-def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
+def replay(log_path, engine, dem_path, no_trn, out, quiet):
     """Navigate a recorded sensor stream; score it when the log carries truth."""
     from dataclasses import fields, replace
 
@@ -42,8 +43,9 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
     from navgate.trn.tercom import TercomConfig
     from navgate.trn.tiles import load_terrain
 
+    check_out_dir(out)
     try:
-        stream = read_log(log_path)
+        stream = read_log(regular_input(log_path))
     except LogError as error:
         raise CliError(str(error)) from None
     header = stream.header
@@ -67,7 +69,6 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
         dem = load_terrain(dem_path)
     except DemError as error:
         raise CliError(str(error)) from None
-    out = prepare_out_dir(out_dir)
     start = time.perf_counter()
     try:
         runs = fly_stream(stream, dem, cfg, engine=engine)
@@ -106,7 +107,9 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
             s["hardware"] = run.hardware
         summary[name] = s
     summary["wall_time_s"] = time.perf_counter() - start
-    path = write_summary(out, summary)
+    with staged_outputs(out, inputs=[log_path, dem_path]) as staging:
+        write_summary(staging.dir, summary)
+    path = Path(out) / "summary.json"
     if not quiet:
         click.echo(f"replayed {stream.n_imu} IMU records ({summary['bad_records_total']} bad "
                    f"records skipped) with the {engine} engine")

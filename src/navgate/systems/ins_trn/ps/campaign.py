@@ -49,8 +49,17 @@ RESULT_FIELDS = [
 ]
 
 
+#: the most seeds one campaign takes, and the largest seed (NumPy's SeedSequence takes any
+#: non-negative integer; the results table and summary.json store seeds as 64-bit integers)
+MAX_SEEDS = 100_000
+MAX_SEED = 2**63 - 1
+
+
 def parse_seeds(text: str) -> list[int]:
-    """'0-49', '3', '0,2,5-7' -> sorted list of distinct non-negative seeds."""
+    """'0-49', '3', '0,2,5-7' -> sorted list of distinct non-negative seeds.
+
+    At most :data:`MAX_SEEDS` seeds, checked before any range is expanded (a range such as
+    0-1180591620717411303424 is refused at once, not enumerated)."""
     seeds: set[int] = set()
     for part in str(text).split(","):
         part = part.strip()
@@ -64,6 +73,9 @@ def parse_seeds(text: str) -> list[int]:
                 raise ValueError(f"bad seed range {part!r} (expected A-B)") from None
             if lo < 0 or hi < lo:
                 raise ValueError(f"bad seed range {part!r}")
+            if hi - lo + 1 + len(seeds) > MAX_SEEDS:
+                raise ValueError(f"more than {MAX_SEEDS} seeds ({part} alone is "
+                                 f"{hi - lo + 1:,})")
             seeds.update(range(lo, hi + 1))
         else:
             try:
@@ -73,8 +85,10 @@ def parse_seeds(text: str) -> list[int]:
             if s < 0:
                 raise ValueError(f"seeds must be non-negative, got {s}")
             seeds.add(s)
-    if len(seeds) > 100_000:
-        raise ValueError("more than 100000 seeds")
+    if len(seeds) > MAX_SEEDS:
+        raise ValueError(f"more than {MAX_SEEDS} seeds")
+    if max(seeds, default=0) > MAX_SEED:
+        raise ValueError(f"seeds must be below 2**63, got {max(seeds)}")
     return sorted(seeds)
 
 

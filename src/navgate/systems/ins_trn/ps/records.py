@@ -194,6 +194,25 @@ def write_log(stream: RecordStream, path) -> None:
 
 
 _FIELDS = {"I": 8, "B": 4, "R": 4, "T": 5}
+#: the longest header line and record line read: a longer line (a binary file, a file of
+#: zeros) is an error or a bad record, never a line read without end
+MAX_HEADER_CHARS = 1 << 22
+MAX_RECORD_CHARS = 1 << 10
+
+
+def _lines(fh):
+    """The file's lines, each at most MAX_RECORD_CHARS long; a longer line is yielded as
+    None (an over-long record) and skipped to its end in bounded pieces."""
+    while True:
+        line = fh.readline(MAX_RECORD_CHARS)
+        if not line:
+            return
+        if len(line) >= MAX_RECORD_CHARS and not line.endswith("\n"):
+            while line and not line.endswith("\n"):
+                line = fh.readline(MAX_RECORD_CHARS)
+            yield None
+            continue
+        yield line
 
 
 def read_log(path) -> RecordStream:
@@ -211,19 +230,28 @@ def read_log(path) -> RecordStream:
     gyro, accel, balt, bst, rr, rst, truth = [], [], [], [], [], [], []
     float_words = False
     with fh:
-        first = fh.readline().strip()
+        first = fh.readline(64).strip()
         if first != MAGIC:
             raise LogError(f"{path} is not a navgate record log (first line {first[:40]!r})")
-        hline = fh.readline()
+        hline = fh.readline(MAX_HEADER_CHARS)
         if not hline.startswith("H "):
             raise LogError(f"{path}: missing header line")
+        if len(hline) >= MAX_HEADER_CHARS and not hline.endswith("\n"):
+            raise LogError(f"{path}: header line longer than {MAX_HEADER_CHARS} characters")
         try:
             header = json.loads(hline[2:])
         except json.JSONDecodeError as error:
             raise LogError(f"{path}: unreadable header ({error.msg})") from None
+        except RecursionError:
+            raise LogError(f"{path}: unreadable header (nested too deeply)") from None
+        if not isinstance(header, dict):
+            raise LogError(f"{path}: unreadable header (not a JSON object)")
         float_words = bool(header.get("ideal", False))
         last_t = -math.inf
-        for line in fh:
+        for line in _lines(fh):
+            if line is None:
+                reject("over-long record")
+                continue
             parts = line.rstrip("\n").split(",")
             kind = parts[0]
             if kind not in _FIELDS:
