@@ -29,6 +29,8 @@ from navgate.cli.outputs import (
     atomic_output_dir,
     atomic_output_file,
     check_not_input,
+    check_out_dir,
+    check_outputs_early,
     check_writable_file,
     out_option,
 )
@@ -139,6 +141,9 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
     nx_seeds = _parse_seeds(nexus_seeds, "--nexus-seeds")
     liberty_path = _check_asic(asic, liberty)
     out_dir = Path(out)
+    check_out_dir(out_dir)
+    check_outputs_early(out_dir, [block + suffix for suffix in (
+        ".v", ".json", ".utilization.json", ".asic.json", ".timing.json")], [liberty_path])
     console = Console(stderr=True, soft_wrap=True)
     with atomic_output_dir(out_dir, inputs=[liberty_path]) as stage, \
             _progress(console) as progress:

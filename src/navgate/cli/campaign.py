@@ -17,13 +17,15 @@ from navgate.cli.errors import CliError
 from navgate.cli.extras import require
 from navgate.cli.outputs import (
     atomic_output_dir,
-    check_not_input,
     check_out_dir,
+    check_outputs_early,
     default_out_dir,
     out_option,
 )
 from navgate.cli.summary import non_finite_keys, write_summary
 
+#: the files campaign writes into --out
+OUTPUTS = ("summary.json", "results.csv", "error_cdf.png", "nees_hist.png")
 #: the most runs (seeds x configurations) one campaign takes
 MAX_RUNS = 100_000
 
@@ -89,7 +91,7 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
                        f"configurations = {n_planned:,} runs, more than the {MAX_RUNS:,} one "
                        "campaign runs")
     check_out_dir(out)
-    check_not_input(out, [d for d in dems if d != "default"])
+    check_outputs_early(out, OUTPUTS, [d for d in dems if d != "default"])
     # every DEM must load and hold the route before any worker starts
     for d in dems:
         try:

@@ -19,6 +19,7 @@ from navgate.cli.errors import CliError, simulation_errors
 from navgate.cli.outputs import (
     check_not_input,
     check_out_dir,
+    check_outputs_early,
     check_writable_file,
     default_out_dir,
     out_option,
@@ -125,6 +126,7 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
     except (flight.RouteError, DemError) as error:
         raise CliError(str(error)) from None
     check_out_dir(out)
+    check_outputs_early(out, REPORT_FILES, [dem_path])
     if record_path is not None:
         _check_record(record_path, out, dem_path)
     if not (math.isfinite(trn_latency) and 0.0 <= trn_latency <= 60.0):
@@ -156,8 +158,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         columns = (TextColumn("{task.description}"), BarColumn(),
                    TextColumn("{task.percentage:>3.0f}%"))
         records = [] if record_path is None else [record_path]
-        with numba_note(console), staged_outputs(out, files=records,
-                                                 inputs=[dem_path]) as staging, Progress(
+        with numba_note(console), staged_outputs(out, files=records, inputs=[dem_path],
+                                                 names=REPORT_FILES) as staging, Progress(
                 *columns, TimeElapsedColumn(), console=console, disable=quiet,
                 transient=False) as bar:
             stage = staging.dir

@@ -159,6 +159,16 @@ def _translate(error: OSError, stage: Path, final: Path) -> CliError:
     return CliError(os_error_message(error))
 
 
+def check_outputs_early(out: str | Path, names: Iterable[str],
+                        inputs: Iterable[str | Path | None]) -> None:
+    """Before a long run: ``out`` is not an input (never write into an input directory) and
+    no ``out/NAME`` of the files the command will write is one of ``inputs``."""
+    inputs = list(inputs)
+    check_not_input(out, inputs)
+    for name in names:
+        check_not_input(Path(out) / name, inputs)
+
+
 class Staging:
     """Where a run writes: :attr:`dir`, the staging directory of ``--out`` (None when the run
     has no output directory), and :meth:`file`, the staged path of one extra output file."""
@@ -181,7 +191,8 @@ def _check_destination(dest: Path, inputs: list) -> None:
 
 @contextlib.contextmanager
 def staged_outputs(out: str | Path | None = None, files: Iterable[str | Path] = (),
-                   inputs: Iterable[str | Path | None] = ()) -> Iterator[Staging]:
+                   inputs: Iterable[str | Path | None] = (), names: Iterable[str] = ()
+                   ) -> Iterator[Staging]:
     """The one staging path: yield a :class:`Staging`; commit everything on success.
 
     ``out`` is an output directory (its staging directory sits beside it), ``files`` are
@@ -189,18 +200,20 @@ def staged_outputs(out: str | Path | None = None, files: Iterable[str | Path] = 
     path). Everything is on the final path's file system, so the commit is a series of
     renames, made with SIGINT held off. On any exception (KeyboardInterrupt and a full disk
     included) the staging is removed and every target is left exactly as it was. Checked
-    before the block runs: ``out`` is a directory or absent, each extra file is a regular file
-    or absent and none is an input. Checked before anything is moved: no destination is a
-    directory, a device, a FIFO or a symbolic link, none is one of ``inputs``, and no two
-    outputs share a path. Files already in ``out`` that this run does not produce are left
-    alone; an extra file the block deleted from its staging path is not committed.
+    before the block runs: ``out`` is a directory or absent and not an input, each extra file
+    is a regular file or absent and none is an input, nor is ``out/NAME`` for the ``names``
+    the command declares it will write (:func:`check_outputs_early`). Checked before anything
+    is moved: no destination is a directory, a device, a FIFO or a symbolic link, none is one
+    of ``inputs``, and no two outputs share a path. Files already in ``out`` that this run
+    does not produce are left alone; an extra file the block deleted from its staging path
+    is not committed.
     """
     inputs = list(inputs)
     out = Path(out) if out is not None else None
     finals = [Path(f) for f in files]
     if out is not None:
         check_out_dir(out)
-        check_not_input(out, inputs)  # never write into an input directory
+        check_outputs_early(out, names, inputs)
     for final in finals:
         if final.is_dir() and not final.is_symlink():
             raise CliError(f"cannot write {final}: it is a directory")

@@ -16,8 +16,17 @@ import click
 from navgate.cli.console import hardware_line
 from navgate.cli.errors import CliError, simulation_errors
 from navgate.cli.inputs import regular_input
-from navgate.cli.outputs import check_out_dir, default_out_dir, out_option, staged_outputs
+from navgate.cli.outputs import (
+    check_out_dir,
+    check_outputs_early,
+    default_out_dir,
+    out_option,
+    staged_outputs,
+)
 from navgate.cli.summary import write_summary
+
+#: the files replay writes into --out
+OUTPUTS = ("summary.json",)
 
 
 @click.command()
@@ -44,6 +53,7 @@ def replay(log_path, engine, dem_path, no_trn, out, quiet):
     from navgate.trn.tiles import load_terrain
 
     check_out_dir(out)
+    check_outputs_early(out, OUTPUTS, [log_path, dem_path])
     try:
         stream = read_log(regular_input(log_path))
     except LogError as error:
@@ -107,7 +117,7 @@ def replay(log_path, engine, dem_path, no_trn, out, quiet):
             s["hardware"] = run.hardware
         summary[name] = s
     summary["wall_time_s"] = time.perf_counter() - start
-    with staged_outputs(out, inputs=[log_path, dem_path]) as staging:
+    with staged_outputs(out, inputs=[log_path, dem_path], names=OUTPUTS) as staging:
         write_summary(staging.dir, summary)
     path = Path(out) / "summary.json"
     if not quiet:

@@ -19,7 +19,13 @@ import click
 
 from navgate.cli.console import consoles
 from navgate.cli.errors import CliError
-from navgate.cli.outputs import atomic_output_dir, check_out_dir, default_out_dir, out_option
+from navgate.cli.outputs import (
+    atomic_output_dir,
+    check_out_dir,
+    check_outputs_early,
+    default_out_dir,
+    out_option,
+)
 from navgate.cli.summary import write_summary
 
 
@@ -57,6 +63,7 @@ def split(dem_path, grid, out, quiet):
     check_out_dir(out)
     rows, cols = grid
     inputs = [] if dem_path == "default" else [dem_path]
+    check_outputs_early(out, ["tiles.json"], inputs)
     with atomic_output_dir(out, inputs=inputs) as stage:
         try:
             paths = split_dem(dem, rows, cols, stage)
@@ -113,6 +120,7 @@ def info(directory, out, quiet):
     table_console, console = consoles(quiet)
     if out is not None:
         check_out_dir(out)
+        check_outputs_early(out, ["tiles.json"], [directory])
     try:
         store = TileStore(directory)
         summary = _describe(store)

@@ -25,7 +25,13 @@ import numpy as np
 
 from navgate.cli.errors import CliError
 from navgate.cli.inputs import read_bounded, regular_input
-from navgate.cli.outputs import check_out_dir, default_out_dir, out_option, staged_outputs
+from navgate.cli.outputs import (
+    check_out_dir,
+    check_outputs_early,
+    default_out_dir,
+    out_option,
+    staged_outputs,
+)
 from navgate.cli.summary import write_summary
 
 
@@ -53,6 +59,11 @@ def _write_roll_pitch(path: Path, angles, t=None) -> None:
         for k, (r, p) in enumerate(angles):
             tk = "" if t is None or k >= len(t) else f"{t[k]:.6f}"
             w.writerow([k, tk, r, p, f"{float(bam_to_deg(r)):.5f}", f"{float(bam_to_deg(p)):.5f}"])
+
+
+#: the files run and decode write into --out
+RUN_OUTPUTS = ("mpu6500_words.csv", "uart.bin", "roll_pitch.csv", "summary.json")
+DECODE_OUTPUTS = ("capture.bin", "roll_pitch.csv", "summary.json")
 
 
 @tinykalman.command("run")
@@ -88,6 +99,7 @@ def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
     if limit is not None and limit < 1:
         raise CliError(f"--limit must be positive, got {limit}")
     check_out_dir(out)
+    check_outputs_early(out, RUN_OUTPUTS, [log_csv])
     t_start = time.perf_counter()
     try:
         log = read_imu_csv(regular_input(log_csv))
@@ -99,7 +111,7 @@ def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
         words = words_from_imu(log.acc[:n], log.gyro[:n], frd=frd)
     except ValueError as error:
         raise CliError(str(error)) from None
-    with staged_outputs(out, inputs=[log_csv]) as staging:
+    with staged_outputs(out, inputs=[log_csv], names=RUN_OUTPUTS) as staging:
         rtl_info, stream, stats, angles, model_seconds = _run_chip(
             staging.dir, log, words, n, engine, sim, variant, console)
         wall = time.perf_counter() - t_start
@@ -241,13 +253,14 @@ def decode(file, port, baud, seconds, out, quiet):
         raise CliError(f"--seconds must be at most {MAX_CAPTURE_S:g} s "
                        f"({MAX_CAPTURE_S / 3600:g} h), got {seconds:g}")
     check_out_dir(out)
+    check_outputs_early(out, DECODE_OUTPUTS, [file])
     if file is not None:
         data = read_bounded(file, MAX_STREAM_BYTES)
         source = str(file)
     else:
         data = _read_serial(port, baud, seconds)
         source = f"serial:{port}"
-    with staged_outputs(out, inputs=[file]) as staging:
+    with staged_outputs(out, inputs=[file], names=DECODE_OUTPUTS) as staging:
         if port is not None:
             (staging.dir / "capture.bin").write_bytes(data)
         angles, st = _decode_into(staging.dir, data)
