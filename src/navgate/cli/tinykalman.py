@@ -229,6 +229,8 @@ def _read_serial(port: str, baud: int, seconds: float) -> bytes:
 #: TinyKalman sends about 1 kB/s: 64 MiB is some 18 hours)
 MAX_CAPTURE_S = 86_400.0
 MAX_STREAM_BYTES = 64 << 20
+#: how long reading a FILE that is a FIFO or a device may take before it is an error
+MAX_READ_S = 10.0
 
 
 @tinykalman.command("decode")
@@ -255,7 +257,7 @@ def decode(file, port, baud, seconds, out, quiet):
     check_out_dir(out)
     check_outputs_early(out, DECODE_OUTPUTS, [file])
     if file is not None:
-        data = read_bounded(file, MAX_STREAM_BYTES)
+        data = read_bounded(file, MAX_STREAM_BYTES, MAX_READ_S)
         source = str(file)
     else:
         data = _read_serial(port, baud, seconds)
