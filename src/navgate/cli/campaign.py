@@ -51,7 +51,6 @@ MAX_RUNS = 100_000
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")
 def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quiet):
     """Monte Carlo campaign of GPS-denied flights: seeds x DEMs x TRN options, on Dask."""
-    from rich.console import Console
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -135,12 +134,24 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
         files = camp.write_report(result, stage)
         write_summary(stage, summary)
     if not quiet:
-        _print_table(Console(width=max(table_console.width, 200)), summary)
+        _print_table(_table_console(table_console), summary)
     console.print(f"wrote summary.json and {', '.join(p.name for p in files.values())} in "
                   f"{out}", highlight=False)
     bad = non_finite_keys(summary)
     if bad:
         raise CliError(f"the campaign produced non-finite results ({', '.join(bad[:4])})")
+
+
+#: the table's width when stdout is not a terminal (a file, a pipe): rich wraps the headers
+TABLE_WIDTH_REDIRECTED = 120
+
+
+def _table_console(console):
+    """The console for the results table: the terminal's own width on a terminal, else
+    :data:`TABLE_WIDTH_REDIRECTED` columns (never the 200 that a log file had to take)."""
+    from rich.console import Console
+
+    return console if console.is_terminal else Console(width=TABLE_WIDTH_REDIRECTED)
 
 
 def _fmt(v, spec=".1f"):

@@ -248,9 +248,9 @@ def _print_table(console, s):
         hw = s.get(name, {}).get("hardware")
         if hw:
             console.print(f"{label}: {hardware_line(hw)}", highlight=False)
-    if "fp32_vs_reference_max_position_difference_m" in s:
-        console.print(f"fp32 vs reference: max position difference "
-                      f"{s['fp32_vs_reference_max_position_difference_m']:.2f} m; engine wall "
-                      f"time {s['engine_wall_time_s']:.1f} s vs "
-                      f"{s['reference_engine_wall_time_s']:.1f} s")
-
+    engine = s.get("engine", "reference")
+    key = f"{engine.replace('-', '_')}_vs_reference_max_position_difference_m"
+    if key in s:
+        console.print(f"{engine} vs reference: max position difference {s[key]:.2f} m; "
+                      f"{engine} wall time {s['engine_wall_time_s']:.1f} s vs "
+                      f"{s['reference_engine_wall_time_s']:.1f} s", highlight=False)

@@ -29,11 +29,14 @@ Statistics per configuration (docs/trn.md, "Campaigns"):
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
+import logging
 import math
 import time as _time
 import traceback
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -308,6 +311,30 @@ def aggregate(conf: Configuration, rows: list) -> dict:
     return out
 
 
+#: Dask's loggers that report a normal shutdown as warnings ("Worker process still alive
+#: after 3.9 seconds, killing", closed comms): silenced to errors while the cluster closes
+_DASK_LOGGERS = ("distributed", "distributed.nanny", "distributed.core", "distributed.worker",
+                 "distributed.scheduler", "distributed.comm", "distributed.batched",
+                 "distributed.client")
+
+
+@contextlib.contextmanager
+def _quiet_dask_shutdown():
+    """Within the block, Dask's loggers pass errors only (their warnings at the end of a
+    normal run say nothing to a user; a failed run is reported through its row)."""
+    loggers = [logging.getLogger(name) for name in _DASK_LOGGERS]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.ERROR)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        for lg, level in zip(loggers, levels, strict=True):
+            lg.setLevel(level)
+
+
 def run_campaign(campaign: Campaign, *, workers: int = 2, scheduler: str | None = None,
                  progress=None) -> CampaignResult:
     """Run every (configuration, seed) on Dask; ``progress(row)`` after each run."""
@@ -343,9 +370,10 @@ def run_campaign(campaign: Campaign, *, workers: int = 2, scheduler: str | None 
             if progress is not None:
                 progress(row)
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        with _quiet_dask_shutdown():
+            client.close()
+            if cluster is not None:
+                cluster.close()
     order = {(c, s): i for i, (c, s) in enumerate(campaign.tasks())}
     rows.sort(key=lambda r: order.get((Configuration(r["dem"], r["trn"], r["ranger"]),
                                        r["seed"]), 0))
