@@ -222,3 +222,65 @@ def test_hostile_outputs(name, option, tmp_path, navgate_run):
     assert blocker.read_text() == "x"
     # no staging left behind anywhere
     assert not [p for p in tmp_path.rglob("*navgate-tmp*")]
+
+
+def _disk_full(*args, **kwargs):
+    """A writer that leaves a truncated file and then finds the disk full."""
+    import errno
+
+    target = next(a for a in args if isinstance(a, (str, Path)))
+    Path(target).write_text("truncated,")
+    raise OSError(errno.ENOSPC, "No space left on device", str(target))
+
+
+def _interrupt(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+# command -> (its case, "module:function" that writes one output late in the run, the
+# outputs planted as previous results: (option, names in the directory or None for a file))
+LATE_WRITERS = {
+    "tinykalman run": ("navgate.cli.tinykalman:_write_roll_pitch",
+                       ["mpu6500_words.csv", "uart.bin", "roll_pitch.csv", "summary.json"]),
+    "tinykalman decode": ("navgate.cli.tinykalman:_write_roll_pitch",
+                          ["roll_pitch.csv", "summary.json"]),
+    "fly": ("navgate.systems.ins_trn.ps.records:write_log", None),
+}
+
+
+@pytest.mark.parametrize("name", sorted(LATE_WRITERS))
+@pytest.mark.parametrize("failure", ["disk full", "interrupt"])
+def test_failed_run_leaves_previous_results(name, failure, tmp_path, navgate_run,
+                                            monkeypatch):
+    """A full disk or a Ctrl-C late in the run: exit 2 / 130, every previous output
+    byte for byte as it was (the 13.5 MB words file once left at 33 bytes, the record
+    log at 3.7 KB), no staging left."""
+    import importlib
+
+    case = make_case(tuple(name.split()), tmp_path)
+    target, names = LATE_WRITERS[name]
+    out = tmp_path / "out"
+    out.mkdir()
+    planted = [out / n for n in (names or ["summary.json", "trajectory.csv"])]
+    args = [*case.args, "--out", out]
+    if name == "fly":
+        record = tmp_path / "flight.log"
+        planted.append(record)
+        args += ["--record", record]
+    for p in planted:
+        p.write_text(f"previous {p.name}\n")
+    before = _snapshot(planted)
+    module, attr = target.split(":")
+    monkeypatch.setattr(importlib.import_module(module), attr,
+                        _disk_full if failure == "disk full" else _interrupt)
+    code, _, err = navgate_run(args)
+    line = navgate_run.one_line(err)
+    if failure == "disk full":
+        assert code == 2 and "No space left on device" in line, line
+        assert "navgate-tmp" not in line  # named by its final path, not the staging path
+    else:
+        assert code == 130 and "interrupted" in line, line
+    assert _snapshot(planted) == before
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in planted
+                                                          if p.parent == out)
+    assert not [p for p in tmp_path.rglob("*navgate-tmp*")]
