@@ -24,6 +24,7 @@ import click
 import numpy as np
 
 from navgate.cli.console import consoles, hardware_line
+from navgate.cli.engines import engine_choice, load_engine_class
 from navgate.cli.errors import CliError, simulation_errors
 from navgate.cli.inputs import regular_input
 from navgate.cli.outputs import (
@@ -47,8 +48,7 @@ def _fraction(ctx, param, value):
 
 @click.command()
 @click.argument("log_path", type=click.Path(dir_okay=False))
-@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl", "fpga-sim"]),
-              default="reference", show_default=True,
+@click.option("--engine", type=engine_choice(), default="reference", show_default=True,
               help="PL engine: float64 reference, float32 bit-true model, the ins_engines "
                    "gateware in Verilator, or the whole FPGA (ins_trn_top) in Verilator.")
 @click.option("--dem", "dem_path", type=click.Path(dir_okay=True), default=None,
@@ -78,8 +78,8 @@ def replay(log_path, engine, dem_path, no_trn, min_used, out, quiet):
                        else str(error)) from None
     header = stream.header
     cfg = _flight_config(header, log_path, no_trn)
-    if engine == "fpga-sim" and header.get("ideal"):
-        raise CliError(f"{log_path}: --engine fpga-sim needs the IMU's int16 output words; "
+    if header.get("ideal") and load_engine_class(engine, "navgate replay").needs_imu_words:
+        raise CliError(f"{log_path}: --engine {engine} needs the IMU's int16 output words; "
                        "this log has the ideal sensors' float words")
     used = stream.used_fraction
     bad_total = int(sum(stream.bad_records.values()))
