@@ -292,8 +292,9 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
                 # the first Ctrl-C (or a failed block) stops the report: no queued block
                 # starts and the running tools are killed, rather than every block started
                 # running to its end while the interrupt waits
-                cancel_tools()
+                # queued blocks first, so that no thread whose tool is killed picks up another
                 pool.shutdown(wait=False, cancel_futures=True)
+                cancel_tools()
                 raise
             pool.shutdown(wait=True)
     return report_table([rows[name] for name in blocks],
