@@ -9,6 +9,7 @@ would take seconds."""
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -189,3 +190,47 @@ def test_first_ctrl_c_stops_report(tmp_path):
     assert "interrupted" in err and "Traceback" not in err, err
     assert took < 10, took  # not the 60 s the tools would have taken
     assert len(started.read_text().split()) == 2  # no queued block started after the signal
+
+
+def test_dem_inputs_that_are_not_files_are_refused(tmp_path, navgate_run):
+    """A DEM is read by seeking: a FIFO (GDAL's open would block) or a device is one line,
+    for every command that takes a DEM."""
+    fifo = tmp_path / "dem.fifo"
+    os.mkfifo(fifo)
+    start = time.perf_counter()
+    for args in (["fly", "--dem", fifo, "--duration", 5, "--out", tmp_path / "o"],
+                 ["replay", tmp_path / "missing.log", "--dem", fifo],
+                 ["campaign", "--seeds", "0", "--dem", fifo, "--out", tmp_path / "o"],
+                 ["tiles", "split", fifo, "--into", "1x1", "--out", tmp_path / "o"],
+                 ["trn-serve", "--tiles", fifo, "--listen", "tcp://127.0.0.1:0"]):
+        code, _, err = navgate_run(args)
+        line = navgate_run.one_line(err)
+        assert code == 2, (args, err)
+        assert "not a regular file or a directory" in line or "cannot read" in line, line
+    assert time.perf_counter() - start < 30
+    assert not (tmp_path / "o").exists()
+
+
+def test_ahrs_fifo_waits_for_its_writer_only_so_long(tmp_path, navgate_run, monkeypatch):
+    import threading
+
+    monkeypatch.setattr(inputs, "FIFO_WAIT_S", 0.3)
+    fifo = tmp_path / "imu.fifo"
+    os.mkfifo(fifo)
+    code, _, err = navgate_run(["ahrs", fifo])
+    assert code == 2 and "no writer opened within 0.3 s" in navgate_run.one_line(err)
+    with open(fifo, "wb"):  # the abandoned waiter gets its writer and lets go
+        pass
+    # a FIFO with a writer streams as a file does
+    fifo = tmp_path / "imu2.fifo"
+    os.mkfifo(fifo)
+    n = 300
+    rows = "\n".join(f"{k / 100:.2f},0,0,0,0,0,-9.80665" for k in range(n))
+    text = "t,gx,gy,gz,ax,ay,az\n" + rows + "\n"
+    writer = threading.Thread(target=lambda: fifo.write_text(text))
+    monkeypatch.setattr(inputs, "FIFO_WAIT_S", 10.0)
+    writer.start()
+    code, out, err = navgate_run(["ahrs", fifo])
+    writer.join(timeout=10)
+    assert code == 0, err
+    assert re.search(rf"samples\s*│\s*{n}\b", out), out  # every row came through the FIFO

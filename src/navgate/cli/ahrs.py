@@ -17,6 +17,7 @@ from rich.table import Table
 
 from navgate.cli.console import consoles, numba_note
 from navgate.cli.errors import CliError
+from navgate.cli.inputs import fifo_guard
 from navgate.cli.outputs import atomic_output_file, out_option
 
 
@@ -77,7 +78,8 @@ def ahrs(input_csv, method, out, kp, ki, gain, axes, gyro_unit, no_mag, init, en
         return
     start = time.perf_counter()
     try:
-        reader = ImuLogReader(input_csv, use_mag=not no_mag, gyro_unit=gyro_unit)
+        reader = ImuLogReader(input_csv, use_mag=not no_mag, gyro_unit=gyro_unit,
+                              fileobj=fifo_guard(input_csv))
     except LogError as error:
         raise CliError(str(error)) from None
     stats = {"rows": 0, "t0": None, "t1": None, "last": None}
@@ -165,7 +167,7 @@ def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no
                        f"(drop --no-mag)")
     start = time.perf_counter()
     try:
-        log = read_imu_csv(input_csv, gyro_unit=gyro_unit)
+        log = read_imu_csv(input_csv, gyro_unit=gyro_unit, fileobj=fifo_guard(input_csv))
     except LogError as error:
         raise CliError(str(error)) from None
     if len(log) < 2:

@@ -15,6 +15,7 @@ import click
 from navgate.cli.console import consoles
 from navgate.cli.errors import CliError
 from navgate.cli.extras import require
+from navgate.cli.inputs import dem_input
 from navgate.cli.outputs import (
     atomic_output_dir,
     check_out_dir,
@@ -94,7 +95,7 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
     # every DEM must load and hold the route before any worker starts
     for d in dems:
         try:
-            dem = camp._load_dem(d)
+            dem = camp._load_dem(dem_input(d))
             plan_route(dem, FlightConfig(duration_s=duration))
         except (DemError, RouteError) as error:
             raise CliError(str(error)) from None

@@ -17,6 +17,7 @@ import click
 from navgate.cli.console import consoles, hardware_line, numba_note
 from navgate.cli.engines import engine_choice, load_engine_class
 from navgate.cli.errors import CliError, simulation_errors
+from navgate.cli.inputs import dem_input
 from navgate.cli.outputs import (
     check_not_input,
     check_out_dir,
@@ -112,7 +113,7 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         raise CliError(f"--engine {engine} needs the IMU's int16 output words, which "
                        "--ideal-sensors does not produce")
     try:
-        dem = load_terrain(dem_path, cache_mb=tile_cache_mb, priority=tile_priority)
+        dem = load_terrain(dem_input(dem_path), cache_mb=tile_cache_mb, priority=tile_priority)
     except DemError as error:
         raise CliError(str(error)) from None
     if (tile_cache_mb is not None or tile_priority != "check") and not hasattr(dem, "stats"):

@@ -6,6 +6,10 @@ a hang or an exhausted memory: ``/dev/zero``, a FIFO without a writer, an endles
 - :func:`regular_input` is for inputs that a library reads by path (record logs, IMU CSV
   logs): a device, FIFO or socket is refused before it is opened (opening a FIFO for reading
   blocks until a writer appears), and so is a file larger than the command's limit.
+- :func:`dem_input` is for DEM paths (read by seeking, GDAL): a regular file or a directory
+  of tiles; anything else is refused before GDAL opens it.
+- :func:`fifo_guard` is for inputs that may stream from a pipe (``navgate ahrs``): a FIFO
+  must get a writer within a time limit (opening it blocks until one appears).
 - :func:`read_bounded` reads a whole input into memory: a regular file up to ``max_bytes``;
   anything else (a FIFO, a pipe, a character device) is opened non-blocking and read until
   end of file, ``max_bytes`` or ``max_seconds``, whichever comes first; reaching a limit
@@ -17,6 +21,7 @@ from __future__ import annotations
 import os
 import select
 import stat
+import threading
 import time
 from pathlib import Path
 
@@ -94,3 +99,56 @@ def read_bounded(path: str | Path, max_bytes: int, max_seconds: float = 10.0) ->
         os.close(fd)
     return b"".join(chunks)
 
+
+
+def dem_input(path: str | Path | None) -> str | Path | None:
+    """``path`` unchanged when it is absent (the library names the missing file), a regular
+    file or a directory; a device, FIFO or socket is one line before GDAL opens it."""
+    if path is None or str(path) == "default" or not os.path.exists(path):
+        return path
+    st = _stat(path)
+    if not (stat.S_ISREG(st.st_mode) or stat.S_ISDIR(st.st_mode)):
+        raise CliError(f"cannot read {path}: not a regular file or a directory (a DEM is read "
+                       "by seeking; a device, FIFO or socket cannot be)")
+    return path
+
+
+#: how long a FIFO input may wait for its writer (fifo_guard)
+FIFO_WAIT_S = 10.0
+
+
+def fifo_guard(path: str | Path, max_seconds: float | None = None):
+    """When ``path`` is a FIFO, wait at most ``max_seconds`` (:data:`FIFO_WAIT_S`) for a
+    writer to open it (a plain open would block for ever) and return the open binary file to
+    read it through (reopening it could block again once the writer has finished); None for
+    any other path."""
+    max_seconds = FIFO_WAIT_S if max_seconds is None else max_seconds
+    try:
+        if not stat.S_ISFIFO(os.stat(path).st_mode):
+            return None
+    except OSError:
+        return None  # the reader names a missing or unreadable file itself
+    opened: list[int] = []
+    lock = threading.Lock()
+    gave_up = threading.Event()
+
+    def wait():  # a blocking open returns once a writer has opened the FIFO
+        try:
+            fd = os.open(path, os.O_RDONLY)
+        except OSError:
+            return
+        with lock:
+            if gave_up.is_set():  # too late: let the writer see no reader of ours
+                os.close(fd)
+            else:
+                opened.append(fd)
+
+    waiter = threading.Thread(target=wait, daemon=True)
+    waiter.start()
+    waiter.join(max_seconds)
+    with lock:
+        if not opened:
+            gave_up.set()
+            raise CliError(f"{path}: a FIFO that no writer opened within {max_seconds:g} s; "
+                           "stopped")
+    return os.fdopen(opened[0], "rb")

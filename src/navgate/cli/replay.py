@@ -26,7 +26,7 @@ import numpy as np
 from navgate.cli.console import consoles, hardware_line
 from navgate.cli.engines import engine_choice, load_engine_class
 from navgate.cli.errors import CliError, simulation_errors
-from navgate.cli.inputs import regular_input
+from navgate.cli.inputs import dem_input, regular_input
 from navgate.cli.outputs import (
     check_out_dir,
     check_outputs_early,
@@ -90,7 +90,7 @@ def replay(log_path, engine, dem_path, no_trn, min_used, out, quiet):
                        f"records are usable ({reasons}), below --min-used {min_used:g}; "
                        "not navigated")
     try:
-        dem = load_terrain(dem_path)
+        dem = load_terrain(dem_input(dem_path))
     except DemError as error:
         raise CliError(str(error)) from None
     console.print(f"[bold]navgate replay[/]: {log_path}, {stream.n_imu:,} IMU records "

@@ -19,6 +19,7 @@ import click
 
 from navgate.cli.console import consoles
 from navgate.cli.errors import CliError
+from navgate.cli.inputs import dem_input
 from navgate.cli.outputs import (
     atomic_output_dir,
     check_out_dir,
@@ -57,7 +58,7 @@ def split(dem_path, grid, out, quiet):
 
     table_console, console = consoles(quiet)
     try:
-        dem = Dem.default() if dem_path == "default" else Dem.from_file(dem_path)
+        dem = Dem.default() if dem_path == "default" else Dem.from_file(dem_input(dem_path))
     except DemError as error:
         raise CliError(str(error)) from None
     check_out_dir(out)
