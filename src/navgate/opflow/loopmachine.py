@@ -21,7 +21,10 @@ Structure (module docstring of :mod:`navgate.opflow.loops` for the timing rules)
   value and the tap that holds its update from the previous iteration;
 * **memories**: one :class:`amaranth.lib.memory.Memory` per array (32-bit words, the
   schedule's read ports, one write port; reads not transparent), initial contents given at
-  elaboration, the state after a run read back in simulation (``memories``).
+  elaboration; while the machine is idle, read port 0 and the write port of every array
+  serve the host port (``host_addr`` = array number << ``array_bits`` | word, see
+  :meth:`LoopMachine.host_address`; ``host_we``/``host_wdata``; ``host_rdata`` one cycle
+  after the address).
 
 Handshake: ``start`` (one cycle, while ``busy`` is low) runs the nest; ``done`` is high for
 one cycle ``schedule.cycles + 1`` cycles after the start cycle.
@@ -38,7 +41,7 @@ from amaranth.lib.wiring import In, Out
 from navgate.gateware.fp32 import Fp32Add, Fp32Mul
 from navgate.opflow.loops import ADDR_READY, LoopSchedule, addresses, iteration_indices
 
-__all__ = ["LoopMachine", "to_bits"]
+__all__ = ["LoopMachine", "to_bits", "simulate"]
 
 
 def to_bits(values) -> list:
@@ -63,7 +66,16 @@ class LoopMachine(wiring.Component):
         self.memories = {name: Memory(shape=unsigned(32), depth=words,
                                       init=to_bits(init.get(name, np.zeros(words, np.uint32))))
                          for name, words in nest.arrays.items()}
-        super().__init__({"start": In(1), "busy": Out(1), "done": Out(1)})
+        self.arrays = list(nest.arrays)
+        #: host address: array number << array_bits | word
+        self.array_bits = _bits(max(nest.arrays.values()))
+        aw = self.array_bits + _bits(len(self.arrays))
+        super().__init__({"start": In(1), "busy": Out(1), "done": Out(1),
+                          "host_addr": In(aw), "host_wdata": In(32), "host_we": In(1),
+                          "host_rdata": Out(32)})
+
+    def host_address(self, array: str, word: int) -> int:
+        return self.arrays.index(array) << self.array_bits | word
 
     def elaborate(self, platform):  # noqa: C901 - one generator, read top to bottom
         m = Module()
@@ -228,10 +240,25 @@ class LoopMachine(wiring.Component):
                     ins[op.dst] = (at(addr_info(op.addr, width), t),)
                 else:
                     ins[op.dst] = (operand(op.srcs[0], t), operand(op.srcs[1], t))
+        # the host port: while idle, read port 0 and the write port of every array serve
+        # host_addr (reads one cycle late on host_rdata)
+        ab = self.array_bits
+        host_sel = Signal.like(self.host_addr[ab:], name="host_sel")
+        m.d.sync += host_sel.eq(self.host_addr[ab:])
+        for k, name in enumerate(self.arrays):
+            key = (("read", name), 0)
+            if key not in read_ports:
+                read_ports[key] = self.memories[name].read_port(transparent_for=())
+                by_res[key] = []
+            rp = read_ports[key]
+            with m.If(~running):
+                m.d.comb += rp.addr.eq(self.host_addr[:ab])
+            with m.If(host_sel == k):
+                m.d.comb += self.host_rdata.eq(rp.data)
         for (res, inst), ops in by_res.items():
             if res[0] == "read":
                 rp = read_ports[(res, inst)]
-                with m.Switch(phase):
+                with m.If(running), m.Switch(phase):
                     for op in ops:
                         with m.Case(s.time[op.dst] % ii):
                             m.d.comb += rp.addr.eq(ins[op.dst][0])
@@ -250,8 +277,18 @@ class LoopMachine(wiring.Component):
         stores_of: dict = {}
         for k, st in enumerate(nest.stores):
             stores_of.setdefault(st.array, []).append(k)
+        for k, name in enumerate(self.arrays):
+            if name not in stores_of:
+                wp = self.memories[name].write_port()
+                with m.If(~running):
+                    m.d.comb += [wp.en.eq(self.host_we & (self.host_addr[ab:] == k)),
+                                 wp.addr.eq(self.host_addr[:ab]), wp.data.eq(self.host_wdata)]
         for array, ks in stores_of.items():
             wp = self.memories[array].write_port()
+            with m.If(~running):
+                m.d.comb += [wp.en.eq(self.host_we
+                                      & (self.host_addr[ab:] == self.arrays.index(array))),
+                             wp.addr.eq(self.host_addr[:ab]), wp.data.eq(self.host_wdata)]
             port = {}
             for k in ks:
                 st = nest.stores[k]
@@ -260,9 +297,53 @@ class LoopMachine(wiring.Component):
                 if st.when is not None:
                     en = en & at(flag_info(st.when), t)
                 port[k] = (en, at(addr_info(st.addr, len(wp.addr)), t), tap(st.src, t))
-            with m.Switch(phase):
+            with m.If(running), m.Switch(phase):
                 for k in ks:
                     with m.Case(s.time[("store", k)] % ii):
                         en, addr, dat = port[k]
                         m.d.comb += [wp.en.eq(en), wp.addr.eq(addr), wp.data.eq(dat)]
         return m
+
+
+def simulate(schedule: LoopSchedule, memories: dict, runs: int = 1, init: dict | None = None):
+    """Run the machine of ``schedule`` in Amaranth's simulator: write ``memories`` (array ->
+    float32 values or uint32 patterns) through the host port, then ``runs`` times start the
+    nest, count the cycles from the start cycle to ``done`` and read every array back through
+    the host port. Returns one (array -> uint32 words, cycles) per run."""
+    from amaranth.sim import Simulator
+
+    dut = LoopMachine(schedule, init)
+    out: list = []
+
+    async def bench(ctx):
+        for name, values in memories.items():
+            for i, w in enumerate(to_bits(values)):
+                ctx.set(dut.host_we, 1)
+                ctx.set(dut.host_addr, dut.host_address(name, i))
+                ctx.set(dut.host_wdata, w)
+                await ctx.tick()
+        ctx.set(dut.host_we, 0)
+        for _ in range(runs):
+            ctx.set(dut.start, 1)
+            await ctx.tick()
+            ctx.set(dut.start, 0)
+            n = 1
+            while not ctx.get(dut.done):
+                await ctx.tick()
+                n += 1
+            await ctx.tick()
+            got = {}
+            for name, words in schedule.nest.arrays.items():
+                vals = []
+                for i in range(words):
+                    ctx.set(dut.host_addr, dut.host_address(name, i))
+                    await ctx.tick()
+                    vals.append(ctx.get(dut.host_rdata))
+                got[name] = np.array(vals, np.uint32)
+            out.append((got, n))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    return out
