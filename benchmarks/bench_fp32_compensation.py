@@ -12,8 +12,11 @@ takes some 15 minutes per engine, and the reference run is the same for every ve
 the fp32 programs). Prints, at the end of each quarter of the flight, the horizontal
 position difference fp32 - reference (largest so far, and at that time), the largest
 relative difference of the 15 standard deviations so far (square roots of P's diagonal as
-the engine reports it: P - cP for fp32) and its state index; then the fixes applied and the
-second-half RMS error of each run.
+the engine reports it: P - cP for fp32) and its state index; then over the whole flight the
+RMS position difference and the median and 99th percentile of the largest relative sigma
+difference per log line (the maximum is set by moments when one run has applied a fix that
+the other applies a log line later), the fixes applied and the second-half RMS error of each
+run.
 """
 
 from __future__ import annotations
@@ -55,6 +58,10 @@ def compare(ref: dict, f32: dict) -> None:
         worst = int(np.argmax(rel[:k].max(axis=0)))
         print(f"{ref['t'][k - 1] - ref['t'][0]:9.0f} {dpos[:k].max():15.3f} "
               f"{dpos[k - 1]:15.3f} {rel[:k].max():15.3e} {worst:6d}")
+    worst = rel.max(axis=1)
+    print(f"over the flight: RMS |dpos| {np.sqrt(np.mean(dpos**2)):.3f} m; largest relative "
+          f"sigma difference per log line: median {np.median(worst):.3e}, 99th percentile "
+          f"{np.percentile(worst, 99):.3e}; at the end {worst[-1]:.3e}")
     for name, r in (("reference", ref), ("fp32", f32)):
         e = r["err"]
         print(f"{name}: fixes applied {int(r['applied'])}, 2nd-half RMS error "
