@@ -21,11 +21,13 @@ def cases(rows, cols):
         "rank1_5_one_port": (K.sym_rank1_update(5), LoopUnits(read_ports=1), 14 * 2 + 17),
         "spmv": (K.sparse_matvec(rows, cols, 6, 6), LoopUnits(), 7 * Fp32Add.LATENCY + 16),
         "matvec_3x4": (K.dense_matvec(3, 4), LoopUnits(), 11 * Fp32Add.LATENCY + 16),
+        "matvec_bias_3x3": (K.dense_matvec(3, 3, bias=True), LoopUnits(),
+                            8 * Fp32Add.LATENCY + 16),
     }
 
 
 @pytest.mark.parametrize("case", ["rank1_15", "rank1_5_scaled", "rank1_5_one_port", "spmv",
-                                  "matvec_3x4"])
+                                  "matvec_3x4", "matvec_bias_3x3"])
 def test_machine_bit_exact_and_exact_cycles(case, loop_data):
     nest, units, cycles = cases(loop_data.rows, loop_data.cols)[case]
     s = modulo_schedule(nest, units)

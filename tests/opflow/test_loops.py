@@ -29,7 +29,7 @@ from navgate.opflow.loops import (
 
 def kernels(rows, cols):
     return [K.sym_rank1_update(6), K.sym_rank1_update(4, 0.5), K.dense_matvec(3, 5),
-            K.sparse_matvec(rows, cols, 6, 6)]
+            K.dense_matvec(2, 4, bias=True), K.sparse_matvec(rows, cols, 6, 6)]
 
 
 def bits(values):

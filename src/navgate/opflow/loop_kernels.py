@@ -8,8 +8,9 @@ kernels used to prove the loop toolchain (executor, modulo scheduler, loop machi
 * :func:`sparse_matvec`: ``y <- A x`` for a sparse A given by its non-zeros in row order
   (values in memory ``a``, their columns and rows in ROM tables, first/last-of-row flags in
   ROM tables): one accumulator per row, so II is the adder's recurrence;
-* :func:`dense_matvec`: ``y <- A x`` as a two-level nest (rows, columns) with affine
-  addresses and the accumulator reset and stored by the level conditions.
+* :func:`dense_matvec`: ``y <- A x`` (or ``b + A x``: the accumulator starts from a loaded
+  word) as a two-level nest (rows, columns) with affine addresses and the accumulator reset
+  and stored by the level conditions.
 """
 
 from __future__ import annotations
@@ -68,13 +69,18 @@ def sparse_matvec(rows, cols, n_rows: int, n_cols: int) -> LoopNest:
                     [Store("y", Addr("row", (1,)), "s", Cond("table", "last"))])
 
 
-def dense_matvec(n_rows: int, n_cols: int) -> LoopNest:
-    """``y <- A x`` with A row-major in memory ``A``: levels (row, column)."""
+def dense_matvec(n_rows: int, n_cols: int, bias: bool = False) -> LoopNest:
+    """``y <- A x`` (``y <- b + A x`` with ``bias``: the sum starts from the loaded ``b_i``)
+    with A row-major in memory ``A``: levels (row, column)."""
     ops = [LOp("av", "load", ("A",), Addr(None, (n_cols, 1))),
-           LOp("xv", "load", ("x",), Addr(None, (0, 1))),
-           LOp("pr", "mul", ("av", "xv")),
-           LOp("s", "add", ("acc", "pr"))]
-    return LoopNest(f"matvec_{n_rows}x{n_cols}", (n_rows, n_cols),
-                    {"A": n_rows * n_cols, "x": n_cols, "y": n_rows}, {}, ops,
-                    [Acc("acc", const_name(0.0), "s", Cond("first", 1))],
+           LOp("xv", "load", ("x",), Addr(None, (0, 1)))]
+    arrays = {"A": n_rows * n_cols, "x": n_cols, "y": n_rows}
+    init = const_name(0.0)
+    if bias:
+        ops.append(LOp("bv", "load", ("b",), Addr(None, (1, 0))))
+        arrays["b"] = n_rows
+        init = "bv"
+    ops += [LOp("pr", "mul", ("av", "xv")), LOp("s", "add", ("acc", "pr"))]
+    return LoopNest(f"matvec_{n_rows}x{n_cols}{'_bias' if bias else ''}", (n_rows, n_cols),
+                    arrays, {}, ops, [Acc("acc", init, "s", Cond("first", 1))],
                     [Store("y", Addr(None, (1, 0)), "s", Cond("last", 1))])
