@@ -23,11 +23,14 @@ def cases(rows, cols):
         "matvec_3x4": (K.dense_matvec(3, 4), LoopUnits(), 11 * Fp32Add.LATENCY + 16),
         "matvec_bias_3x3": (K.dense_matvec(3, 3, bias=True), LoopUnits(),
                             8 * Fp32Add.LATENCY + 16),
+        "matvec_il_3x4": (K.dense_matvec_interleaved(3, 4), LoopUnits(), 11 * 3 + 16),
+        "matvec_il_9x3": (K.dense_matvec_interleaved(9, 3), LoopUnits(), 26 * 1 + 16),
     }
 
 
 @pytest.mark.parametrize("case", ["rank1_15", "rank1_5_scaled", "rank1_5_one_port", "spmv",
-                                  "matvec_3x4", "matvec_bias_3x3"])
+                                  "matvec_3x4", "matvec_bias_3x3", "matvec_il_3x4",
+                                  "matvec_il_9x3"])
 def test_machine_bit_exact_and_exact_cycles(case, loop_data):
     nest, units, cycles = cases(loop_data.rows, loop_data.cols)[case]
     s = modulo_schedule(nest, units)

@@ -29,7 +29,8 @@ from navgate.opflow.loops import (
 
 def kernels(rows, cols):
     return [K.sym_rank1_update(6), K.sym_rank1_update(4, 0.5), K.dense_matvec(3, 5),
-            K.dense_matvec(2, 4, bias=True), K.sparse_matvec(rows, cols, 6, 6)]
+            K.dense_matvec(2, 4, bias=True), K.dense_matvec_interleaved(3, 4),
+            K.sparse_matvec(rows, cols, 6, 6)]
 
 
 def bits(values):
@@ -97,7 +98,7 @@ def _check_schedule(s):
         assert t >= 1
         for src in op.srcs if op.kind != "load" else ():
             if src in accs:
-                assert s.ready[accs[src].update] - ii <= t  # the recurrence
+                assert s.ready[accs[src].update] - accs[src].distance * ii <= t  # recurrence
             elif not src.startswith("c:"):
                 assert s.ready[src] <= t
     for k, st in enumerate(nest.stores):
@@ -125,9 +126,26 @@ def test_modulo_schedule_ii_bounds_and_exact_cycles(loop_data):
         s = modulo_schedule(nest)
         assert (s.ii, s.rec_mii, s.res_mii) == (lat_add, lat_add, 1)
         assert s.cycles == (nest.iterations - 1) * lat_add + 16
+    # interleaved row sums: the recurrence bound is the adder latency over the distance
+    for rows, ii in ((3, 3), (4, 2), (8, 1), (15, 1)):
+        s = modulo_schedule(K.dense_matvec_interleaved(rows, 5))
+        assert (s.ii, s.rec_mii) == (ii, -(-lat_add // rows))
+        assert s.cycles == (rows * 5 - 1) * ii + 16
     for nest in kernels(loop_data.rows, loop_data.cols):
         for units in (LoopUnits(), LoopUnits(read_ports=1), LoopUnits(mul=2, add=2)):
             _check_schedule(modulo_schedule(nest, units))
+
+
+def test_interleaved_sums_are_the_same_bits():
+    """Row sums carried at distance n_rows keep each row's order: the same bits as the
+    row-by-row nest."""
+    rng = np.random.default_rng(11)
+    for rows, cols in ((3, 4), (15, 15), (1, 6)):
+        a, b = K.dense_matvec(rows, cols), K.dense_matvec_interleaved(rows, cols)
+        for _ in range(3):
+            mems = {k: rng.standard_normal(w) * 10.0 ** rng.integers(-8, 8, w)
+                    for k, w in a.arrays.items()}
+            assert np.array_equal(bits(run_nest(a, mems)["y"]), bits(run_nest(b, mems)["y"]))
 
 
 def _nest(ops, stores, accs=(), trips=(4,), arrays=None, tables=None):
@@ -158,6 +176,10 @@ LOAD_A = LOp("x", "load", ("a",), Addr(None, (1,)))
      "out of range"),
     (_nest([LOAD_A, LOp("y", "add", ("s", "x"))], [],
            [Acc("s", const_name(0.0), "y", Cond("first", 3))]), "no loop level"),
+    (_nest([LOAD_A, LOp("y", "add", ("s", "x"))], [],
+           [Acc("s", const_name(0.0), "y", Cond("first", 0), 2)]), "read before its first"),
+    (_nest([LOAD_A, LOp("y", "add", ("s", "x"))], [],
+           [Acc("s", const_name(0.0), "y", Cond("first", 0), 0)]), "distance must be"),
 ])
 def test_malformed_nests_are_rejected(nest, message):
     with pytest.raises(LoopError, match=message):

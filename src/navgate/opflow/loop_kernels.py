@@ -10,7 +10,11 @@ kernels used to prove the loop toolchain (executor, modulo scheduler, loop machi
   ROM tables): one accumulator per row, so II is the adder's recurrence;
 * :func:`dense_matvec`: ``y <- A x`` (or ``b + A x``: the accumulator starts from a loaded
   word) as a two-level nest (rows, columns) with affine addresses and the accumulator reset
-  and stored by the level conditions.
+  and stored by the level conditions;
+* :func:`dense_matvec_interleaved`: the same sums with the row loop inside: one accumulator
+  at distance ``n_rows`` carries every row's sum (each in the same order as
+  :func:`dense_matvec`, so the results are the same bits) and II drops to 1 once there are
+  as many rows as the adder has stages.
 """
 
 from __future__ import annotations
@@ -20,7 +24,8 @@ import numpy as np
 from navgate.opflow.ir import const_name
 from navgate.opflow.loops import Acc, Addr, Cond, LoopNest, LOp, Store
 
-__all__ = ["upper_index", "sym_rank1_update", "sparse_matvec", "dense_matvec"]
+__all__ = ["upper_index", "sym_rank1_update", "sparse_matvec", "dense_matvec",
+           "dense_matvec_interleaved"]
 
 
 def upper_index(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -84,3 +89,16 @@ def dense_matvec(n_rows: int, n_cols: int, bias: bool = False) -> LoopNest:
     return LoopNest(f"matvec_{n_rows}x{n_cols}{'_bias' if bias else ''}", (n_rows, n_cols),
                     arrays, {}, ops, [Acc("acc", init, "s", Cond("first", 1))],
                     [Store("y", Addr(None, (1, 0)), "s", Cond("last", 1))])
+
+
+def dense_matvec_interleaved(n_rows: int, n_cols: int) -> LoopNest:
+    """``y <- A x`` with levels (column, row): the row sums interleave (accumulator distance
+    ``n_rows``), reset at column 0 and stored at the last column."""
+    ops = [LOp("av", "load", ("A",), Addr(None, (1, n_cols))),
+           LOp("xv", "load", ("x",), Addr(None, (1, 0))),
+           LOp("pr", "mul", ("av", "xv")),
+           LOp("s", "add", ("acc", "pr"))]
+    return LoopNest(f"matvec_il_{n_rows}x{n_cols}", (n_cols, n_rows),
+                    {"A": n_rows * n_cols, "x": n_cols, "y": n_rows}, {}, ops,
+                    [Acc("acc", const_name(0.0), "s", Cond("at_first", 0), n_rows)],
+                    [Store("y", Addr(None, (0, 1)), "s", Cond("at_last", 0))])

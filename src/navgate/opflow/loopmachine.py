@@ -170,8 +170,9 @@ class LoopMachine(wiring.Component):
                 m.d.comb += [rp.addr.eq(nidx), out.eq(rp.data)]
             else:
                 lv = int(cond.arg)
-                want = [is_last[k] if cond.kind == "last" else ctr[k] == 0
-                        for k in range(lv, levels)]
+                upto = lv + 1 if cond.kind.startswith("at_") else levels
+                want = [is_last[k] if cond.kind.endswith("last") else ctr[k] == 0
+                        for k in range(lv, upto)]
                 m.d.sync += out.eq(Cat(*want).all())
             info_cache[key] = out
             return out
@@ -225,7 +226,7 @@ class LoopMachine(wiring.Component):
                 return Const(int(src[2:], 16), 32)
             if src in accs:
                 a = accs[src]
-                carried = tap(a.update, when + ii)  # the previous iteration's update
+                carried = tap(a.update, when + a.distance * ii)  # distance iterations ago
                 return Mux(at(flag_info(a.reset), when), operand(a.init, when), carried)
             return tap(src, when)
 

@@ -19,7 +19,8 @@ words), ``tables`` (ROMs of non-negative integers) and a body run once per itera
   address is ``index``, or ``tables[table][index]`` when ``table`` is set (a sparse
   matrix's non-zeros, the upper-triangle map of a symmetric matrix);
 * :class:`Cond`: a per-iteration flag: ``("first", l)`` (every index from level ``l``
-  inwards is 0), ``("last", l)`` (each is its trip count - 1) or ``("table", name)``
+  inwards is 0), ``("last", l)`` (each is its trip count - 1), ``("at_first", l)`` /
+  ``("at_last", l)`` (the index of level ``l`` alone) or ``("table", name)``
   (``tables[name][n] != 0``, one entry per iteration);
 * ops (:class:`LOp`, SSA temporaries ``dst``): ``load`` (``srcs = (array,)``, ``addr``),
   ``add``, ``sub``, ``mul`` on float32 (:mod:`navgate.numerics.fp32` rounding, subnormals
@@ -27,7 +28,9 @@ words), ``tables`` (ROMs of non-negative integers) and a body run once per itera
   (:func:`navgate.opflow.ir.const_name`) or an accumulator;
 * :class:`Acc`: a loop-carried value: read as ``init`` (a constant or a temporary) in an
   iteration where ``reset`` holds, otherwise as the value of ``update`` (a temporary) in
-  the previous iteration;
+  the iteration ``distance`` before (1: the previous one; ``d`` > 1 interleaves ``d``
+  independent sums, e.g. the rows of a matrix-vector product with the row loop inside:
+  each row's sum keeps its order, and the recurrence bound drops to latency / d);
 * :class:`Store`: ``array[addr] <- src`` at the end of an iteration where ``when`` holds
   (always when None).
 
@@ -47,8 +50,9 @@ lines to their ops), a load's word one cycle after it is issued, a unit's result
 after issue; an op reads its operands in its issue cycle from the delay line of the unit
 that made them. A store is issued after every load of its array in the iteration (the read
 sees the old word). An accumulator read at offset ``t`` whose update is ready at ``r``
-needs ``r - II <= t`` (the recurrence). ResMII = max over resources of uses / instances;
-RecMII = max over accumulators of ``r - t`` in the schedule without resource limits; II
+needs ``r - distance II <= t`` (the recurrence). ResMII = max over resources of uses /
+instances; RecMII = max over accumulators of ``(r - t) / distance`` (rounded up) in the
+schedule without resource limits; II
 starts at max(ResMII, RecMII) and grows until the greedy placement (topological order,
 each op at its earliest free slot) fits. Cycles of a nest: ``(N - 1) * II + depth``, depth
 the offset after an iteration's last result is written.
@@ -90,7 +94,7 @@ class Addr:
 
 @dataclass(frozen=True)
 class Cond:
-    kind: str  #: "first", "last" or "table"
+    kind: str  #: "first", "last", "at_first", "at_last" or "table"
     arg: object  #: level (first/last) or table name
 
 
@@ -108,6 +112,7 @@ class Acc:
     init: str
     update: str
     reset: Cond
+    distance: int = 1  #: the update read back is that of ``distance`` iterations before
 
 
 @dataclass(frozen=True)
@@ -172,10 +177,12 @@ def flags(nest: LoopNest, cond: Cond, idx: np.ndarray | None = None) -> np.ndarr
     lvl = int(cond.arg)
     if not 0 <= lvl < len(nest.trips):
         raise LoopError(f"{nest.name}: no loop level {lvl}")
-    want = 0 if cond.kind == "first" else np.asarray(nest.trips[lvl:], np.int64) - 1
-    if cond.kind not in ("first", "last"):
+    if cond.kind not in ("first", "last", "at_first", "at_last"):
         raise LoopError(f"{nest.name}: unknown condition {cond.kind!r}")
-    return np.all(idx[:, lvl:] == want, axis=1)
+    upto = lvl + 1 if cond.kind.startswith("at_") else len(nest.trips)
+    want = 0 if cond.kind.endswith("first") else np.asarray(nest.trips[lvl:upto],
+                                                              np.int64) - 1
+    return np.all(idx[:, lvl:upto] == want, axis=1)
 
 
 def check_nest(nest: LoopNest) -> None:
@@ -234,7 +241,12 @@ def check_nest(nest: LoopNest) -> None:
             raise LoopError(f"{nest.name}: {key[0]}[{key[1]}] written in iteration {n} and "
                             f"read in iteration {min(others)}: carry it in an accumulator")
     for a in nest.accs:
-        flags(nest, a.reset, idx)
+        reset = flags(nest, a.reset, idx)
+        if int(a.distance) < 1:
+            raise LoopError(f"{nest.name}: accumulator {a.name} distance must be >= 1")
+        if not reset[:a.distance].all():
+            raise LoopError(f"{nest.name}: accumulator {a.name} is read before its first "
+                            f"update (it must reset in the first {a.distance} iterations)")
 
 
 def _bounds(nest, array, a):
@@ -292,8 +304,8 @@ class CompiledNest:
         self.load_addr = np.array(load_cols, np.int64).reshape(-1, n).T.copy()
         self.acc_reset = np.array([flags(nest, a.reset, idx) for a in nest.accs],
                                   np.bool_).reshape(-1, n).T.copy()
-        self.acc_slots = np.array([[slot[a.name], slot[a.update]] for a in nest.accs],
-                                  np.int64).reshape(-1, 2)
+        self.acc_slots = np.array([[slot[a.name], slot[a.update], a.distance]
+                                   for a in nest.accs], np.int64).reshape(-1, 3)
         self.store = np.array([[arrays.index(s.array), slot[s.src]] for s in nest.stores],
                               np.int64).reshape(-1, 2)
         self.store_addr = np.array([addresses(nest, s.addr, idx) for s in nest.stores],
@@ -307,7 +319,10 @@ class CompiledNest:
 @njit(cache=True, error_model="numpy")
 def _run_kernel(mem, regs, ops, load_addr, acc_reset, acc_slots, store, store_addr,
                 store_on):
-    carry = np.zeros(acc_slots.shape[0])
+    dmax = 1
+    for c in range(acc_slots.shape[0]):
+        dmax = max(dmax, acc_slots[c, 2])
+    carry = np.zeros((acc_slots.shape[0], dmax))  # ring of the last ``distance`` updates
     for n in range(load_addr.shape[0]):
         for r in range(ops.shape[0]):
             k = ops[r, 0]
@@ -315,7 +330,8 @@ def _run_kernel(mem, regs, ops, load_addr, acc_reset, acc_slots, store, store_ad
                 regs[ops[r, 1]] = mem[ops[r, 2], load_addr[n, ops[r, 3]]]
             elif k == 4:
                 col = ops[r, 3]
-                regs[ops[r, 1]] = regs[ops[r, 2]] if acc_reset[n, col] else carry[col]
+                d = acc_slots[col, 2]
+                regs[ops[r, 1]] = regs[ops[r, 2]] if acc_reset[n, col] else carry[col, n % d]
             else:
                 a = regs[ops[r, 2]]
                 b = regs[ops[r, 3]]
@@ -327,7 +343,7 @@ def _run_kernel(mem, regs, ops, load_addr, acc_reset, acc_slots, store, store_ad
                     x = a * b
                 regs[ops[r, 1]] = round_fp32(x)
         for c in range(acc_slots.shape[0]):
-            carry[c] = regs[acc_slots[c, 1]]
+            carry[c, n % acc_slots[c, 2]] = regs[acc_slots[c, 1]]
         for s in range(store.shape[0]):
             if store_on[n, s]:
                 mem[store[s, 0], store_addr[n, s]] = regs[store[s, 1]]
@@ -379,7 +395,7 @@ def unroll(nest: LoopNest) -> tuple[Program, dict]:
                 return s
             if s in accs:
                 a = accs[s]
-                return name(a.init) if resets[s][n] else carry[s]
+                return name(a.init) if resets[s][n] else carry[s][n - a.distance]
             return val[s]
 
         for op in nest.ops:
@@ -391,7 +407,7 @@ def unroll(nest: LoopNest) -> tuple[Program, dict]:
             prog.ops.append(Op(dst, op.kind, (name(op.srcs[0]), name(op.srcs[1])), nest.name))
             val[op.dst] = dst
         for a in nest.accs:
-            carry[a.name] = val[a.update]
+            carry.setdefault(a.name, {})[n] = val[a.update]
         for k, s in enumerate(nest.stores):
             if st_on[k][n]:
                 cur[f"{s.array}[{st_addr[k][n]}]"] = val[s.src]
@@ -460,8 +476,8 @@ def modulo_schedule(nest: LoopNest, units: LoopUnits = LoopUnits(),
         caps[("write", st.array)] = 1
     res_mii = max([math.ceil(uses[r] / caps[r]) for r in uses] + [1])
     free = _place(nest, units, None, accs)
-    rec_mii = max([free[2][a.update] - min(free[0][op.dst] for op in nest.ops
-                                           if a.name in op.srcs)
+    rec_mii = max([math.ceil((free[2][a.update] - min(free[0][op.dst] for op in nest.ops
+                                                      if a.name in op.srcs)) / a.distance)
                    for a in nest.accs if any(a.name in op.srcs for op in nest.ops)] + [1])
     start = max(res_mii, rec_mii)
     limit = max_ii or sum(units.latency(op.kind) for op in nest.ops) + 8
@@ -524,6 +540,6 @@ def _place(nest, units, ii, accs):
     if ii is not None:
         for a in nest.accs:
             for op in nest.ops:
-                if a.name in op.srcs and ready[a.update] - ii > time[op.dst]:
+                if a.name in op.srcs and ready[a.update] - a.distance * ii > time[op.dst]:
                     return None
     return time, resource, ready, depth
