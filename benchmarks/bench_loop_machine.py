@@ -9,7 +9,8 @@ Nests: ``rank1_15`` (P <- P + k k^T on the 120 stored elements of a symmetric 15
 matrix, ROM row/column maps), ``rank1_15_scaled`` (P + (s k) k^T: two multiplies on one
 multiplier), ``spmv_15`` (y <- A x, 15 x 15 with 45 non-zeros in a fixed pseudo-random
 pattern, seed 0, ROM column/row maps and row flags), ``matvec_15`` (dense 15 x 15, two
-levels, affine addresses). Each synthesis takes a minute or two on a quiet machine.
+levels, affine addresses), ``matvec_il_15`` (the same sums with the row loop inside: one
+accumulator at distance 15). Each synthesis takes a minute or two on a quiet machine.
 Prints tables and writes a JSON summary (default ``bench_loop_machine.json``).
 """
 
@@ -32,7 +33,8 @@ def nests() -> dict:
     return {"rank1_15": K.sym_rank1_update(15),
             "rank1_15_scaled": K.sym_rank1_update(15, 0.5),
             "spmv_15": K.sparse_matvec(flat // 15, flat % 15, 15, 15),
-            "matvec_15": K.dense_matvec(15, 15)}
+            "matvec_15": K.dense_matvec(15, 15),
+            "matvec_il_15": K.dense_matvec_interleaved(15, 15)}
 
 
 def main():
