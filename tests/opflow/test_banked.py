@@ -341,11 +341,11 @@ def test_engine_image_shared_write_port_respects_ports():
     # exact cycles (docs/seed000-engines.md §7): every bank true-dual-port is port-bound
     # (2-D update 143 + 1 + 434 + 1 = 579 > 450); bank 0 alone keeps it at 446
     assert {k: img.cycles(k) for k in img.programs} == {
-        "propagate": 732, "alt_gate": 55, "alt_apply": 258, "trn_gate": 143,
+        "propagate": 732, "alt_gate": 55, "alt_apply": 252, "trn_gate": 143,
         "trn_apply": 434}
     one = engine_image("ins_engines", replace(base, shared_write_port=(0,)))
     _check_ports(one)
     assert {k: one.cycles(k) for k in one.programs} == {
-        "propagate": 642, "alt_gate": 55, "alt_apply": 238, "trn_gate": 142,
+        "propagate": 642, "alt_gate": 55, "alt_apply": 246, "trn_gate": 142,
         "trn_apply": 302}
     assert one.fields.width == img.fields.width + 7 * 8

@@ -186,7 +186,7 @@ def test_sequencer_equals_fp32_engine(setup_and_words, through_registers):
                 for h, r in alt_cases]
     assert outcomes[0].accepted and not outcomes[1].accepted
     assert log["alt"][0][0] == 0b010 and log["alt"][1][0] == 0b110
-    assert [a[2] for a in log["alt"]] == [350, 67]
+    assert [a[2] for a in log["alt"]] == [345, 67]
     for (_status, nis, n), out, applied in zip(log["alt"], outcomes, (True, False), strict=True):
         assert nis == _bits(out.nis)
         assert n == job_cycles(img, "alt", applied)

@@ -439,12 +439,11 @@ def propagate_program(compensated: bool = True) -> Program:
 RESET_MODULE = "compensation_reset"
 
 
-def _joseph(b: Builder, cols, k, s, fold: bool):
+def _joseph(b: Builder, cols, k, s):
     """P <- P - K C' - C K' + K S K' on the upper triangle, with C = P H' (15 x m) and S
-    (m x m, symmetric, as dict (r, c) -> reg); the Joseph form for these H. Each update
-    zeroes the compensation words cP (the new P is the whole covariance); with ``fold`` the
-    sums start from P - cP (the covariance the engine holds), otherwise from the stored P
-    (docs/seed000-engines.md §8: folded in the 1-D update, not in the 2-D one)."""
+    (m x m, symmetric, as dict (r, c) -> reg); the Joseph form for these H. The update
+    reads the stored P (not P - cP) and zeroes each compensation word cP: the covariance
+    after an update is the new P alone (docs/seed000-engines.md, "Compensation words")."""
     m_dim = len(cols)
     n = N_STATES
     sk = {}
@@ -454,15 +453,15 @@ def _joseph(b: Builder, cols, k, s, fold: bool):
                               for c in range(m_dim)])
     for i in range(n):
         for j in range(i, n):
-            p, cp = p_reg(i, j), "c" + p_reg(i, j)
-            terms = [(1, b.sub(p, cp) if fold else p)]
+            terms = [(1, p_reg(i, j))]
             terms += [(-1, b.mul(k[r][i], cols[r][j])) for r in range(m_dim)]
             terms += [(-1, b.mul(cols[r][i], k[r][j])) for r in range(m_dim)]
             terms += [(1, b.mul(k[r][i], sk[j, r])) for r in range(m_dim)]
-            b.prog.commit[p] = b.sum(terms)
-            # cp - cp = +0 for every finite cp; a NaN or infinite word stays NaN
+            b.prog.commit[p_reg(i, j)] = b.sum(terms)
+            # the new P is the whole covariance: its compensation word restarts at zero
+            # (cP - cP = +0 for every finite cP; a NaN or infinite word stays NaN)
             module, b.module = b.module, RESET_MODULE
-            b.prog.commit[cp] = b.sub(cp, cp)
+            b.prog.commit["c" + p_reg(i, j)] = b.sub("c" + p_reg(i, j), "c" + p_reg(i, j))
             b.module = module
 
 
@@ -505,7 +504,7 @@ def altitude_apply_program() -> Program:
     inv = b.div(1.0, s)
     col = [p_reg(i, 2) for i in range(N_STATES)]
     k = [b.mul(ci, inv) for ci in col]
-    _joseph(b, [col], [k], {(0, 0): s}, fold=True)
+    _joseph(b, [col], [k], {(0, 0): s})
     b.module = "kalman_update_engine"
     dx = [b.mul(ki, y) for ki in k]
     emit_correction(b, dx)
@@ -546,7 +545,7 @@ def trn_apply_program() -> Program:
     n = N_STATES
     k0 = [b.add(b.mul(cols[0][i], i00), b.mul(cols[1][i], i01)) for i in range(n)]
     k1 = [b.add(b.mul(cols[0][i], i01), b.mul(cols[1][i], i11)) for i in range(n)]
-    _joseph(b, cols, [k0, k1], s, fold=False)
+    _joseph(b, cols, [k0, k1], s)
     b.module = "kalman_update_engine"
     dx = [b.add(b.mul(k0[i], "y0"), b.mul(k1[i], "y1")) for i in range(n)]
     emit_correction(b, dx)
