@@ -1,10 +1,9 @@
 """A start/done core behind one input and one output stream (valid/ready), with its cycles
 measured: the verification wrapper of every circuit that starts on a strobe and signals done.
 
-The circuits of seeds 003 and 004 (``attitude_top``'s solve, one module of it, ``kf2x2``'s
-frame) start on a one-cycle strobe and raise a done flag when their results are valid; the
-harnesses and the ``rtl`` engines drive them through streams. :func:`start_run_respond`
-builds that wrapper's control once:
+Many circuits start on a one-cycle strobe and raise a done flag when their results are valid
+(a filter's frame, an attitude solve); verification harnesses and co-simulation engines drive
+them through streams. :func:`start_run_respond` builds that wrapper's control once:
 
 ``IDLE``
     ``i.ready`` high; an accepted payload is held in ``held`` (returned) for the whole run.
