@@ -1,6 +1,7 @@
 """``navgate fly``: a GPS-denied flight over real terrain, INS-only and INS+TRN side by side.
 
-Runs navgate.sim.flight.fly and writes summary.json, trajectory.csv, trn_fixes.csv,
+Runs :func:`navgate.systems.ins_trn.ps.flight.fly` (the scenario of :mod:`navgate.sim.flight`
+flown by seed 000's navigator) and writes summary.json, trajectory.csv, trn_fixes.csv,
 track.png and errors.png into ``--out``. Bad input (missing/unreadable/non-DEM files, a DEM
 too small for the route, bad option values) ends with one line on stderr and exit 2.
 """
