@@ -24,7 +24,8 @@ into hardware in which every arithmetic unit works from registers only:
   the cycles in which the unit delivers a scheduled result), and the frame's sticky flag
   ORs those registers one cycle later.
 * **adders without an op code** (so the Nexus carry chains map one-to-one): an
-  adder/subtractor adds and subtracts on one carry chain ``a + b + cin`` (a subtraction loads the complemented subtrahend, and
+  adder/subtractor adds and subtracts on one carry chain ``a + b + cin`` (a subtraction
+  loads the complemented subtrahend, and
   ``cin`` is a registered control word), ``|a - b|`` has its own chains; the operand
   multiplexers merge the terms that are the same bits (one producing unit's result, one
   register) under one select.
