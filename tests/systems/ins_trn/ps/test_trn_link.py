@@ -84,15 +84,25 @@ def test_flight_over_tcp_and_tiles_equals_the_flight_in_one_process(scenario, tm
     assert pi.service.counters["requests"] == len(reference.fixes)
 
 
-def test_fly_spawn_equals_the_default_flight(tmp_path, navgate_run):
+@pytest.fixture(scope="module")
+def default_trajectory(tmp_path_factory):
+    """trajectory.csv of ``navgate fly --duration 60`` in one process (the reference)."""
+    from navgate.cli import main
+
+    out = tmp_path_factory.mktemp("default") / "fly"
+    try:
+        main(["fly", "--duration", str(DURATION), "--quiet", "--out", str(out)])
+    except SystemExit as exit_:
+        assert exit_.code in (0, None)
+    return (out / "trajectory.csv").read_bytes()
+
+
+def test_fly_spawn_equals_the_default_flight(tmp_path, navgate_run, default_trajectory):
     """One command, three computers: the Pi service as a child on a pseudo-terminal."""
-    code, _, err = navgate_run(["fly", "--duration", DURATION, "--quiet", "--out", tmp_path / "a"])
-    assert code == 0, err
     code, _, err = navgate_run(["fly", "--duration", DURATION, "--quiet", "--trn-service", "spawn",
                         "--out", tmp_path / "b"])
     assert code == 0, err
-    assert ((tmp_path / "a" / "trajectory.csv").read_bytes()
-            == (tmp_path / "b" / "trajectory.csv").read_bytes())
+    assert (tmp_path / "b" / "trajectory.csv").read_bytes() == default_trajectory
     summary = json.loads((tmp_path / "b" / "summary.json").read_text())
     link = summary["trn_link"]
     assert link["requests"] == link["replies"] > 5 and link["unavailable"] == 0
@@ -272,7 +282,10 @@ def test_a_peer_of_another_protocol_version_is_refused(navgate_run, tmp_path):
 @pytest.mark.parametrize("args, needle", [
     (["fly", "--duration", "5", "--trn-service", "udp://x:1"], "tcp://HOST:PORT"),
     (["fly", "--duration", "5", "--link-flip-rate", "0.1"], "needs --trn-service"),
-    (["trn-serve", "--serial", "/dev/navgate-no-such-port"], "serial"),
+    (["trn-serve", "--serial", "/dev/navgate-no-such-port"],
+     "cannot open serial port /dev/navgate-no-such-port"),
+    (["fly", "--duration", "5", "--trn-service", "serial:/dev/navgate-no-such-port@921600"],
+     "cannot open serial:/dev/navgate-no-such-port@921600"),
     (["trn-serve"], "exactly one of"),
     (["trn-serve", "--listen", "tcp://127.0.0.1:99999"], "tcp://HOST:PORT"),
     (["trn-serve", "--listen", "tcp://127.0.0.1:7700", "--tiles", "/nonexistent/dir"],
@@ -356,3 +369,98 @@ def test_ten_minute_flights_over_spawn_and_tcp_equal_the_flight_in_one_process(t
         pi.stop()
     assert code == 0, err
     assert (tmp_path / "c" / "trajectory.csv").read_bytes() == whole
+
+
+class NullModem:
+    """Two pseudo-terminals joined back to back (a null-modem cable): each end is a tty path
+    that pyserial opens as a serial port; a thread copies bytes between the controllers."""
+
+    def __init__(self):
+        import os
+        import tty
+
+        self.pairs = [os.openpty(), os.openpty()]
+        for _, terminal in self.pairs:
+            tty.setraw(terminal)
+        self.paths = [os.ttyname(terminal) for _, terminal in self.pairs]
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._copy, daemon=True)
+        self.thread.start()
+
+    def _copy(self):
+        import os
+        import select
+
+        a, b = self.pairs[0][0], self.pairs[1][0]
+        peer = {a: b, b: a}
+        while not self.stop.is_set():
+            ready, _, _ = select.select([a, b], [], [], 0.1)
+            for fd in ready:
+                try:
+                    data = os.read(fd, 65536)
+                except OSError:  # no one has the terminal open (yet, or any more)
+                    time.sleep(0.01)
+                    continue
+                view = memoryview(data)
+                while view:
+                    view = view[os.write(peer[fd], view):]
+
+    def close(self):
+        import os
+
+        self.stop.set()
+        self.thread.join(5)
+        for pair in self.pairs:
+            for fd in pair:
+                os.close(fd)
+
+
+def test_trn_serve_and_fly_over_a_serial_line_at_921600_baud(tmp_path, navgate_run,
+                                                              default_trajectory):
+    """``trn-serve --serial`` in its own process and ``fly --trn-service serial:`` talk through
+    pyserial over a null modem of two pseudo-terminals; the flight equals the one in one
+    process, and the service answers every request."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("serial")
+    modem = NullModem()
+    service = subprocess.Popen(
+        [sys.executable, "-m", "navgate.cli", "trn-serve", "--serial", modem.paths[0],
+         "--baud", "921600"], stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE, text=True)
+    try:
+        code, _, err = navgate_run(["fly", "--duration", DURATION, "--quiet", "--trn-timeout",
+                                    "60", "--trn-service", f"serial:{modem.paths[1]}@921600",
+                                    "--out", tmp_path])
+    finally:
+        service.terminate()
+        try:
+            _, log = service.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            service.kill()
+            _, log = service.communicate()
+        modem.close()
+    assert code == 0, err
+    assert (tmp_path / "trajectory.csv").read_bytes() == default_trajectory
+    link = json.loads((tmp_path / "summary.json").read_text())["trn_link"]
+    assert link["requests"] == link["replies"] > 5
+    assert link["unavailable"] == link["bad_frames"] == link["retries"] == 0
+    assert link["service_status"]["requests"] == link["requests"]
+    assert f"serving on {modem.paths[0]} at 921600 baud" in log
+    assert log.count("fix") + log.count("no fix") >= link["requests"]
+    assert "SIGTERM: stopping" in log
+
+
+@pytest.mark.parametrize("args", [
+    ["trn-serve", "--serial", "/dev/ttyS0"],
+    ["fly", "--duration", "5", "--trn-service", "serial:/dev/ttyS0"],
+])
+def test_serial_without_pyserial_is_one_line_naming_the_extra(args, navgate_run, tmp_path,
+                                                             monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "serial", None)  # import serial -> ImportError
+    code, _, err = navgate_run([*args, *(["--out", tmp_path] if args[0] == "fly" else [])])
+    assert code == 2, err
+    assert 'pip install "navgate[serial]"' in navgate_run.one_line(err)

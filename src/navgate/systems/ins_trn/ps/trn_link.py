@@ -41,6 +41,8 @@ UNAVAILABLE = "no fix: TRN service unavailable"
 INVALID = "no fix: invalid fix from TRN service"
 #: the child's start-up (imports, terrain, compiled kernels) may take this long (s)
 SPAWN_HELLO_TIMEOUT_S = 120.0
+#: hello is sent again this often until the service answers (s)
+HELLO_RESEND_S = 1.0
 
 
 class LinkError(Exception):
@@ -104,6 +106,9 @@ class TrnLink:
                 self._spawn()
         except socket.gaierror as error:
             raise LinkError(f"cannot resolve {self.spec}: {error.strerror or error}") from None
+        except ImportError:
+            raise LinkError(f'--trn-service {self.spec} needs pyserial: pip install '
+                            f'"navgate[serial]"') from None
         except (ConnectionRefusedError, TimeoutError):
             # absent (not started yet, rebooting): fly on INS-only, try again at the next fix
             if first:
@@ -128,9 +133,14 @@ class TrnLink:
         self.link = ps_end
 
     def _hello(self, timeout: float, first: bool) -> None:
-        self._send(messages.HELLO, {"client": "navgate ps", "version": frames.VERSION})
         deadline = time.monotonic() + timeout
+        resend = 0.0
         while time.monotonic() < deadline:
+            if time.monotonic() >= resend:
+                # again each second: a serial port opened after the hello was sent (the Pi
+                # still booting) flushes what was waiting in its input
+                self._send(messages.HELLO, {"client": "navgate ps", "version": frames.VERSION})
+                resend = time.monotonic() + HELLO_RESEND_S
             try:
                 frame = self.link.recv(min(0.5, max(deadline - time.monotonic(), 0.01)))
             except frames.VersionMismatch as error:
