@@ -79,6 +79,10 @@ def _positive_float(ctx, param, value):
 @click.option("--trn-timeout", type=float, default=5.0, show_default=True,
               callback=_positive_float,
               help="With --trn-service: seconds to wait for each fix before a retry.")
+@click.option("--trn-heartbeat", type=float, default=1.0, show_default=True,
+              help="With --trn-service: send a heartbeat after this many seconds without "
+                   "traffic; a missed reply marks the link down and reconnecting starts at "
+                   "once. 0: no heartbeats.")
 @click.option("--trn-latency", type=float, default=0.0, show_default=True,
               help="Apply each TRN fix this many seconds after its request (simulated link "
                    "and Pi time; deterministic). 0: at the request's time.")
@@ -88,7 +92,7 @@ def _positive_float(ctx, param, value):
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")
 def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_sensors, no_trn,
         imu_rate, ranger, speed, trn_method, engine, record_path, trn_service, trn_timeout,
-        trn_latency, link_flip_rate, quiet):
+        trn_heartbeat, trn_latency, link_flip_rate, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -129,6 +133,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         raise CliError(f"--trn-latency must lie in [0, 60] s, got {trn_latency:g}")
     if not (math.isfinite(link_flip_rate) and 0.0 <= link_flip_rate <= 1.0):
         raise CliError(f"--link-flip-rate must lie in [0, 1], got {link_flip_rate:g}")
+    if not (math.isfinite(trn_heartbeat) and 0.0 <= trn_heartbeat <= 3600.0):
+        raise CliError(f"--trn-heartbeat must lie in [0, 3600] s, got {trn_heartbeat:g}")
     if trn_service is None and link_flip_rate:
         raise CliError("--link-flip-rate needs --trn-service")
     trn_link = None
@@ -139,7 +145,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         faults = FaultInjector(seed=seed, flip_rate=link_flip_rate) if link_flip_rate else None
         try:
             trn_link = TrnLink(trn_service, terrain_path=dem_path, cache_mb=tile_cache_mb,
-                               timeout_s=trn_timeout, faults=faults)
+                               timeout_s=trn_timeout, faults=faults,
+                               heartbeat_s=trn_heartbeat)
         except LinkError as error:
             raise CliError(str(error)) from None
     # the link (if any) stays open for the flight and is closed whatever happens

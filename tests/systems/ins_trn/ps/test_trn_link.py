@@ -279,6 +279,61 @@ def test_a_peer_of_another_protocol_version_is_refused(navgate_run, tmp_path):
     assert code == 2 and "protocol version" in navgate_run.one_line(err)
 
 
+def _wait_for(condition, timeout=10.0):
+    deadline = time.monotonic() + timeout
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return condition()
+
+
+def test_heartbeats_on_an_idle_link_are_answered_and_counted_on_both_sides(scenario):
+    pi = ServiceThread(scenario[0])
+    try:
+        link = TrnLink(pi.spec, timeout_s=1.0, heartbeat_s=0.05)
+        with link:
+            assert _wait_for(lambda: link.counters["heartbeat_replies"] >= 5)
+        stats = link.stats()
+    finally:
+        pi.stop()
+    assert stats["heartbeats_sent"] == stats["heartbeat_replies"] >= 5
+    assert pi.service.counters["heartbeats"] == stats["heartbeats_sent"]
+    assert stats["heartbeats_missed"] == stats["link_down"] == stats["reconnects"] == 0
+
+
+def test_a_missed_heartbeat_marks_the_link_down_and_reconnects_before_the_next_fix(scenario):
+    dem = scenario[0]
+    port = free_port()
+    first = ServiceThread(dem, port=port)
+    link = TrnLink(f"tcp://127.0.0.1:{port}", timeout_s=0.3, heartbeat_s=0.05)
+    try:
+        first.stop()  # the Pi goes: the heartbeat after it finds the link closed
+        assert _wait_for(lambda: link.counters["link_down"] >= 1)
+        second = ServiceThread(dem, port=port)  # ... and comes back
+        try:
+            # the heartbeat thread reconnects with no request in hand, so the next
+            # request finds the link up: no retry, no timeout
+            assert _wait_for(lambda: second.service.counters["clients"] == 1)
+            status = link.status()
+            assert status is not None and status["clients"] == 1
+        finally:
+            link.close()
+            second.stop()
+    finally:
+        link.close()
+    stats = link.stats()
+    assert stats["heartbeats_missed"] == stats["link_down"] >= 1
+    assert stats["reconnects"] >= 1
+    assert stats["requests"] == stats["retries"] == stats["timeouts"] == 0
+
+    # a Pi that is hung (the connection stays up, nothing answers): the reply is missed
+    # after the timeout and the link is marked down the same way
+    fake = FakeService(lambda frame: None)
+    with TrnLink(f"tcp://127.0.0.1:{fake.port}", timeout_s=0.2, heartbeat_s=0.05) as hung:
+        assert _wait_for(lambda: hung.counters["link_down"] >= 1)
+    stats = hung.stats()
+    assert stats["heartbeats_missed"] >= 1 and stats["heartbeat_replies"] == 0
+
+
 @pytest.mark.parametrize("args, needle", [
     (["fly", "--duration", "5", "--trn-service", "udp://x:1"], "tcp://HOST:PORT"),
     (["fly", "--duration", "5", "--link-flip-rate", "0.1"], "needs --trn-service"),
@@ -287,6 +342,7 @@ def test_a_peer_of_another_protocol_version_is_refused(navgate_run, tmp_path):
     (["fly", "--duration", "5", "--trn-service", "serial:/dev/navgate-no-such-port@921600"],
      "cannot open serial:/dev/navgate-no-such-port@921600"),
     (["trn-serve"], "exactly one of"),
+    (["fly", "--duration", "5", "--trn-heartbeat", "-1"], "--trn-heartbeat"),
     (["trn-serve", "--listen", "tcp://127.0.0.1:99999"], "tcp://HOST:PORT"),
     (["trn-serve", "--listen", "tcp://127.0.0.1:7700", "--tiles", "/nonexistent/dir"],
      "not found"),
@@ -464,3 +520,20 @@ def test_serial_without_pyserial_is_one_line_naming_the_extra(args, navgate_run,
     code, _, err = navgate_run([*args, *(["--out", tmp_path] if args[0] == "fly" else [])])
     assert code == 2, err
     assert 'pip install "navgate[serial]"' in navgate_run.one_line(err)
+
+
+@pytest.mark.slow
+def test_fpga_sim_over_spawn_equals_fpga_sim_in_one_process(tmp_path, navgate_run):
+    """The PL in Verilator, the PS in Python, the Pi's service in its own process: the same
+    flight as the fpga-sim engine with the correlator in the PS's process (about 2 min)."""
+    common = ["fly", "--engine", "fpga-sim", "--duration", "20", "--quiet"]
+    code, _, err = navgate_run([*common, "--out", tmp_path / "a"])
+    assert code == 0, err
+    code, _, err = navgate_run([*common, "--trn-service", "spawn", "--out", tmp_path / "b"])
+    assert code == 0, err
+    assert ((tmp_path / "a" / "trajectory.csv").read_bytes()
+            == (tmp_path / "b" / "trajectory.csv").read_bytes())
+    summary = json.loads((tmp_path / "b" / "summary.json").read_text())
+    assert summary["engine"] == "fpga-sim"
+    link = summary["trn_link"]
+    assert link["requests"] == link["replies"] == summary["trn_aided"]["fixes_attempted"] > 0

@@ -16,6 +16,8 @@ the one before it, and a flight over the link equals the flight in one process.
 Clients: one at a time (the seed draws one PS); a second client waits in the listen backlog
 until the first disconnects. Every request logs one line on stderr; SIGTERM and SIGINT stop
 the service cleanly after the request in hand; a status request returns the counters.
+Heartbeats are answered at once and counted (``heartbeats``); the first of each client is
+logged, and the count when the client goes.
 """
 
 from __future__ import annotations
@@ -58,6 +60,7 @@ class TrnService:
                          "heartbeats": 0, "status_requests": 0}
         self._correlators: dict = {}
         self._reassembly = messages.Reassembly()
+        self._client_heartbeats = 0
 
     # -- requests ---------------------------------------------------------------------------
     def _correlator(self, method: str, config: dict, tangent):
@@ -118,6 +121,9 @@ class TrnService:
             return messages.CAPABILITIES, self.capabilities()
         if kind == messages.HEARTBEAT:
             self.counters["heartbeats"] += 1
+            self._client_heartbeats += 1
+            if self._client_heartbeats == 1:  # one line, not one a second for hours
+                self.log("trn-serve: heartbeats from the client (answered; counted in status)")
             return messages.HEARTBEAT, {"time": time.time()}
         if kind == messages.STATUS_REQUEST:
             self.counters["status_requests"] += 1
@@ -161,6 +167,7 @@ class TrnService:
         """Answer frames on ``link`` until the peer closes it, the stop flag is set, or
         ``max_requests`` profile requests have been answered."""
         self.counters["clients"] += 1
+        self._client_heartbeats = 0
         bad_base = self.counters["bad_frames"] - sum(link.decoder.bad.values())
         try:
             while not self.stop.is_set():
@@ -182,7 +189,8 @@ class TrnService:
                 if max_requests is not None and self.counters["requests"] >= max_requests:
                     return
         except (LinkClosed, BrokenPipeError, ConnectionResetError):
-            self.log("trn-serve: client closed the link")
+            self.log(f"trn-serve: client closed the link "
+                     f"({self._client_heartbeats} heartbeats answered)")
         finally:
             self.counters["bad_frames"] = bad_base + sum(link.decoder.bad.values())
 
