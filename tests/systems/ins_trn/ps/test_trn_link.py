@@ -279,6 +279,34 @@ def test_a_peer_of_another_protocol_version_is_refused(navgate_run, tmp_path):
     assert code == 2 and "protocol version" in navgate_run.one_line(err)
 
 
+def test_a_new_ps_session_never_gets_the_fixes_kept_for_the_one_before(scenario):
+    """Request ids start again at 1 with each PS session: the fix the service keeps for
+    resending request 1 of the last session must not answer request 1 of the next one (over
+    TCP each client starts afresh; over a serial line, each hello does)."""
+    from dataclasses import asdict
+
+    from navgate.trn.pmf import PmfConfig
+
+    service = TrnService(scenario[0], log=lambda line: None)
+
+    def request(t_last):
+        t = np.linspace(t_last - 4.0, t_last, 5)
+        body = messages.profile_request(
+            1, method="pmf", config=asdict(PmfConfig()), tangent=(0.57, -1.71, 0.0), time=t,
+            pos_n=np.zeros(5), pos_e=np.zeros(5), h_terrain=np.full(5, 300.0), sigma_max=50.0,
+            prior_cov=np.eye(2), used_until=-math.inf, widen=1.0, t_request=t_last)
+        answer = None
+        for piece in messages.fragments(1, body):
+            answer = service.handle(frames.Frame(messages.PROFILE_FRAGMENT, 1, piece))
+        return answer[1]["result"]["time"]
+
+    assert request(10.0) == 10.0
+    assert request(99.0) == 10.0  # the same session resending request 1: the kept fix
+    service.handle(frames.Frame(messages.HELLO, 1, {"client": "test"}))
+    assert request(99.0) == 99.0  # a new session: correlated afresh
+    assert service.counters["requests"] == 2
+
+
 def _wait_for(condition, timeout=10.0):
     deadline = time.monotonic() + timeout
     while not condition() and time.monotonic() < deadline:
@@ -537,3 +565,97 @@ def test_fpga_sim_over_spawn_equals_fpga_sim_in_one_process(tmp_path, navgate_ru
     assert summary["engine"] == "fpga-sim"
     link = summary["trn_link"]
     assert link["requests"] == link["replies"] == summary["trn_aided"]["fixes_attempted"] > 0
+
+
+class SlowServiceProcess:
+    """A TrnService answering each request ``latency_s`` late, in a forked process on
+    127.0.0.1 (its own interpreter: the PS's loop shares no lock with it)."""
+
+    def __init__(self, terrain, latency_s):
+        import multiprocessing
+
+        ctx = multiprocessing.get_context("fork")
+        self.port = free_port()
+        ready = ctx.Event()
+        self.process = ctx.Process(target=self._serve, args=(terrain, latency_s, self.port,
+                                                             ready), daemon=True)
+        self.process.start()
+        assert ready.wait(30), "the forked TRN service did not start"
+        self.spec = f"tcp://127.0.0.1:{self.port}"
+
+    @staticmethod
+    def _serve(terrain, latency_s, port, ready):
+        service = TrnService(terrain, log=lambda line: None, latency_s=latency_s)
+        service.stop_on_signals()
+        service.serve_tcp("127.0.0.1", port, ready=lambda address: ready.set())
+
+    def stop(self):
+        self.process.terminate()  # SIGTERM: the service stops after the request in hand
+        self.process.join(10)
+
+
+def test_realtime_flight_against_a_slow_service_never_waits_and_applies_each_fix_once(
+        scenario):
+    """Real time at 10x over TCP with a Pi that takes 0.5 s a request: the flight keeps to the
+    wall clock, every fix is applied once, at the first record after it arrives (5 s of
+    flight time or more after its request, its age added to the lag), and the loop never
+    waited for the Pi: asking for a fix never took one IMU block, handing a request over
+    never one block at real time, and the loop never fell as far behind the wall clock as
+    one request takes the Pi."""
+    from navgate.systems.ins_trn.ps.navigator import navigate
+
+    dem, cfg, stream, reference = scenario
+    speed, latency = 10.0, 0.5
+    pi = SlowServiceProcess(dem, latency)
+    try:
+        with TrnLink(pi.spec, timeout_s=5.0) as link:
+            run_ = navigate(stream, cfg, dem=dem, name="trn_aided", trn_link=link,
+                            realtime=speed)
+            stats = link.stats()
+        with TrnLink(pi.spec, timeout_s=5.0) as link:  # a deadline the fixes cannot meet
+            from navgate.systems.ins_trn.ps.engine import make_engine
+            from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
+
+            nav = Navigator(make_engine("reference", engine_setup(stream.header, cfg)), cfg,
+                            t0=stream.header["t0"], dem=dem, trn_link=link, realtime=speed,
+                            trn_deadline_s=1.0)
+            dropped = nav.run(stream)
+    finally:
+        pi.stop()
+    rt = run_.realtime
+    flight_s = float(stream.t[-1] - stream.header["t0"])
+    assert rt["wall_s"] >= flight_s / speed - 0.05  # paced: never ahead of the wall clock
+    assert rt["deterministic"] is False
+    assert rt["pi_poll_max_s"] < rt["imu_block_wall_s"] == 1.0 / cfg.baro_rate_hz / speed
+    assert rt["pi_submit_max_s"] < 1.0 / cfg.baro_rate_hz
+    assert rt["pacing_behind_max_s"] < latency
+    # every request answered and applied (or refused) exactly once, at its age
+    # (a request made in the last seconds is still in flight when the flight ends: its reply
+    # comes, the navigator logs it "ended before it arrived", and it is not applied)
+    assert stats["requests"] == stats["replies"] == rt["requests"] == len(run_.fixes) > 5
+    assert rt["arrived"] + rt["in_flight_at_end"] == rt["requests"]
+    assert rt["in_flight_at_end"] <= 1
+    times = [f["time_s"] for f in run_.fixes]
+    assert len(times) == len(set(times))
+    arrived = [f for f in run_.fixes if f["reason"] != "no fix: the flight ended before it arrived"]
+    assert len(arrived) == rt["arrived"]
+    ages = [f["applied_at_s"] - f["time_s"] for f in arrived]
+    assert min(ages) >= latency * speed - 1e-9  # no fix before the Pi could have sent it
+    assert rt["fix_age_median_s"] == pytest.approx(float(np.median(ages)))
+    assert rt["fix_age_max_s"] == pytest.approx(max(ages)) and max(ages) < 30.0
+    assert rt["dropped_after_deadline"] == 0 and applied(run_)
+    assert np.all(np.isfinite(run_.nav))
+    # past the deadline: dropped and counted, never applied
+    d = dropped.realtime
+    late = [f for f in dropped.fixes if f["reason"] == "no fix: arrived after its deadline"]
+    assert d["dropped_after_deadline"] == len(late) >= 3
+    assert not applied(dropped)
+
+
+def test_bad_realtime_options_are_one_line_exit_2(navgate_run, tmp_path):
+    for args, needle in ((["--realtime", "0"], "--realtime SPEED"),
+                         (["--realtime", "5", "--no-trn"], "--no-trn"),
+                         (["--realtime", "--trn-latency", "2"], "--trn-latency")):
+        code, _, err = navgate_run(["fly", "--duration", "5", *args, "--out", tmp_path])
+        assert code == 2, err
+        assert needle in navgate_run.one_line(err)

@@ -49,8 +49,10 @@ def _config(cls, values: dict):
 class TrnService:
     """Answers link messages; :meth:`serve` runs it over one transport."""
 
-    def __init__(self, terrain, *, log=None):
+    def __init__(self, terrain, *, log=None, latency_s: float = 0.0):
         self.terrain = terrain
+        #: fault injection: a slow Pi answers each profile request this much later (s)
+        self.latency_s = float(latency_s)
         self.log = log if log is not None else (lambda line: print(line, file=sys.stderr,
                                                                    flush=True))
         self.stop = threading.Event()
@@ -116,6 +118,9 @@ class TrnService:
         """The answer to one frame (kind, body), or None for none."""
         kind = frame.kind
         if kind == messages.HELLO:
+            # a new PS session: its request ids start again, so the fixes kept for resending
+            # belong to the one before (a serial line keeps one serve() across PS restarts)
+            self._reassembly = messages.Reassembly()
             self.log(f"trn-serve: hello from {frame.body.get('client', '?')}"
                      if isinstance(frame.body, dict) else "trn-serve: hello")
             return messages.CAPABILITIES, self.capabilities()
@@ -146,6 +151,8 @@ class TrnService:
             return answer
         if kind == messages.PROFILE_REQUEST:
             self.counters["requests"] += 1
+            if self.latency_s > 0:
+                time.sleep(self.latency_s)
             try:
                 body = self.correlate(frame.body)
             except (messages.MessageError, ValueError) as error:
@@ -168,6 +175,7 @@ class TrnService:
         ``max_requests`` profile requests have been answered."""
         self.counters["clients"] += 1
         self._client_heartbeats = 0
+        self._reassembly = messages.Reassembly()  # fixes kept for resending are per client
         bad_base = self.counters["bad_frames"] - sum(link.decoder.bad.values())
         try:
             while not self.stop.is_set():

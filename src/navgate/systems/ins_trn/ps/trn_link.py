@@ -404,7 +404,8 @@ class RemoteCorrelator:
         except messages.MessageError:
             self.link.counters["service_errors"] += 1
             return self.result_type(False, UNAVAILABLE, now)
-        if rid != body["id"]:
+        if rid != body["id"] or not _same_time(result.time, now):
+            # another request's fix (or, with the same id, another session's): never applied
             self.link.counters["stale_replies"] += 1
             return self.result_type(False, UNAVAILABLE, now)
         self.used_until, self.widen = used_until, widen
@@ -412,6 +413,15 @@ class RemoteCorrelator:
             self.link.counters["invalid_fixes"] += 1
             return self.result_type(False, INVALID, now)
         return result
+
+
+def _same_time(a, b) -> bool:
+    """The fix is stamped with its profile's last time tag (both NaN for an empty profile)."""
+    try:
+        a, b = float(a), float(b)
+    except (TypeError, ValueError):
+        return False
+    return a == b or (math.isnan(a) and math.isnan(b))
 
 
 def _usable(result) -> bool:
