@@ -531,6 +531,10 @@ def test_trn_serve_and_fly_over_a_serial_line_at_921600_baud(tmp_path, navgate_r
     assert link["requests"] == link["replies"] > 5
     assert link["unavailable"] == link["bad_frames"] == link["retries"] == 0
     assert link["service_status"]["requests"] == link["requests"]
+    # heartbeats (fly's default: after 1 s without traffic) all answered, none missed
+    assert link["heartbeats_sent"] == link["heartbeat_replies"]
+    assert link["heartbeats_missed"] == link["link_down"] == 0
+    assert link["service_status"]["heartbeats"] == link["heartbeats_sent"]
     assert f"serving on {modem.paths[0]} at 921600 baud" in log
     assert log.count("fix") + log.count("no fix") >= link["requests"]
     assert "SIGTERM: stopping" in log
@@ -650,6 +654,22 @@ def test_realtime_flight_against_a_slow_service_never_waits_and_applies_each_fix
     late = [f for f in dropped.fixes if f["reason"] == "no fix: arrived after its deadline"]
     assert d["dropped_after_deadline"] == len(late) >= 3
     assert not applied(dropped)
+
+
+def test_fly_realtime_writes_its_figures_and_says_it_is_not_deterministic(navgate_run,
+                                                                           tmp_path):
+    code, _, err = navgate_run(["fly", "--duration", "30", "--realtime", "15", "--quiet",
+                                "--out", tmp_path])
+    assert code == 0, err
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    rt, aided = summary["trn_aided"]["realtime"], summary["trn_aided"]
+    assert rt["speed"] == 15.0 and rt["deterministic"] is False
+    assert rt["wall_s"] >= 30.0 / 15.0 - 0.05
+    assert rt["requests"] == aided["fixes_attempted"] > 2
+    assert rt["arrived"] + rt["in_flight_at_end"] == rt["requests"]
+    assert "realtime" not in summary["ins_only"]
+    code, out, _ = navgate_run(["fly", "--help"])
+    assert "NOT deterministic" in " ".join(out.split())
 
 
 def test_bad_realtime_options_are_one_line_exit_2(navgate_run, tmp_path):
