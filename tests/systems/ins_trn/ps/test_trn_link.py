@@ -281,8 +281,8 @@ def test_a_peer_of_another_protocol_version_is_refused(navgate_run, tmp_path):
 
 def test_a_new_ps_session_never_gets_the_fixes_kept_for_the_one_before(scenario):
     """Request ids start again at 1 with each PS session: the fix the service keeps for
-    resending request 1 of the last session must not answer request 1 of the next one (over
-    TCP each client starts afresh; over a serial line, each hello does)."""
+    resending request 1 of the last session must not answer request 1 of the next one; a
+    session that reconnects (its hello names it) still finds its own."""
     from dataclasses import asdict
 
     from navgate.trn.pmf import PmfConfig
@@ -300,11 +300,19 @@ def test_a_new_ps_session_never_gets_the_fixes_kept_for_the_one_before(scenario)
             answer = service.handle(frames.Frame(messages.PROFILE_FRAGMENT, 1, piece))
         return answer[1]["result"]["time"]
 
+    def hello(session):
+        service.handle(frames.Frame(messages.HELLO, 1, {"client": "test", "session": session}))
+
+    hello("a")
     assert request(10.0) == 10.0
     assert request(99.0) == 10.0  # the same session resending request 1: the kept fix
-    service.handle(frames.Frame(messages.HELLO, 1, {"client": "test"}))
+    hello("a")  # ... and after a reconnect
+    assert request(99.0) == 10.0
+    hello("b")
     assert request(99.0) == 99.0  # a new session: correlated afresh
-    assert service.counters["requests"] == 2
+    service.handle(frames.Frame(messages.HELLO, 1, {"client": "test"}))
+    assert request(50.0) == 50.0  # a session without a name: afresh too
+    assert service.counters["requests"] == 3
 
 
 def _wait_for(condition, timeout=10.0):

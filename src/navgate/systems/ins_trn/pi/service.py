@@ -36,6 +36,8 @@ from navgate.systems.ins_trn.link.transport import LinkClosed, Transport, from_s
 
 #: how often a blocked read wakes up to look at the stop flag (s)
 POLL_S = 0.2
+#: PS sessions whose kept fragments and fixes the service remembers
+SESSIONS_KEPT = 4
 
 
 def _config(cls, values: dict):
@@ -62,6 +64,7 @@ class TrnService:
                          "heartbeats": 0, "status_requests": 0}
         self._correlators: dict = {}
         self._reassembly = messages.Reassembly()
+        self._sessions: dict[str, messages.Reassembly] = {}
         self._client_heartbeats = 0
 
     # -- requests ---------------------------------------------------------------------------
@@ -118,11 +121,19 @@ class TrnService:
         """The answer to one frame (kind, body), or None for none."""
         kind = frame.kind
         if kind == messages.HELLO:
-            # a new PS session: its request ids start again, so the fixes kept for resending
-            # belong to the one before (a serial line keeps one serve() across PS restarts)
-            self._reassembly = messages.Reassembly()
-            self.log(f"trn-serve: hello from {frame.body.get('client', '?')}"
-                     if isinstance(frame.body, dict) else "trn-serve: hello")
+            # a PS session (its request ids start at 1) keeps its own fragments and fixes: a
+            # PS that reconnects names its session again and finds them; another session (a
+            # new PS, or one restarted on a serial line that keeps one serve()) starts afresh
+            body = frame.body if isinstance(frame.body, dict) else {}
+            session = body.get("session")
+            if isinstance(session, str) and session:
+                self._reassembly = self._sessions.pop(session, None) or messages.Reassembly()
+                self._sessions[session] = self._reassembly
+                while len(self._sessions) > SESSIONS_KEPT:
+                    self._sessions.pop(next(iter(self._sessions)))
+            else:
+                self._reassembly = messages.Reassembly()
+            self.log(f"trn-serve: hello from {body.get('client', '?')}")
             return messages.CAPABILITIES, self.capabilities()
         if kind == messages.HEARTBEAT:
             self.counters["heartbeats"] += 1
@@ -175,7 +186,7 @@ class TrnService:
         ``max_requests`` profile requests have been answered."""
         self.counters["clients"] += 1
         self._client_heartbeats = 0
-        self._reassembly = messages.Reassembly()  # fixes kept for resending are per client
+        self._reassembly = messages.Reassembly()  # until the client's hello names its session
         bad_base = self.counters["bad_frames"] - sum(link.decoder.bad.values())
         try:
             while not self.stop.is_set():

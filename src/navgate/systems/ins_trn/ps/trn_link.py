@@ -21,6 +21,7 @@ at once, not at the next fix. A lock gives the link to one user at a time.
 from __future__ import annotations
 
 import math
+import os
 import re
 import socket
 import subprocess
@@ -93,6 +94,9 @@ class TrnLink:
         self.seq = 0
         self.next_id = 1
         self.capabilities: dict = {}
+        #: names this PS session in each hello (request ids start at 1 in each session): the
+        #: service keeps a session's fragments and fixes across reconnects, not across sessions
+        self.session = f"{socket.gethostname()}-{os.getpid()}-{time.time_ns()}"
         self.counters = {"absent_at_start": 0, "requests": 0, "replies": 0, "timeouts": 0,
                          "retries": 0,
                          "unavailable": 0, "stale_replies": 0, "service_errors": 0,
@@ -158,7 +162,8 @@ class TrnLink:
             if time.monotonic() >= resend:
                 # again each second: a serial port opened after the hello was sent (the Pi
                 # still booting) flushes what was waiting in its input
-                self._send(messages.HELLO, {"client": "navgate ps", "version": frames.VERSION})
+                self._send(messages.HELLO, {"client": "navgate ps", "version": frames.VERSION,
+                                            "session": self.session})
                 resend = time.monotonic() + HELLO_RESEND_S
             try:
                 frame = self.link.recv(min(0.5, max(deadline - time.monotonic(), 0.01)))
