@@ -299,6 +299,7 @@ class FpgaSimEngine(Fp32Engine):
     """The whole PL in Verilator behind the PlEngine interface (module docstring)."""
 
     name = "fpga-sim"
+    needs_imu_words = True
 
     def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
         if check_pd:
