@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from navgate.gateware.fp32 import Fp32Add
+from navgate.numerics.fp32 import floats_to_bits
 from navgate.opflow import loop_kernels as K
-from navgate.opflow.execute import floats_to_bits
 from navgate.opflow.loopmachine import simulate
 from navgate.opflow.loops import LoopUnits, modulo_schedule, run_nest
 

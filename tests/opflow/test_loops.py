@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Mul
+from navgate.numerics.fp32 import floats_to_bits
 from navgate.opflow import loop_kernels as K
-from navgate.opflow.execute import floats_to_bits, run_bittrue
+from navgate.opflow.execute import run_bittrue
 from navgate.opflow.ir import const_name
 from navgate.opflow.loops import (
     Acc,

@@ -39,17 +39,16 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Mul
+from navgate.numerics import fp32 as F
 from navgate.opflow.loops import ADDR_READY, LoopSchedule, addresses, iteration_indices
 
 __all__ = ["LoopMachine", "to_bits", "simulate"]
 
 
 def to_bits(values) -> list:
-    """float32 values (float64 holding them, or uint32 patterns) -> 32-bit words."""
+    """float32 values (float64 holding them; NaN canonical) or uint32 patterns -> words."""
     v = np.asarray(values)
-    if v.dtype != np.uint32:
-        v = v.astype(np.float32).view(np.uint32)
-    return [int(x) for x in v]
+    return [int(x) for x in (v if v.dtype == np.uint32 else F.floats_to_bits(v))]
 
 
 def _bits(n: int) -> int:
