@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -62,24 +61,16 @@ def main():
                                   "res_mii": s.res_mii, "rec_mii": s.rec_mii,
                                   "depth": s.depth, "cycles": s.cycles}
     if args.synth:
-        from navgate.hw.synth import synthesize, timing_xc7
+        from navgate.hw.synth import XC7_ROW_HEADER, print_xc7_row, xc7_summary
         from navgate.hw.verilog import emit_verilog
         from navgate.opflow.loopmachine import LoopMachine
 
-        print(f"\n{'nest':16s} {'LUT':>6s} {'FF':>6s} {'DSP':>4s} {'BRAM36':>7s} "
-              f"{'path ns':>8s}  memory cells")
+        print("\nnest" + XC7_ROW_HEADER[4:])
         for name in args.synth:
-            text = emit_verilog(LoopMachine(scheds[name]), "loop_machine")
-            with tempfile.TemporaryDirectory(prefix="navgate-loops-") as work:
-                u = synthesize(text, "loop_machine", "xc7z020", Path(work))
-                t = timing_xc7("loop_machine", Path(work))
-            mem = {k: v for k, v in u["cells"].items() if "RAM" in k}
-            print(f"{name:16s} {u['lut']:6d} {u['ff']:6d} {u['dsp']:4d} {u['bram36']:7} "
-                  f"{t['path_ns']:8.3f}  {mem}")
-            summary["nests"][name]["synth"] = {
-                **{k: u[k] for k in ("lut", "ff", "dsp", "carry4", "bram36")},
-                "memory_cells": mem, "xc7_logic_path_ns": t["path_ns"],
-                "path_start": t["start"], "path_end": t["end"]}
+            row = xc7_summary(emit_verilog(LoopMachine(scheds[name]), "loop_machine"),
+                              "loop_machine")
+            print_xc7_row(name, row)
+            summary["nests"][name]["synth"] = row
     Path(args.json).write_text(json.dumps(summary, indent=2, default=str) + "\n")
     print(f"\nwrote {args.json}")
 
