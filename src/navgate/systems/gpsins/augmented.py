@@ -170,6 +170,7 @@ def gps_update(P, x, gps, sigma):
         for j in range(3):
             S[i, j] = hd[i] * PHt[i, j]
         S[i, i] += sigma[i] * sigma[i]
+    kf.check_update_covariance(P, S)
     # S^-1 by cofactors (3 x 3, symmetric positive definite)
     c00 = S[1, 1] * S[2, 2] - S[1, 2] * S[2, 1]
     c01 = S[0, 2] * S[2, 1] - S[0, 1] * S[2, 2]
