@@ -223,11 +223,16 @@ def _make_stream(cls, reader, block, method, axes, kp, ki, gain, no_mag, init, g
                  resolve_axes):
     """The filter for this log: axes resolved, gap threshold and the kp*dt check from the
     log's nominal period."""
+    from navgate.systems.attitude.estimate import check_run
+
     dt = reader.nominal_dt
     if not (math.isfinite(dt) and dt > 0):
         dt = 0.01
     if method == "mahony" and kp * dt >= 1.0:
         raise CliError(f"--kp {kp:g} with a {dt:g} s sample period gives kp * dt = {kp * dt:.3g};"
                        f" the discrete filter needs kp * dt < 1 (here kp < {1 / dt:.4g})")
+    # the checks every engine shares (the circuit engines run the same in circuit_inputs)
+    check_run(method=method, dt=dt, kp=kp, ki=ki, gain=gain,
+              acc0=block.acc[0] if init == "accel" and len(block.acc) else None)
     return cls(method, axes=resolve_axes(block, axes), kp=kp, ki=ki, gain=gain,
                use_mag=not no_mag, init=init, gap_s=gap_periods * dt)
