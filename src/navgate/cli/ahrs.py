@@ -174,6 +174,12 @@ def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no
         raise CliError(str(error)) from None
     if len(log) < 2:
         raise CliError(f"{input_csv}: need at least two samples")
+    from navgate.systems.attitude.circuit_engine import circuit_inputs
+
+    try:  # the checks every engine shares (estimate.check_run), before any message or build
+        circuit_inputs(log, axes, kp, ki)
+    except ValueError as error:
+        raise CliError(str(error)) from None
     if engine == "fp32":
         console.print(f"running the float32 model over {len(log)} samples "
                       f"(about 50 ms a sample)")
@@ -233,6 +239,7 @@ def _make_stream(cls, reader, block, method, axes, kp, ki, gain, no_mag, init, g
                        f" the discrete filter needs kp * dt < 1 (here kp < {1 / dt:.4g})")
     # the checks every engine shares (the circuit engines run the same in circuit_inputs)
     check_run(method=method, dt=dt, kp=kp, ki=ki, gain=gain,
-              acc0=block.acc[0] if init == "accel" and len(block.acc) else None)
+              acc0=block.acc[0] if init == "accel" and len(block.acc) else None,
+              use_mag=not no_mag and block.mag is not None)
     return cls(method, axes=resolve_axes(block, axes), kp=kp, ki=ki, gain=gain,
                use_mag=not no_mag, init=init, gap_s=gap_periods * dt)

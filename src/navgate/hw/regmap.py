@@ -25,6 +25,7 @@ knows no particular map (seed 000's is ``navgate/systems/ins_trn/pl/registers.rd
 from __future__ import annotations
 
 import math
+import numbers
 import struct
 from dataclasses import dataclass
 from functools import cached_property
@@ -385,10 +386,9 @@ class Registers:
         """Write ``value`` rounded to float32. NaN, inf and finite values beyond float32's
         range (which would round to inf) are refused: a register the PL computes with must
         not start from a non-finite word."""
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name}: expected a number, got {value!r}") from None
+        if not isinstance(value, numbers.Real):
+            raise ValueError(f"{name}: expected a number, got {value!r}")
+        v = float(value)
         if not math.isfinite(v):
             raise ValueError(f"{name}: refusing to write the non-finite value {v} into a "
                              "float32 register")

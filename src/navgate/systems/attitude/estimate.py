@@ -58,17 +58,22 @@ KP_DT_MAX = 1.0
 
 
 def check_run(*, method: str, dt: float, kp: float, ki: float, gain: float = 0.02,
-              acc0=None) -> None:
+              acc0=None, use_mag: bool = True) -> None:
     """The one validation of a log and of the gains that every ``ahrs`` engine (the float64
     reference, the float32 circuit model, its gateware) runs before filtering, so that the
     circuit engines refuse what the reference refuses. ValueError naming the argument:
 
     * ``dt`` (the log's nominal sample period, s): finite, >= :data:`MIN_SAMPLE_PERIOD_S`;
-    * ``kp``, ``ki``: finite and >= 0, ``kp * dt < 1`` (:data:`KP_DT_MAX`), and the integral
-      loop stable: per axis the small-angle error e and integral i of the Euler step
-      (i += ki T e; w = kp e + i; e -= T w) follow [e, i]' <- [[1 - kp T - ki T^2, -T],
-      [ki T, 1]] [e, i]', whose eigenvalues lie inside the unit circle iff (Jury)
-      0 < kp T < 2 and ki T^2 < 4 - 2 kp T (``--ki 1e5`` at 100 Hz: ki T^2 = 10, unstable);
+    * ``kp``, ``ki``: finite and >= 0, and the discrete loop stable. Linearised, a small
+      attitude error theta gives the error vector e = M theta, M = sum over the reference
+      vectors used (accelerometer, magnetometer) of (I - v v'), whose eigenvalues c lie in
+      [0, 2] (in [0, 1] with the accelerometer alone). Per eigen-direction the Euler step
+      (i += ki T e; w = kp e + i; theta -= T w) is [theta, i]' <- [[1 - c kp T - c ki T^2,
+      -T], [c ki T, 1]] [theta, i]', stable iff (Jury) c kp T < 2 and
+      c ki T^2 < 4 - 2 c kp T; both tighten as c grows, so c = 2 (1 without a magnetometer)
+      is the bound: with a magnetometer kp T < 1 (the CLI's rule) and ki T^2 < 2 (1 - kp T)
+      (``--ki 1e5`` at 100 Hz: ki T^2 = 10, unstable); without one, kp T < 1 still
+      (:data:`KP_DT_MAX`) and ki T^2 < 4 - 2 kp T;
     * ``gain`` (complementary): in [0, 1];
     * ``acc0`` (the first sample's specific force): not zero; the filters level on it.
     """
@@ -86,10 +91,12 @@ def check_run(*, method: str, dt: float, kp: float, ki: float, gain: float = 0.0
             raise ValueError(f"kp: {kp:g} with a {dt:g} s sample period gives kp * dt = "
                              f"{kp * dt:.3g}; the discrete filter needs kp * dt < {KP_DT_MAX:g}"
                              f" (here kp < {KP_DT_MAX / dt:.4g})")
-        if not ki * dt * dt < 4.0 - 2.0 * kp * dt:
+        c = 2.0 if use_mag else 1.0
+        ki_max = (4.0 - 2.0 * c * kp * dt) / (c * dt * dt)
+        if not ki < ki_max:
             raise ValueError(f"ki: {ki:g} with kp {kp:g} and a {dt:g} s sample period makes "
-                             f"the integral loop unstable (needs ki * dt^2 < 4 - 2 kp dt, here "
-                             f"ki < {(4.0 - 2.0 * kp * dt) / (dt * dt):.4g})")
+                             f"the integral loop unstable (here ki < {ki_max:.4g}; see "
+                             "navgate.systems.attitude.estimate.check_run)")
     elif method == "complementary":
         if not 0.0 <= validate.finite_scalar("gain", gain) <= 1.0:
             raise ValueError(f"gain: complementary gain must be in [0, 1], got {gain}")
@@ -232,7 +239,8 @@ def estimate_attitude(log: ImuLog, method: str = "mahony", *, axes: str = "auto"
                             init=init, gap_s=gap if math.isfinite(gap) else math.inf)
     if len(log.t) > 1:  # the checks every engine shares (check_run)
         check_run(method=method, dt=nominal_period(log.t), kp=kp, ki=ki, gain=gain,
-                  acc0=log.acc[0] if init == "accel" else None)
+                  acc0=log.acc[0] if init == "accel" else None,
+                  use_mag=use_mag and log.mag is not None)
     q = stream.update(log.t, log.gyro, log.acc, log.mag if use_mag else None)
     roll, pitch, yaw = euler_deg(q)
     res = AttitudeResult(log.t, q, roll, pitch, yaw, axes, stream.used_mag)
