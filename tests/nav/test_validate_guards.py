@@ -67,3 +67,13 @@ def test_two_by_two_closed_form_agrees_with_eigvalsh(seed):
     scale = np.abs(p).max()
     validate.covariance("R", p - (lam - 1e-6 * scale) * np.eye(2) + 1e-6 * scale * np.eye(2))
     raises_naming("R", validate.covariance, "R", p - (lam + 1e-6 * scale) * np.eye(2))
+
+
+@pytest.mark.parametrize("name, args", [("lat0", (math.pi / 2, 0.0)),
+                                        ("lat0", (-math.pi / 2, 0.0)),
+                                        ("h0", (0.8, 0.1, -7e6))])
+def test_local_tangent_refuses_a_pole_and_absurd_heights(name, args):
+    from navgate.nav.earth import LocalTangent
+
+    # at a pole m_per_rad_lon is 0: to_geodetic would divide by it
+    raises_naming(name, LocalTangent, *args)

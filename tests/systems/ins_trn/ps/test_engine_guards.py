@@ -20,7 +20,7 @@ from navgate.nav import eskf
 from navgate.nav.calibration import ImuCalibration
 from navgate.nav.earth import LocalTangent
 from navgate.sim import sensors
-from navgate.systems.ins_trn.ps.engine import EngineSetup, make_engine
+from navgate.systems.ins_trn.ps.engine import ENGINES, EngineSetup, make_engine
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
 
 NAN = float("nan")
@@ -176,3 +176,26 @@ def test_good_calls_still_work_and_agree(engine):
     assert out.accepted
     assert out.nis == pytest.approx(nis, rel=1e-5)  # float32: 2^-24 per op, a few ops
     e.inflate_p_horizontal(np.diag([4.0, 9.0]))
+
+
+# -- every registered engine shares the checks ----------------------------------------------------
+
+CALLS = {
+    "propagate": ("gyro_words", (np.zeros((4, 2)), np.zeros((4, 3)))),
+    "update_trn": ("cov", ((1.0, 2.0), -1e9 * np.eye(2), 0.0)),
+    "update_altitude": ("sigma", (1500.0, -1.0)),
+    "inflate_p_horizontal": ("d_p", (np.diag([NAN, 1.0]),)),
+}
+
+
+@pytest.mark.parametrize("engine_name", list(ENGINES))
+@pytest.mark.parametrize("method", list(CALLS))
+def test_every_registered_engine_checks_before_it_acts(engine_name, method):
+    """Each engine class of ENGINES (a new one too), called on a bare instance (no registers,
+    no simulator, no filter): the shared check refuses before anything else is touched."""
+    import importlib
+
+    module, attr = ENGINES[engine_name][0].split(":")
+    cls = getattr(importlib.import_module(module), attr)
+    name, args = CALLS[method]
+    raises_naming(name, getattr(cls, method), object.__new__(cls), *args)
