@@ -41,7 +41,8 @@ def _nonneg(ctx, param, value):
 @click.option("--kp", type=float, default=1.0, show_default=True, callback=_nonneg,
               help="Mahony proportional gain (rad/s per unit error); kp * dt must be < 1.")
 @click.option("--ki", type=float, default=0.1, show_default=True, callback=_nonneg,
-              help="Mahony integral gain.")
+              help="Mahony integral gain; ki * dt^2 < 2 (1 - kp dt) keeps the loop stable "
+                   "(checked, all engines).")
 @click.option("--gain", type=float, default=0.02, show_default=True, callback=_nonneg,
               help="Complementary filter correction gain per sample (0..1).")
 @click.option("--axes", type=click.Choice(["auto", "frd", "flu"]), default="auto",
