@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 
 from navgate.cli import main
@@ -23,25 +24,42 @@ def run_cli(args, capsys):
     return code, out.out, out.err
 
 
-@pytest.fixture(scope="module")
-def log_lines(tmp_path_factory):
+def header():
+    """A record log's header built by hand (records.make_header's fields; no flight is
+    simulated): a level, still start at the DEM's centre."""
+    from dataclasses import asdict
+
+    from navgate.nav import eskf
     from navgate.sim.flight import FlightConfig
-    from navgate.systems.ins_trn.ps.flight import record_stream
-    from navgate.systems.ins_trn.ps.records import write_log
     from navgate.trn.dem import Dem
 
-    path = tmp_path_factory.mktemp("replay_guards") / "flight.log"
-    _, _, stream = record_stream(Dem.default(), FlightConfig(duration_s=5.0, seed=1))
-    write_log(stream, path)
-    return path.read_text().splitlines(keepends=True)
+    lat, lon = Dem.default().center
+    p0 = eskf.initial_covariance(pos_sigma=30.0, vel_sigma=0.5, att_sigma=0.01,
+                                 accel_bias_sigma=0.01, gyro_bias_sigma=1e-4)
+    eye = np.eye(3).tolist()
+    return {"config": asdict(FlightConfig()), "ideal": True, "imu_rate_hz": 400.0, "t0": 0.0,
+            "n_imu": 1,
+            "calibration": {"gyro_bias": [0.0] * 3, "gyro_matrix": eye, "accel_bias": [0.0] * 3,
+                            "accel_matrix": eye, "gyro_lsb": 1e-4, "accel_lsb": 1e-3},
+            "initial": {"nav": [lat, lon, 500.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
+                        "p0": p0.tolist(), "bias_a": [0.0] * 3, "bias_g": [0.0] * 3},
+            "reference": {"lat_rad": lat, "lon_rad": lon, "h_m": 500.0}}
 
 
-def damaged(lines, tmp_path, edit):
-    i = next(k for k, ln in enumerate(lines) if ln.startswith("H "))
-    header = json.loads(lines[i][2:])
-    edit(header["initial"])
+def test_the_hand_made_header_passes_the_checks():
+    from navgate.sim.flight import FlightConfig
+    from navgate.systems.ins_trn.ps.engine import check_setup
+    from navgate.systems.ins_trn.ps.navigator import engine_setup
+
+    check_setup(engine_setup(header(), FlightConfig()))
+
+
+def damaged(tmp_path, edit):
+    h = header()
+    edit(h["initial"])
     path = tmp_path / "damaged.log"
-    path.write_text("".join(lines[:i] + ["H " + json.dumps(header) + "\n"] + lines[i + 1:]))
+    path.write_text("navgate-records 1\nH " + json.dumps(h) + "\n"
+                    "I,0.0025,0.0,0.0,0.0,0.0,0.0,-9806.65\n")
     return path
 
 
@@ -69,8 +87,8 @@ def _quat(ini):
                                         (_lat_100, "nav0[0]"), (_height, "nav0[2]"),
                                         (_quat, "nav0[6:10]")],
                          ids=["p0 nan", "p0 indefinite", "latitude 100", "height", "quaternion"])
-def test_damaged_initial_state_is_one_line_exit_2(log_lines, tmp_path, capsys, edit, word):
-    path = damaged(log_lines, tmp_path, edit)
+def test_damaged_initial_state_is_one_line_exit_2(tmp_path, capsys, edit, word):
+    path = damaged(tmp_path, edit)
     code, _, err = run_cli([path, "--out", tmp_path / "rep", "--quiet"], capsys)
     lines = err.strip().splitlines()
     assert code == 2, err
