@@ -20,7 +20,8 @@ from navgate.nav import eskf
 from navgate.nav.calibration import ImuCalibration
 from navgate.nav.earth import LocalTangent
 from navgate.sim import sensors
-from navgate.systems.ins_trn.ps.engine import ENGINES, EngineSetup, make_engine
+from navgate.systems.ins_trn.ps.engine import EngineSetup, make_engine
+from navgate.systems.ins_trn.ps.engine_registry import engine_class, engine_names
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
 
 NAN = float("nan")
@@ -111,14 +112,10 @@ def test_words_refused(engine, case):
     unchanged(engine, before)
 
 
-@pytest.mark.parametrize("cls_path", ["navgate.systems.ins_trn.ps.rtl_engine:RtlEngine",
-                                      "navgate.systems.ins_trn.ps.fpga_sim:FpgaSimEngine"])
+@pytest.mark.parametrize("cls_path", ["rtl", "fpga-sim"])
 @pytest.mark.parametrize("case", list(BAD_WORDS), ids=list(BAD_WORDS))
 def test_simulated_engines_check_words_before_the_simulator(cls_path, case):
-    import importlib
-
-    module, attr = cls_path.split(":")
-    cls = getattr(importlib.import_module(module), attr)
+    cls = engine_class(cls_path)
     bare = object.__new__(cls)  # no simulator, no registers: a check after would fail here
     name, gw, aw = BAD_WORDS[case]
     raises_naming(name, cls.propagate, bare, gw, aw)
@@ -188,14 +185,12 @@ CALLS = {
 }
 
 
-@pytest.mark.parametrize("engine_name", list(ENGINES))
+@pytest.mark.parametrize("engine_name", engine_names())
 @pytest.mark.parametrize("method", list(CALLS))
 def test_every_registered_engine_checks_before_it_acts(engine_name, method):
-    """Each engine class of ENGINES (a new one too), called on a bare instance (no registers,
-    no simulator, no filter): the shared check refuses before anything else is touched."""
-    import importlib
-
-    module, attr = ENGINES[engine_name][0].split(":")
-    cls = getattr(importlib.import_module(module), attr)
+    """Each registered engine class (engine_registry; a new one too), called on a bare
+    instance (no registers, no simulator, no filter): the shared check refuses before
+    anything else is touched."""
+    cls = engine_class(engine_name)
     name, args = CALLS[method]
     raises_naming(name, getattr(cls, method), object.__new__(cls), *args)
