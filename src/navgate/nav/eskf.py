@@ -244,8 +244,9 @@ def run_propagation(nav, bias_a, bias_g, p, gyro, accel, k0, k1, dt, q_diag,
 
 
 def _readings(name, value):
-    """A C-contiguous float64 (N, 3) array (the compiled loop indexes [k, 0..2])."""
-    a = np.ascontiguousarray(value, dtype=np.float64)
+    """An (N, 3) array (the compiled loop indexes [k, 0..2]); an ndarray is passed on as it
+    is (no copy: callers hand the whole flight's readings with a k0..k1 window each call)."""
+    a = value if isinstance(value, np.ndarray) else np.asarray(value, dtype=np.float64)
     if a.ndim != 2 or a.shape[1] != 3:
         raise ValueError(f"{name}: expected an N x 3 array, got shape {a.shape}")
     return a
