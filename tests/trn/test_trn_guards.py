@@ -54,7 +54,6 @@ def test_profile_buffer_constructor(name, kwargs):
 @pytest.mark.parametrize("name, change", [
     ("time", {"time": NAN}), ("roll", {"roll": NAN}), ("pitch", {"pitch": math.inf}),
     ("pos_n", {"pos_n": NAN}), ("pos_e", {"pos_e": -math.inf}),
-    ("slant_range", {"slant_range": -5.0}),
 ])
 def test_profile_add_refuses_and_stores_nothing(name, change):
     buf = ProfileBuffer()
@@ -70,12 +69,16 @@ def test_profile_add_refuses_time_going_backwards():
     assert len(snap) == 1 and snap.time[0] == 10.0
 
 
-def test_sensor_dropouts_stay_counted_rejections():
-    """A NaN barometer or ranger reading is a sensor dropout: counted, not an error."""
+def test_sensor_defects_are_counted_rejections_never_stored():
+    """A NaN barometer or ranger reading is a dropout, a negative range a damaged frame (a
+    replayed log can hold one): counted, not stored (a negative range was stored before),
+    and not an error, so a replay goes on."""
     buf = ProfileBuffer()
     assert buf.add(**sample(h_baro=NAN)) == REJECT_BARO
     assert buf.add(**sample(slant_range=NAN)) == REJECT_RANGER
-    assert buf.counts == {REJECT_BARO: 1, REJECT_RANGER: 1} and buf.count == 0
+    assert buf.add(**sample(slant_range=-5.0)) == REJECT_RANGER
+    assert buf.counts == {REJECT_BARO: 1, REJECT_RANGER: 2} and buf.count == 0
+    assert buf.add(**sample(slant_range=0.0)) == ACCEPTED  # zero is a range (on the ground)
 
 
 def test_profile_shift_refuses_nan():

@@ -93,11 +93,12 @@ class ProfileBuffer:
     def add(self, *, time, h_baro, slant_range, range_valid, roll, pitch, pos_n, pos_e) -> str:
         """Offer one sample; returns ACCEPTED or the rejection reason.
 
-        Sensor dropouts are counted rejections (a non-finite barometric height or range, or
-        ``range_valid`` False). What the navigation side supplies must be sound, and
-        anything else is a ValueError naming the argument: a finite ``time`` not before the
-        previous accepted sample's, finite ``roll``/``pitch``/``pos_n``/``pos_e``, and a
-        range that is not negative (no ranger measures one)."""
+        Sensor defects are counted rejections, never stored: a non-finite barometric
+        height, ``range_valid`` False, a non-finite or negative range (no ranger measures
+        one; a damaged log can hold one, and a replay must go on). What the navigation side
+        supplies must be sound, anything else is a ValueError naming the argument: a finite
+        ``time`` not before the previous accepted sample's, finite ``roll``/``pitch``/
+        ``pos_n``/``pos_e``."""
         from navgate.nav import validate
 
         time = validate.finite_scalar("time", time)
@@ -107,11 +108,9 @@ class ProfileBuffer:
         for name, value in (("roll", roll), ("pitch", pitch), ("pos_n", pos_n),
                             ("pos_e", pos_e)):
             validate.finite_scalar(name, value)
-        if slant_range < 0:
-            raise ValueError(f"slant_range: a range cannot be negative, got {slant_range:g} m")
         if not math.isfinite(h_baro):
             return self._count(REJECT_BARO)
-        if not range_valid or not math.isfinite(slant_range):
+        if not range_valid or not (math.isfinite(slant_range) and slant_range >= 0):
             return self._count(REJECT_RANGER)
         if abs(roll) > self.max_tilt_rad or abs(pitch) > self.max_tilt_rad:
             return self._count(REJECT_TILT)
