@@ -116,6 +116,9 @@ def test_integrity_review_refuses_nonsense():
     raises_naming("config", IntegrityMonitor, object(), {"window": 6})
     assert mon.counts == {}
     assert mon.review(ok, _Upd(1.0), [1.0, 2.0]) == Review()
+    # a refused update (S not positive in the fp32 engine) may carry any NIS: counted as gated
+    assert mon.review(ok, _Upd(-3.0, accepted=False), [1.0, 2.0]) == Review()
+    assert mon.counts == {"applied": 1, "rejected by chi-square gate": 1}
 
 
 # -- PmfConfig / PointMassCorrelator --------------------------------------------------------------

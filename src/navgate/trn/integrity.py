@@ -91,9 +91,12 @@ class IntegrityMonitor:
         validate.non_negative("sigma_max_m", sigma_max_m)
         if update is not None and result.accepted:
             validate.finite_array("innovation", innovation, (2,))
-            if not float(update.nis) >= 0:  # NaN or negative: S was not positive definite
-                raise ValueError(f"update.nis: a normalised innovation squared is >= 0, got "
-                                 f"{update.nis}")
+            # an applied update's NIS is >= 0 (NaN or negative: S was not positive definite);
+            # a refused one (the fp32 engine's "innovation covariance not positive") may carry
+            # any value and is counted as gated below
+            if update.accepted and not float(update.nis) >= 0:
+                raise ValueError(f"update.nis: an applied update's normalised innovation "
+                                 f"squared is >= 0, got {update.nis}")
         if not result.accepted:
             self._count(result.reason)
             if result.reason == INCONSISTENT:
