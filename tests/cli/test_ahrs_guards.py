@@ -1,4 +1,4 @@
-"""Issue 31, ``navgate ahrs`` with absurd logs and gains: every engine (reference, fp32, rtl)
+"""``navgate ahrs`` with absurd logs and gains: every engine (reference, fp32, rtl)
 ends with the same one line and exit 2 (the checks of estimate.check_run run before any
 filtering or Verilator build), and writes no output."""
 

@@ -1,4 +1,4 @@
-"""Issue 31, ``navgate replay`` of a log whose header holds an initial state the engines
+"""``navgate replay`` of a log whose header holds an initial state the engines
 refuse (NaN or indefinite P0, latitude 100 deg, a height of -7,000 km, a zero quaternion):
 one line naming the field, exit 2, no output directory (it ended in ``internal error``,
 exit 3, before)."""

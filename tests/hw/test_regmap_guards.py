@@ -1,4 +1,4 @@
-"""Issue 31, the register driver's guards (navgate.hw.regmap.Registers): NaN, inf and values
+"""The register driver's guards (navgate.hw.regmap.Registers): NaN, inf and values
 beyond float32's range are refused for float registers, 1e300, 1.5, NaN and strings for
 integer registers and fields, each with a ValueError naming the register (never an
 OverflowError or TypeError), and nothing reaches the bus."""

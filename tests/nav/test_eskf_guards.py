@@ -1,4 +1,4 @@
-"""Issue 31, the reference ESKF's guards: FilterConfig, ErrorStateFilter's constructor,
+"""The reference ESKF's guards: FilterConfig, ErrorStateFilter's constructor,
 propagate and every measurement update refuse what they cannot use with a ValueError naming
 the argument, and a refused call leaves the filter as it was."""
 

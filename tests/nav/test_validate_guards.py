@@ -1,4 +1,4 @@
-"""Issue 31's additions to navgate.nav.validate: probabilities, integer windows, ranges, the
+"""The range guards of navgate.nav.validate: probabilities, integer windows, ranges, the
 navigation latitude (pole margin) and height range, and the closed-form 2 x 2 covariance
 test (measurement updates call it once per fix, without LAPACK)."""
 

@@ -1,4 +1,4 @@
-"""Issue 31, the TRN library's guards: ProfileBuffer (constructor, add, shift),
+"""The TRN library's guards: ProfileBuffer (constructor, add, shift),
 IntegrityConfig/IntegrityMonitor, PmfConfig/PointMassCorrelator.correlate and TercomConfig
 refuse nonsense with a ValueError naming the argument, never a ZeroDivisionError,
 OverflowError or IndexError, and never a stored NaN."""

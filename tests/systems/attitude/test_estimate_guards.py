@@ -1,4 +1,4 @@
-"""Issue 31, the attitude engines' one validation (estimate.check_run): the float64 reference
+"""The attitude engines' one validation (estimate.check_run): the float64 reference
 (estimate_attitude, and the CLI's streamed AttitudeStream) and the seed-003 circuit engines
 (circuit_inputs, which fp32 and rtl share) refuse the same logs and gains with a ValueError
 naming the argument: a picosecond sample period, a zero first specific force, kp * T >= 1,
@@ -82,7 +82,7 @@ def test_jury_bound_of_the_linearised_loop():
 def test_the_bound_separates_level_from_divergent_runs(kp):
     """The filter itself (not its linearisation) on a level, still log with 1e-3 rad/s gyro
     noise, 30 s at 100 Hz: at 0.9 x the ki bound roll/pitch/yaw stay within 0.1 deg; at
-    1.1 x (which check_run refuses) the error grows past 1 deg, as the issue's ki = 1e5 did
+    1.1 x (which check_run refuses) the error grows past 1 deg, as ki = 1e5 did before the check
     (roll -77 deg)."""
     dt = 0.01
     limit = (4.0 - 4.0 * kp * dt) / (2.0 * dt * dt)

@@ -1,4 +1,4 @@
-"""Issue 31, the GPS/INS filter's guard: a GPS update refuses a covariance that is not one (a
+"""The GPS/INS filter's guard: a GPS update refuses a covariance that is not one (a
 negative-definite P, an indefinite P whose innovation covariance is not positive definite),
 for the 9-state filter and the augmented filter's 15 states (one update serves both), with a
 ValueError naming P, and leaves P as it was."""

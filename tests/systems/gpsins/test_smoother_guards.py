@@ -1,4 +1,4 @@
-"""Issue 31, the smoother's entry point: ``sweep`` checks its arguments once, before the
+"""The smoother's entry point: ``sweep`` checks its arguments once, before the
 backward pass (ValueError naming the argument, never an IndexError half-way or a NaN
 solution); ``spd_inverse`` is tested in test_smoother.py."""
 

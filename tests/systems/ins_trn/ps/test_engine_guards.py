@@ -1,4 +1,4 @@
-"""Issue 31, the seed-000 engines' guards: every engine (reference, fp32, fp32-plain, rtl,
+"""The seed-000 engines' guards: every engine (reference, fp32, fp32-plain, rtl,
 fpga-sim) refuses what it cannot use with a ValueError naming the argument, through the one
 set of checks in :mod:`navgate.systems.ins_trn.ps.engine` (check_setup, check_imu_words,
 check_altitude, check_trn, check_inflate), and nothing reaches the registers.
@@ -88,7 +88,7 @@ def test_setup_refused_by_every_engine(engine_name, case):
 
 
 def test_rate_zero_is_not_a_zero_division_in_the_fp32_engine():
-    # before issue 31 the fp32 engine raised ZeroDivisionError in _write_config
+    # without the shared check the fp32 engine raised ZeroDivisionError in _write_config
     raises_naming("rate_hz", Fp32Engine, setup(rate_hz=0))
 
 
