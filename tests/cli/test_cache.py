@@ -66,3 +66,47 @@ def test_unknown_subcommand_is_one_line(root, navgate_run):
     code, _, err = navgate_run(["cache", "purge"])
     assert code == 2
     navgate_run.one_line(err)
+
+
+def test_report_says_per_block_whether_it_came_from_the_cache(root, navgate_run,
+                                                             monkeypatch):
+    """Two blocks (synthesis stubbed): the first report synthesises both, the second takes
+    both from the cache without synthesising, a changed block is synthesised again alone."""
+    import navgate.hw.blocks as blocks
+    import navgate.hw.flow as flow
+
+    everything = blocks.all_blocks
+    monkeypatch.setattr(blocks, "all_blocks", lambda: {
+        n: b for n, b in everything().items() if n in ("fixed_mul", "mul_24x17")})
+    calls = []
+
+    def synthesize(text, name, *a):
+        calls.append(name)
+        return {"lut": len(text), "ff": 1, "dsp": 0, "carry4": 0, "bram36": 0}
+
+    monkeypatch.setattr(flow, "synthesize", synthesize)
+    code, first, err = navgate_run(["report"])
+    assert code == 0, err
+    assert sorted(calls) == ["fixed_mul", "mul_24x17"]
+    assert "Synthesised in this run: 2 of 2 blocks: fixed_mul, mul_24x17." in first
+    assert err.count(", synthesised)") == 2
+    code, second, err = navgate_run(["report"])
+    assert code == 0, err
+    assert len(calls) == 2  # nothing synthesised again
+    assert "from the cache (`navgate cache info`): 2 of 2 blocks: fixed_mul, mul_24x17." \
+        in second
+    assert err.count("from the cache)") == 2
+    table = [line for line in first.splitlines() if line.startswith("|")]
+    assert table == [line for line in second.splitlines() if line.startswith("|")]
+    # fixed_mul's Verilog changes (its Verilog entry replaced, as a source edit would): only
+    # fixed_mul is synthesised again
+    (entry,) = (root / "verilog").glob("fixed_mul-*.json")
+    data = json.loads(entry.read_text())
+    key, name = data["key"], data["name"]
+    payload = dict(data["payload"], verilog=data["payload"]["verilog"] + "// edited\n")
+    entry.unlink()
+    cache.store("verilog", name, key, payload)
+    code, third, err = navgate_run(["report"])
+    assert code == 0, err
+    assert calls[2:] == ["fixed_mul"]
+    assert "Synthesised in this run: 1 of 2 blocks: fixed_mul." in third

@@ -274,9 +274,9 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
                         paths[name] = line
                     cached[name] = built.get("cache", {}).get("synth", False)
                     progress.advance(task)
-                    source = "results from the cache" if cached[name] else "synthesised"
-                    progress.console.print(f"[{len(rows)}/{len(blocks)}] {name} done, "
-                                           f"{source} ({time.perf_counter() - start:.0f} s)",
+                    source = "from the cache" if cached[name] else "synthesised"
+                    progress.console.print(f"[{len(rows)}/{len(blocks)}] {name} done "
+                                           f"({time.perf_counter() - start:.0f} s, {source})",
                                            highlight=False)
     return report_table([rows[name] for name in blocks],
                         [paths[name] for name in blocks if name in paths]) + \
