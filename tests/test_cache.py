@@ -289,3 +289,14 @@ def test_synth_key_follows_the_verilog_and_options(flow_cache):
     assert cache.make_key(synth_key(text.replace("fixed_mul", "fixed_mul "), *args)) != key
     timed = ("fixed_mul", "xc7z020", True, ("xc7",), (1,), (1,), None, None)
     assert cache.make_key(synth_key(text, *timed)) != key
+
+
+def test_an_unwritable_cache_warns_and_still_gives_the_result(tmp_path, monkeypatch):
+    blocker = tmp_path / "not-a-directory"
+    blocker.write_text("a file where the cache root should be")
+    monkeypatch.setenv("NAVGATE_CACHE_DIR", str(blocker))
+    with pytest.warns(RuntimeWarning, match="cannot write"):
+        payload, hit = cache.cached("synth", "b", {}, lambda: {"utilization": {"lut": 3}})
+    assert (payload, hit) == ({"utilization": {"lut": 3}}, False)
+    assert blocker.read_text().startswith("a file")
+    assert [k.entries for k in cache.info()] == [0, 0, 0]

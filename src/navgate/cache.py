@@ -55,6 +55,7 @@ import os
 import shutil
 import sys
 import tempfile
+import warnings
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from importlib import metadata
@@ -186,7 +187,7 @@ def load(kind: str, name: str, key: str) -> dict[str, Any] | None:
     path = entry_path(kind, name, key)
     try:
         raw = path.read_bytes()
-    except FileNotFoundError:
+    except OSError:  # absent, or unreadable (then rebuilt, and the write will say why)
         return None
     try:
         entry = json.loads(raw.decode())
@@ -241,12 +242,27 @@ def store(kind: str, name: str, key: str, payload: dict[str, Any]) -> Path:
     return path
 
 
+def _unwritable(path: Path, error: OSError) -> None:
+    warnings.warn(f"navgate cache: cannot write {path.parent}: "
+                  f"{error.strerror or error}; going on without caching this result",
+                  RuntimeWarning, stacklevel=3)
+
+
 @contextlib.contextmanager
 def _locked(path: Path) -> Iterator[None]:
+    """An exclusive lock on the entry's lock file (left in place: unlinking it would let a
+    third process lock a new file while a second one waits on the old one). A cache that
+    cannot be written is no reason to fail a run: then no lock, and a warning."""
     lock = path.with_name(f".{path.name}.lock")
-    lock.parent.mkdir(parents=True, exist_ok=True)
-    with open(lock, "w") as handle:  # left in place: unlinking it would let a third
-        fcntl.flock(handle, fcntl.LOCK_EX)  # process lock a new file while one waits
+    try:
+        lock.parent.mkdir(parents=True, exist_ok=True)
+        handle = open(lock, "w")  # noqa: SIM115 - closed below
+    except OSError as error:
+        _unwritable(path, error)
+        yield
+        return
+    with handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
         yield
 
 
@@ -270,7 +286,11 @@ def cached(kind: str, name: str, key_parts: Mapping[str, Any],
             return payload, True
         STATS[kind]["miss"] += 1
         payload = build()
-        store(kind, name, key, payload)
+        try:
+            store(kind, name, key, payload)
+        except OSError as error:  # read-only or full: the result is still good
+            if path.parent.is_dir():
+                _unwritable(path, error)
     return payload, False
 
 
