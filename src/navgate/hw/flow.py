@@ -78,11 +78,8 @@ def _cacheable(block: Any) -> bool:
 
 
 def _made_component(block: Any, board: str | None) -> Any:
-    component = block.factory()
-    for_target = getattr(component, "for_target", None)
-    if board is not None and for_target is not None:
-        component = for_target(board)  # the board variant (its clocking and pins)
-    return component
+    # on a board, the board variant (its clocking and pins) where the block has one
+    return block.factory(board) if board is not None else block.factory()
 
 
 #: the files whose text defines the synthesis and timing flows (scripts, options, wrappers,
