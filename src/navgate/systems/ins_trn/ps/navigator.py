@@ -252,7 +252,10 @@ class Navigator:
             self.feed_ranger(t, *payload)
 
     def run(self, stream: RecordStream) -> NavRun:
-        """Consume a whole stream (runs of IMU records go to the engine in one call)."""
+        """Consume a whole stream (runs of IMU records go to the engine in one call; with an
+        engine that takes them, whole stretches of IMU and barometer records)."""
+        if self.engine.batch_records and not self.engine.pl_sensors:
+            return self._run_batched(stream)
         kind = stream.kind
         other = np.flatnonzero(kind != IMU)
         baro = None
@@ -276,6 +279,72 @@ class Navigator:
                 self.feed_ranger(t, stream.ranger_range[i], stream.ranger_status[i] == 0)
             pos = m + 1
         return self.finish()
+
+    def _run_batched(self, stream: RecordStream) -> NavRun:
+        """:meth:`run` with the engine's :meth:`PlEngine.run_records`: the stretches between
+        the records the PS must see (ranger records on TRN runs; while a fix is in flight,
+        the first record at or after its time) go to the engine in one call each, the rest
+        through the per-record methods, so the result equals :meth:`feed` record by record."""
+        kind, times = stream.kind, stream.t
+        n_total = self.samples + int(np.count_nonzero(kind == IMU))
+        rows = n_total // self.log_every + 2
+        log = (np.empty((rows, 10)), np.empty((rows, 15)), np.empty(rows))
+        logged = len(self._nav)
+        for j in range(logged):  # rows logged before this call
+            log[0][j], log[1][j], log[2][j] = self._nav[j], self._sigma[j], self._p_ne[j]
+        other = np.flatnonzero(kind != IMU)
+        stops = np.flatnonzero(kind == RANGER) if self.use_trn else np.empty(0, np.int64)
+        stops = list(stops) + [len(stream)]
+        pos = 0
+
+        def stretch(a, b):
+            nonlocal logged
+            if b <= a:
+                return
+            n, logged, h, invalid = self.engine.run_records(
+                stream, a, b, baro_sigma=self.baro_sigma, log_every=self.log_every,
+                logged=logged, log=log)
+            self.samples += n
+            self.baro_invalid += invalid
+            if h is not None:
+                self.h_baro = h
+            if self.progress is not None and n:
+                self.progress(n)
+
+        for m in stops:
+            while self._pending is not None and pos < m:
+                # the first non-IMU record at or after the fix's time applies it
+                j0 = np.searchsorted(other, pos)
+                cand = other[j0:np.searchsorted(other, m)]
+                due = cand[times[cand] >= self._pending[0]]
+                if not due.size:
+                    break
+                j = int(due[0])
+                stretch(pos, j)
+                self._due(float(times[j]))
+                if kind[j] == BARO:
+                    i = stream.index[j]
+                    self._sync_log(log, logged)
+                    self.feed_baro(float(times[j]), stream.baro_altitude[i],
+                                   stream.baro_status[i] == 0)
+                pos = j + 1
+            stretch(pos, m)
+            if m == len(stream):
+                break
+            t = float(times[m])
+            self._due(t)
+            i = stream.index[m]
+            self.feed_ranger(t, stream.ranger_range[i], stream.ranger_status[i] == 0)
+            pos = m + 1
+        self._sync_log(log, logged)
+        return self.finish()
+
+    def _sync_log(self, log, logged):
+        """The rows the engine logged into ``log``, as :meth:`_log` would have kept them."""
+        for j in range(len(self._nav), logged):
+            self._nav.append(log[0][j].copy())
+            self._sigma.append(log[1][j].copy())
+            self._p_ne.append(float(log[2][j]))
 
     def finish(self) -> NavRun:
         e = self.engine
