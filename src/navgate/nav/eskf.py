@@ -161,69 +161,100 @@ def _build_phi(phi, c, f_n, lat, h, vn, ve, dt, decay_a, decay_g):
         phi[12 + i, 12 + i] = decay_g
 
 
-#: P's rows padded to this many doubles inside the compiled loops (whole vector registers)
+#: P's rows padded to this many doubles inside the compiled loops (two 8-double vectors)
 PAD = 16
+#: the compiled loops' work space: P (PAD x PAD, row-major), then B, then B' (offsets)
+_P, _B, _BT = 0, PAD * PAD, 2 * PAD * PAD
+WS_SIZE = 3 * PAD * PAD
 
 
 @njit(cache=True)
 def propagate_covariance(p, phi, work, q_diag):
     """P <- Phi P Phi' + diag(q_diag) on a 15x15 P, using Phi's sparsity; P stays exactly
-    symmetric. (One step; the filter's loops use :func:`_cov_step` on padded storage, with
-    the same arithmetic.)"""
-    pp = np.zeros((PAD, PAD))
+    symmetric. (One step; the filter's loops use :func:`_cov_step` on their work space.)"""
+    ws = np.zeros(WS_SIZE)
+    pp = ws[:PAD * PAD].reshape((PAD, PAD))
     pp[:N_STATES, :N_STATES] = p
-    _cov_step(pp, np.empty((PAD, PAD)), np.empty((PAD, PAD)), phi, q_diag)
+    _cov_step(ws, phi, q_diag)
     p[:, :] = pp[:N_STATES, :N_STATES]
 
 
 @njit(cache=True, inline="always")
-def _cov_step(pp, b, bt, phi, q_diag):
-    """One covariance step, P <- Phi P Phi' + Q, on P stored in rows padded to PAD doubles
-    (``pp``, PAD x PAD, the padding zero; ``b`` and ``bt`` are PAD x PAD work arrays).
+def _phi_rows(ws, o, x, c):
+    """ws rows at ``o`` <- Phi times the PAD-wide rows at ``x`` (row stride PAD).
 
-    B = Phi P is formed row by row as multiply-adds of whole padded rows of P, one per
-    structural non-zero of Phi's row (PHI_COLS: 60 of 225); its transpose then gives
-    Phi B' = Phi P Phi' the same way, rows of B' scaled by Phi's non-zeros. Entry (j, i) of
-    that product is sum_k Phi_jk B_ik over Phi's row j in PHI_COLS order: the terms and the
-    order of the scalar form (B_i . Phi_j), so the result equals it bit for bit. Only the
-    upper triangle of the result is taken (plus Q's diagonal) and mirrored, so P stays
-    exactly symmetric.
+    Row i of the result is sum_k Phi_ik X_k over Phi's structural non-zeros (PHI_COLS, in
+    that order): multiply-adds of whole padded rows. The loop runs over the columns with the
+    60 coefficients held in registers (tuples), so the compiler vectorises it across the
+    16 columns; the offsets are constants, so it can prove the rows it writes are not the
+    rows it reads.
     """
-    for i in range(N_STATES):
-        k = PHI_COLS[i, 0]
-        a = phi[i, k]
-        for j in range(PAD):
-            b[i, j] = a * pp[k, j]
-        for m in range(1, PHI_NNZ[i]):
-            k = PHI_COLS[i, m]
-            a = phi[i, k]
-            for j in range(PAD):
-                b[i, j] += a * pp[k, j]
-    for i in range(N_STATES):
-        for j in range(N_STATES):
-            bt[j, i] = b[i, j]
-    # pp's rows become rows of Phi B' (row j's entry i is P_new[i, j] = P_new[j, i])
-    for j in range(N_STATES):
-        k = PHI_COLS[j, 0]
-        a = phi[j, k]
-        for i in range(PAD):
-            b[j, i] = a * bt[k, i]
-        for m in range(1, PHI_NNZ[j]):
-            k = PHI_COLS[j, m]
-            a = phi[j, k]
-            for i in range(PAD):
-                b[j, i] += a * bt[k, i]
-    for i in range(N_STATES):
-        pp[i, i] = b[i, i] + q_diag[i]
-        for j in range(i + 1, N_STATES):
-            v = b[j, i]
-            pp[i, j] = v
-            pp[j, i] = v
+    r0, r1, r2 = (c[0, 0], c[0, 3]), (c[1, 1], c[1, 4]), (c[2, 2], c[2, 5])
+    r3 = (c[3, 2], c[3, 3], c[3, 4], c[3, 5], c[3, 6], c[3, 7], c[3, 8], c[3, 9], c[3, 10],
+          c[3, 11])
+    r4 = (c[4, 2], c[4, 3], c[4, 4], c[4, 5], c[4, 6], c[4, 7], c[4, 8], c[4, 9], c[4, 10],
+          c[4, 11])
+    r5 = (c[5, 2], c[5, 3], c[5, 4], c[5, 5], c[5, 6], c[5, 7], c[5, 8], c[5, 9], c[5, 10],
+          c[5, 11])
+    r6 = (c[6, 6], c[6, 7], c[6, 8], c[6, 12], c[6, 13], c[6, 14])
+    r7 = (c[7, 6], c[7, 7], c[7, 8], c[7, 12], c[7, 13], c[7, 14])
+    r8 = (c[8, 6], c[8, 7], c[8, 8], c[8, 12], c[8, 13], c[8, 14])
+    d = (c[9, 9], c[10, 10], c[11, 11], c[12, 12], c[13, 13], c[14, 14])
+    for j in range(PAD):
+        x0, x1, x2, x3 = ws[x + j], ws[x + 16 + j], ws[x + 32 + j], ws[x + 48 + j]
+        x4, x5, x6, x7 = ws[x + 64 + j], ws[x + 80 + j], ws[x + 96 + j], ws[x + 112 + j]
+        x8, x9, x10, x11 = ws[x + 128 + j], ws[x + 144 + j], ws[x + 160 + j], ws[x + 176 + j]
+        x12, x13, x14 = ws[x + 192 + j], ws[x + 208 + j], ws[x + 224 + j]
+        ws[o + j] = r0[0] * x0 + r0[1] * x3
+        ws[o + 16 + j] = r1[0] * x1 + r1[1] * x4
+        ws[o + 32 + j] = r2[0] * x2 + r2[1] * x5
+        ws[o + 48 + j] = (r3[0] * x2 + r3[1] * x3 + r3[2] * x4 + r3[3] * x5 + r3[4] * x6
+                          + r3[5] * x7 + r3[6] * x8 + r3[7] * x9 + r3[8] * x10 + r3[9] * x11)
+        ws[o + 64 + j] = (r4[0] * x2 + r4[1] * x3 + r4[2] * x4 + r4[3] * x5 + r4[4] * x6
+                          + r4[5] * x7 + r4[6] * x8 + r4[7] * x9 + r4[8] * x10 + r4[9] * x11)
+        ws[o + 80 + j] = (r5[0] * x2 + r5[1] * x3 + r5[2] * x4 + r5[3] * x5 + r5[4] * x6
+                          + r5[5] * x7 + r5[6] * x8 + r5[7] * x9 + r5[8] * x10 + r5[9] * x11)
+        ws[o + 96 + j] = (r6[0] * x6 + r6[1] * x7 + r6[2] * x8 + r6[3] * x12 + r6[4] * x13
+                          + r6[5] * x14)
+        ws[o + 112 + j] = (r7[0] * x6 + r7[1] * x7 + r7[2] * x8 + r7[3] * x12 + r7[4] * x13
+                           + r7[5] * x14)
+        ws[o + 128 + j] = (r8[0] * x6 + r8[1] * x7 + r8[2] * x8 + r8[3] * x12 + r8[4] * x13
+                           + r8[5] * x14)
+        ws[o + 144 + j] = d[0] * x9
+        ws[o + 160 + j] = d[1] * x10
+        ws[o + 176 + j] = d[2] * x11
+        ws[o + 192 + j] = d[3] * x12
+        ws[o + 208 + j] = d[4] * x13
+        ws[o + 224 + j] = d[5] * x14
 
 
 @njit(cache=True, inline="always")
-def _imu_step(nav, bias_a, bias_g, pp, last_good, gx, gy, gz, ax, ay, az, dt, q_diag,
-              decay_a, decay_g, propagate_p, w, f, c_old, c_new, f_n, phi, b, bt):
+def _cov_step(ws, phi, q_diag):
+    """One covariance step, P <- Phi P Phi' + Q, in the work space ``ws`` (WS_SIZE doubles:
+    P padded to PAD x PAD at _P, the padding zero; B at _B; B' at _BT).
+
+    B = Phi P is formed as multiply-adds of P's padded rows (:func:`_phi_rows`); its
+    transpose gives Phi B' = Phi P Phi' the same way. Entry (j, i) of that product is
+    sum_k Phi_jk B_ik over Phi's row j in PHI_COLS order, the terms and order of the scalar
+    form B_i . Phi_j (seed 000's sparse Phi), so the result equals it bit for bit. Only the
+    upper triangle is taken (plus Q's diagonal) and mirrored: P stays exactly symmetric.
+    """
+    _phi_rows(ws, _B, _P, phi)
+    for i in range(N_STATES):
+        for j in range(N_STATES):
+            ws[_BT + j * PAD + i] = ws[_B + i * PAD + j]
+    _phi_rows(ws, _B, _BT, phi)  # row j of Phi B' holds P_new[i, j] at column i
+    for i in range(N_STATES):
+        ws[_P + i * (PAD + 1)] = ws[_B + i * (PAD + 1)] + q_diag[i]
+        for j in range(i + 1, N_STATES):
+            v = ws[_B + j * PAD + i]
+            ws[_P + i * PAD + j] = v
+            ws[_P + j * PAD + i] = v
+
+
+@njit(cache=True, inline="always")
+def _imu_step(nav, bias_a, bias_g, ws, last_good, gx, gy, gz, ax, ay, az, dt, q_diag,
+              decay_a, decay_g, propagate_p, w, f, c_old, c_new, f_n, phi):
     """One IMU sample: hold a non-finite reading, remove the bias estimates, mechanize,
     propagate P. Returns 1 for a held (non-finite) reading, else 0."""
     bad = 0
@@ -244,7 +275,7 @@ def _imu_step(nav, bias_a, bias_g, pp, last_good, gx, gy, gz, ax, ay, az, dt, q_
     strapdown.mechanize_step(nav, w, f, dt, c_old, c_new, f_n)
     if propagate_p:
         _build_phi(phi, c_old, f_n, lat, h, vn, ve, dt, decay_a, decay_g)
-        _cov_step(pp, b, bt, phi, q_diag)
+        _cov_step(ws, phi, q_diag)
     return bad
 
 
@@ -265,17 +296,16 @@ def run_propagation(nav, bias_a, bias_g, p, gyro, accel, k0, k1, dt, q_diag,
     c_new = np.empty((3, 3))
     f_n = np.empty(3)
     phi = np.zeros((15, 15))
-    pp = np.zeros((PAD, PAD))
+    ws = np.zeros(WS_SIZE)
+    pp = ws[:PAD * PAD].reshape((PAD, PAD))
     pp[:N_STATES, :N_STATES] = p
-    b = np.zeros((PAD, PAD))
-    bt = np.zeros((PAD, PAD))
     w = np.empty(3)
     f = np.empty(3)
     bad = 0
     for k in range(k0, k1):
-        bad += _imu_step(nav, bias_a, bias_g, pp, last_good, gyro[k, 0], gyro[k, 1],
+        bad += _imu_step(nav, bias_a, bias_g, ws, last_good, gyro[k, 0], gyro[k, 1],
                          gyro[k, 2], accel[k, 0], accel[k, 1], accel[k, 2], dt, q_diag,
-                         decay_a, decay_g, propagate_p, w, f, c_old, c_new, f_n, phi, b, bt)
+                         decay_a, decay_g, propagate_p, w, f, c_old, c_new, f_n, phi)
         if (k + 1) % out_every == 0:
             row = (k + 1 - out_offset) // out_every
             if 0 <= row < out_nav.shape[0]:
@@ -386,10 +416,9 @@ def run_records(nav, bias_a, bias_g, p, last_good, kinds, index, m0, m1, gyro_wo
     c_new = np.empty((3, 3))
     f_n = np.empty(3)
     phi = np.zeros((15, 15))
-    pp = np.zeros((PAD, PAD))
+    ws = np.zeros(WS_SIZE)
+    pp = ws[:PAD * PAD].reshape((PAD, PAD))
     pp[:N_STATES, :N_STATES] = p
-    b = np.zeros((PAD, PAD))
-    bt = np.zeros((PAD, PAD))
     w = np.empty(3)
     f = np.empty(3)
     g = np.empty(3)
@@ -427,9 +456,9 @@ def run_records(nav, bias_a, bias_g, p, last_good, kinds, index, m0, m1, gyro_wo
                             break
             _calibrated(gyro_words, i, lsb[0], cal_bias[0], cal_m[0], g)
             _calibrated(accel_words, i, lsb[1], cal_bias[1], cal_m[1], a)
-            counts[C_IMU_BAD] += _imu_step(nav, bias_a, bias_g, pp, last_good, g[0], g[1], g[2],
+            counts[C_IMU_BAD] += _imu_step(nav, bias_a, bias_g, ws, last_good, g[0], g[1], g[2],
                                            a[0], a[1], a[2], dt, q_diag, decay_a, decay_g,
-                                           propagate_p, w, f, c_old, c_new, f_n, phi, b, bt)
+                                           propagate_p, w, f, c_old, c_new, f_n, phi)
             counts[C_SAMPLES] = n + 1
         elif kind == 1:
             h = baro_alt[i]
