@@ -51,11 +51,11 @@ class Review:
 
 class IntegrityMonitor:
     def __init__(self, correlator, config: IntegrityConfig = IntegrityConfig()):
-        from scipy.stats import chi2
+        from navgate.nav.eskf import chi2_gate  # chi2.ppf, cached, without scipy.stats
 
         self.correlator = correlator
         self.config = config
-        self.threshold = float(chi2.ppf(config.probability, 2 * config.window))
+        self.threshold = chi2_gate(config.probability, 2 * config.window)
         self.counts: dict[str, int] = {}
         self.events: dict[str, int] = {}
         self._nis: list[float] = []
