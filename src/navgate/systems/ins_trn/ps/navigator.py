@@ -288,7 +288,7 @@ class Navigator:
     def run(self, stream: RecordStream) -> NavRun:
         """Consume a whole stream (runs of IMU records go to the engine in one call; with an
         engine that takes them, whole stretches of IMU and barometer records)."""
-        if self.engine.batch_records and not self.engine.pl_sensors:
+        if self.engine.batch_records and not self.engine.pl_sensors and self.realtime is None:
             return self._run_batched(stream)
         kind = stream.kind
         other = np.flatnonzero(kind != IMU)
