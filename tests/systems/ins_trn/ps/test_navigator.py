@@ -177,3 +177,20 @@ def test_log_without_imu_records_is_an_error(tmp_path):
     path.write_text("something else\n")
     with pytest.raises(LogError, match="not a navgate record log"):
         read_log(path)
+
+
+def test_profile_attitude_equals_the_dcm_array_formula():
+    """The navigator's scalar roll/pitch/yaw (one quaternion per ranger record) equals the
+    formula on rotations.quat_to_dcm_array's elements bit for bit, including near +-90 deg
+    pitch where the clip to [-1, 1] matters."""
+    from navgate.nav.rotations import quat_to_dcm_array
+    from navgate.systems.ins_trn.ps.navigator import _euler
+
+    rng = np.random.default_rng(5)
+    qs = rng.standard_normal((3000, 4))
+    qs = np.concatenate([qs, [[1.0, 0.0, 1.0, 0.0], [1.0, 0.0, -1.0, 0.0]]])
+    for q in qs / np.linalg.norm(qs, axis=1, keepdims=True):
+        c = quat_to_dcm_array(q)
+        want = (math.atan2(c[2, 1], c[2, 2]), -math.asin(max(-1.0, min(1.0, c[2, 0]))),
+                math.atan2(c[1, 0], c[0, 0]))
+        assert _euler(q) == want
