@@ -5,7 +5,10 @@ writes fixes; the PL runs calibration, mechanization, covariance propagation, th
 profile buffer and the Kalman update engine). The navigator consumes the sensor record stream
 of :mod:`navgate.systems.ins_trn.ps.records` one record at a time (:meth:`Navigator.feed`) or a
 whole stream (:meth:`Navigator.run`, which hands runs of consecutive IMU records to the engine
-in one call with the same result) and talks to the PL only through
+in one call with the same result; an engine with ``batch_records``, the float64 reference,
+takes whole stretches of IMU and barometer records between the records the PS must see in one
+compiled call, :meth:`PlEngine.run_records`, again with the same result) and talks to the PL
+only through
 :class:`navgate.systems.ins_trn.ps.engine.PlEngine`:
 
 - IMU record: ``engine.propagate`` (calibration, mechanization, covariance);
