@@ -62,13 +62,13 @@ class Review:
 
 class IntegrityMonitor:
     def __init__(self, correlator, config: IntegrityConfig = IntegrityConfig()):
-        from scipy.stats import chi2
+        from navgate.nav.eskf import chi2_gate  # chi2.ppf, cached, without scipy.stats
 
         if not isinstance(config, IntegrityConfig):
             raise ValueError(f"config: expected an IntegrityConfig, got {type(config).__name__}")
         self.correlator = correlator
         self.config = config
-        self.threshold = float(chi2.ppf(config.probability, 2 * config.window))
+        self.threshold = chi2_gate(config.probability, 2 * config.window)
         self.counts: dict[str, int] = {}
         self.events: dict[str, int] = {}
         self._nis: list[float] = []

@@ -327,9 +327,9 @@ class PointMassCorrelator:
         # consistency of the best shift (on the finest grid evaluated)
         chi2_min = float(np.nanmin(c2))
         result.chi2_per_dof = chi2_min / dof
-        from scipy.stats import chi2 as chi2_dist
+        from navgate.nav.eskf import chi2_gate  # chi2.ppf, cached, without scipy.stats
 
-        if chi2_min > cfg.max_noise_scale**2 * chi2_dist.ppf(cfg.consistency_probability, dof):
+        if chi2_min > cfg.max_noise_scale**2 * chi2_gate(cfg.consistency_probability, dof):
             result.reason = "profile inconsistent with DEM"
             return result
         temper = max(1.0, chi2_min / dof)

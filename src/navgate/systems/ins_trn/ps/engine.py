@@ -80,10 +80,15 @@ def check_setup(setup: EngineSetup) -> None:
     validate.finite_scalar("t0", setup.t0)
 
 
-def check_imu_words(gyro_words, accel_words) -> tuple[np.ndarray, np.ndarray]:
-    """The IMU words of one ``propagate`` call as two finite float64 (N, 3) arrays of equal
-    length. Every engine calls this first: a NaN word has no SPI encoding, and a mis-shaped
-    array would be read out of bounds by the compiled sample loops (memory safety)."""
+def check_imu_words(gyro_words, accel_words, *, finite: bool = True
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The IMU words of one ``propagate`` call as two float64 (N, 3) arrays of equal length,
+    finite unless ``finite=False``. Every engine calls this first: a mis-shaped array would be
+    read out of bounds by the compiled sample loops (memory safety), and a NaN word has no SPI
+    encoding, so the PL engines refuse it. The float64 reference engine passes
+    ``finite=False``: its compiled loop counts a non-finite sample as rejected
+    (``imu_samples_rejected``) and integrates the last good one in its place, the same in a
+    stretch of records and record by record."""
     from navgate.nav import validate
 
     # called for every block the navigator propagates (a few samples each): the fast path is
@@ -97,7 +102,7 @@ def check_imu_words(gyro_words, accel_words) -> tuple[np.ndarray, np.ndarray]:
     for name, w in (("gyro_words", gw), ("accel_words", aw)):
         if w.ndim != 2 or w.shape[1] != 3:
             raise ValueError(f"{name}: expected an N x 3 array of words, got shape {w.shape}")
-        if not np.isfinite(w).all():
+        if finite and not np.isfinite(w).all():
             validate.finite_array(name, w)
     if gw.shape != aw.shape:
         raise ValueError(f"accel_words: {aw.shape[0]} samples, gyro_words {gw.shape[0]}")
@@ -218,6 +223,21 @@ class PlEngine(ABC):
         """(distance word, strength) of the ranger frame as the PL's receiver reports it."""
         raise NotImplementedError(f"the {self.name} engine has no PL ranger path")
 
+    # -- stretches of records in one call ------------------------------------------------------
+    #: True when the engine takes whole stretches of IMU and barometer records in one call
+    #: (:meth:`run_records`); the navigator then calls the per-record methods only for the
+    #: other records
+    batch_records: bool = False
+
+    def run_records(self, stream, m0: int, m1: int, *, baro_sigma: float, log_every: int,
+                    logged: int, log) -> tuple[int, int, float | None, int]:
+        """Records m0..m1-1 of ``stream`` (IMU and barometer; others skipped) exactly as the
+        per-record calls would run them, logging into ``log`` = (nav, sigma, p_ne) arrays
+        (row ``logged`` onward, see :meth:`Navigator._log`). Returns (IMU samples run, rows
+        logged in all, the newest barometer altitude or None when the stretch had none,
+        invalid barometer samples)."""
+        raise NotImplementedError(f"the {self.name} engine runs records one at a time")
+
     # -- simulation figures ---------------------------------------------------------------------
     def hardware_stats(self) -> dict:
         """What a simulated PL counted during the run (cycles, interrupts, DMAs, ...); empty
@@ -251,8 +271,17 @@ class ReferenceEngine(PlEngine):
                                             rate_hz=setup.rate_hz, bias_a0=setup.bias_a0,
                                             bias_g0=setup.bias_g0)
         self._tangent = setup.reference
+        self._cal = None  #: calibration arrays for the compiled loop (built on first use)
+        self._counts = np.zeros(eskf.N_COUNTERS, np.int64)
+        self._no_log = (np.empty((0, strapdown.NAV_SIZE)), np.empty((0, eskf.N_STATES)),
+                        np.empty(0))
+        self._no_baro = (np.empty(0), np.empty(0, np.int8))
+
+    batch_records = True
 
     def calibrate(self, gyro_words, accel_words):
+        """Calibrated readings (N, 3) of a block of words, the arithmetic of the compiled
+        loops (:func:`navgate.nav.eskf.run_records` applies it sample by sample)."""
         cal = self.setup.calibration
 
         def one(words, lsb, bias, m):
@@ -265,14 +294,52 @@ class ReferenceEngine(PlEngine):
         return (one(gyro_words, cal.gyro_lsb, cal.gyro_bias, cal.gyro_matrix),
                 one(accel_words, cal.accel_lsb, cal.accel_bias, cal.accel_matrix))
 
-    def propagate(self, gyro_words, accel_words) -> None:
-        gyro_words, accel_words = check_imu_words(gyro_words, accel_words)
-        gyro, accel = self.calibrate(gyro_words, accel_words)
+    def _kernel(self, kinds, index, m0, m1, gyro_words, accel_words, baro_alt, baro_status,
+                baro_r, log_every, logged, log):
         f = self.filter
-        before = f.imu_samples_rejected
-        f.propagate(gyro, accel, 0, gyro.shape[0])
-        self.imu_samples_rejected += f.imu_samples_rejected - before
-        self.samples += gyro.shape[0]
+        if self._cal is None:
+            cal = self.setup.calibration
+            self._cal = (np.array([cal.gyro_lsb, cal.accel_lsb], float),
+                         np.array([cal.gyro_bias, cal.accel_bias], float),
+                         np.array([cal.gyro_matrix, cal.accel_matrix], float))
+        c = self._counts
+        c[:] = 0
+        c[eskf.C_SAMPLES] = self.samples
+        c[eskf.C_LOGGED] = logged
+        c[eskf.C_HAVE_GOOD] = f._have_good
+        h_baro = np.full(1, np.inf)  # inf: no barometer record in the stretch
+        out_nav, out_sigma, out_pne = self._no_log if log is None else log
+        eskf.run_records(f.nav, f.bias_a, f.bias_g, f.p, f.last_good, kinds, index, m0, m1,
+                         gyro_words, accel_words, *self._cal, baro_alt, baro_status,
+                         float(baro_r), f.gate1, f.dt, f.q_diag, f.decay_a, f.decay_g, True,
+                         log_every, out_nav, out_sigma, out_pne, c, h_baro)
+        f._have_good = bool(c[eskf.C_HAVE_GOOD])
+        n = int(c[eskf.C_SAMPLES]) - self.samples
+        self.samples += n
+        bad = int(c[eskf.C_IMU_BAD])
+        f.imu_samples_rejected += bad
+        self.imu_samples_rejected += bad
+        for table, i in ((f.accepted, eskf.C_BARO_ACC), (f.rejected, eskf.C_BARO_REJ)):
+            if c[i]:
+                table["baro"] = table.get("baro", 0) + int(c[i])
+        self.accepted, self.rejected = f.accepted, f.rejected
+        f.raise_for(int(c[eskf.C_ERROR]), "baro")
+        hb = float(h_baro[0])
+        return n, int(c[eskf.C_LOGGED]), (None if hb == np.inf else hb), \
+            int(c[eskf.C_BARO_INVALID])
+
+    def propagate(self, gyro_words, accel_words) -> None:
+        gyro_words, accel_words = check_imu_words(gyro_words, accel_words, finite=False)
+        gyro_words = np.ascontiguousarray(gyro_words)
+        accel_words = np.ascontiguousarray(accel_words)
+        n = gyro_words.shape[0]
+        self._kernel(np.zeros(n, np.uint8), np.arange(n), 0, n, gyro_words, accel_words,
+                     self._no_baro[0], self._no_baro[1], 1.0, 1, 0, None)
+
+    def run_records(self, stream, m0, m1, *, baro_sigma, log_every, logged, log):
+        return self._kernel(stream.kind, stream.index, int(m0), int(m1), stream.gyro_words,
+                            stream.accel_words, stream.baro_altitude, stream.baro_status,
+                            float(baro_sigma) ** 2, int(log_every), int(logged), log)
 
     def _outcome(self, upd) -> UpdateOutcome:
         return UpdateOutcome(bool(upd.accepted), float(upd.nis), upd.correction,
