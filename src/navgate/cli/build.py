@@ -169,8 +169,13 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
         suffixes.append(".timing.json")
     for suffix in suffixes:
         click.echo(f"wrote {out_dir / (block + suffix)}", err=True)
-    for name in built.get("artifacts", []):  # C header, register docs, XDC, filelist
+    for name in built.get("artifacts", []):  # C header, register docs, XDC, filelist, Tcl
         click.echo(f"wrote {out_dir / name}", err=True)
+    for name in built.get("artifacts", []):
+        if name.endswith(".tcl"):
+            click.echo(f"note: {name} was generated, NOT run through Vivado here (only its Tcl "
+                       f"syntax was checked, with tclsh); run it with "
+                       f"'cd {out_dir} && vivado -mode batch -source {name}'", err=True)
     if keep_work:
         click.echo(f"kept tool work files in {out_dir / 'work' / block}", err=True)
 
