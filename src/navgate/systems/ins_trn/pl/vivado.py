@@ -273,7 +273,8 @@ set_property -dict [list \\
 {_tcl_dict(PS7_CONFIG)} \\
 ] $ps7
 apply_bd_automation -rule xilinx.com:bd_rule:processing_system7 \\
-  -config {{make_external "FIXED_IO, DDR" apply_board_preset "0" Master "Disable" Slave "Disable"}} $ps7
+  -config {{make_external "FIXED_IO, DDR" apply_board_preset "0" \\
+            Master "Disable" Slave "Disable"}} $ps7
 
 # the core (module reference to the wrapper {top}_bd.v)
 set core [create_bd_cell -type module -reference ${{top}}_bd core]
@@ -339,9 +340,11 @@ if {{[get_property PROGRESS [get_runs impl_1]] ne "100%"}} {{ error "implementat
 # the PYNQ overlay: the bitstream and the hardware handoff under one base name
 file mkdir $overlay_dir
 set bit [file join $proj_dir ${{proj}}.runs impl_1 {BD_NAME}_wrapper.bit]
+# (Vivado 2020.2 and later keep it under PROJ.gen, older versions under PROJ.srcs)
+set handoff [list sources_1 bd {BD_NAME} hw_handoff {BD_NAME}.hwh]
 set hwh [lindex [concat \\
-  [glob -nocomplain [file join $proj_dir ${{proj}}.gen sources_1 bd {BD_NAME} hw_handoff {BD_NAME}.hwh]] \\
-  [glob -nocomplain [file join $proj_dir ${{proj}}.srcs sources_1 bd {BD_NAME} hw_handoff {BD_NAME}.hwh]]] 0]
+  [glob -nocomplain [file join $proj_dir ${{proj}}.gen {{*}}$handoff]] \\
+  [glob -nocomplain [file join $proj_dir ${{proj}}.srcs {{*}}$handoff]]] 0]
 if {{$hwh eq ""}} {{ error "no hardware handoff (.hwh) for block design {BD_NAME}" }}
 file copy -force $bit [file join $overlay_dir ${{top}}.bit]
 file copy -force $hwh [file join $overlay_dir ${{top}}.hwh]
