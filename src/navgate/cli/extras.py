@@ -1,8 +1,13 @@
 """Optional-dependency guard for the command line (issue 27, item 6: deployment).
 
-A command that needs a package which a slim install (the Zybo's PS, the Pi) may lack calls
-:func:`require` before importing it. A missing package becomes a :class:`CliError` (one line on
-stderr, exit 2) naming the pip extra to install, never an ``ImportError`` traceback.
+The core install (``pip install navgate``) holds what ``fly`` (reference and fp32 engines, in one
+process or with ``--trn-service``), ``trn-serve``, ``tiles info`` and ``replay`` need; the
+boards take ``navgate[ps]`` (the Zybo's PS) and ``navgate[pi]`` (the Pi 5); ``gateware``,
+``campaign`` and ``dem`` bring the rest, ``all`` everything (pyproject.toml, docs/deploy.md).
+
+A command that needs a package which a slim install may lack calls :func:`require` (or
+:func:`require_gateware`) before any work. A missing package becomes a :class:`CliError` (one
+line on stderr, exit 2) naming the pip extra to install, never an ``ImportError`` traceback.
 """
 
 from __future__ import annotations
