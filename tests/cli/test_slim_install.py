@@ -79,8 +79,11 @@ def test_the_blocker_blocks():
     (["kf2x2", "--engine", "verilator"], "gateware"),
     (["campaign", "--seeds", "0-1", "--duration", "10"], "campaign"),
     (["tiles", "split", "default", "--into", "2x2"], "dem"),
+    (["fly", "--dem", "DEM.tif", "--duration", "5"], "dem"),  # a DEM file needs rasterio
 ])
 def test_a_command_that_needs_an_extra_names_it_in_one_line(args, extra, tmp_path):
+    (tmp_path / "DEM.tif").write_bytes(b"II*\0")
+    args = [str(tmp_path / a) if a == "DEM.tif" else a for a in args]
     proc = _run(PS_BLOCKED, *args, "--out", tmp_path / "out", timeout=120)
     lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 2, proc.stderr
