@@ -120,15 +120,20 @@ def _listening(proc: subprocess.Popen, deadline_s: float = 120.0) -> str:
 
 def test_ps_flight_with_the_pi_service_on_slim_installs(tmp_path):
     """The Pi role (no gateware) serves 2x2 tiles; the PS role (no gateware, no rasterio) flies
-    in one process and then through the service: both complete, bit-identical trajectories,
-    every request answered."""
+    in one process (recording, then replaying the record) and then through the service: all
+    complete, bit-identical trajectories, every request answered."""
     from navgate.trn.dem import Dem
     from navgate.trn.tiles import split_dem
 
     (tmp_path / "tiles").mkdir()
     split_dem(Dem.default(), 2, 2, tmp_path / "tiles")
-    proc = _run(PS_BLOCKED, "fly", "--duration", DURATION, "--quiet", "--out", tmp_path / "a")
+    proc = _run(PS_BLOCKED, "fly", "--duration", DURATION, "--quiet", "--out", tmp_path / "a",
+                "--record", tmp_path / "flight.log")
     assert proc.returncode == 0, proc.stderr
+    proc = _run(PS_BLOCKED, "replay", tmp_path / "flight.log", "--quiet",
+                "--out", tmp_path / "replay")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "replay" / "summary.json").is_file()
     service = subprocess.Popen(
         _command(GATEWARE, "trn-serve", "--tiles", tmp_path / "tiles", "--cache-mb", "1",
                  "--listen", "tcp://127.0.0.1:0", "--max-requests", "50"),
