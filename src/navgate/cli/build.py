@@ -175,7 +175,8 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
         if name.endswith(".tcl"):
             click.echo(f"note: {name} was generated, NOT run through Vivado here (only its Tcl "
                        f"syntax was checked, with tclsh); run it with "
-                       f"'cd {out_dir} && vivado -mode batch -source {name}'", err=True)
+                       f"'cd {out_dir} && vivado -mode batch -source {name}': it makes the "
+                       f"PYNQ overlay overlay/{block}.bit and overlay/{block}.hwh", err=True)
     if keep_work:
         click.echo(f"kept tool work files in {out_dir / 'work' / block}", err=True)
 
