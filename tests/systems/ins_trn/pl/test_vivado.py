@@ -168,3 +168,29 @@ def test_the_stub_run_fails_a_broken_script(built, tmp_path):
         script.write_text(broken)
         proc = _tclsh(script)
         assert proc.returncode != 0 and "FAILED" in proc.stderr
+
+
+def test_navgate_build_says_the_script_was_not_run_through_vivado(monkeypatch, navgate_run,
+                                                                  tmp_path):
+    """The build's output for a Tcl deliverable: a note that Vivado did not run it, how to run
+    it and the overlay it makes (the synthesis itself is replaced: its figures are not what
+    this checks)."""
+    import navgate.cli.build as build_cli
+
+    def fake_build(name, out_dir, *args, **kwargs):
+        for artifact in (f"{name}.tcl", f"{name}_bd.v"):
+            (out_dir / artifact).write_text("")
+        return {"utilization": {"lut": 1, "ff": 1, "dsp": 0, "carry4": 0, "bram36": 0},
+                "latency_cycles": 2, "throughput": "1/696",
+                "artifacts": [f"{name}.tcl", f"{name}_bd.v"]}
+
+    monkeypatch.setattr(build_cli, "_run_build", fake_build)
+    code, out, err = navgate_run(["build", TOP, "--target", "zybo-z7-20", "--out",
+                                  tmp_path / "zybo"])
+    assert code == 0, err
+    notes = [line for line in err.splitlines() if line.startswith("note:")]
+    assert len(notes) == 1, err
+    assert "NOT run through Vivado" in notes[0]
+    assert f"vivado -mode batch -source {TOP}.tcl" in notes[0]
+    assert f"overlay/{TOP}.bit and overlay/{TOP}.hwh" in notes[0]
+    assert (tmp_path / "zybo" / f"{TOP}.tcl").is_file()
