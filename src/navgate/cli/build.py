@@ -264,6 +264,7 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
     blocks = list(all_blocks())
     rows: dict[str, list[str]] = {}
     paths: dict[str, str] = {}
+    cached: dict[str, bool] = {}
     if _yowasp_note(timing):
         console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
     start = time.perf_counter()
@@ -286,12 +287,27 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
                     line = path_line(built)
                     if line:
                         paths[name] = line
+                    cached[name] = built.get("cache", {}).get("synth", False)
                     progress.advance(task)
+                    source = "from the cache" if cached[name] else "synthesised"
                     progress.console.print(f"[{len(rows)}/{len(blocks)}] {name} done "
-                                           f"({time.perf_counter() - start:.0f} s)",
+                                           f"({time.perf_counter() - start:.0f} s, {source})",
                                            highlight=False)
     return report_table([rows[name] for name in blocks],
-                        [paths[name] for name in blocks if name in paths])
+                        [paths[name] for name in blocks if name in paths]) + \
+        cache_note(blocks, cached)
+
+
+def cache_note(blocks: list[str], cached: dict[str, bool]) -> str:
+    """The lines under the table that say, per block, whether its figures came from the
+    synth cache (``navgate cache``) or were synthesised in this run."""
+    hits = [name for name in blocks if cached.get(name)]
+    runs = [name for name in blocks if not cached.get(name)]
+    lines = [f"\nSynthesis results from the cache (`navgate cache info`): {len(hits)} of "
+             f"{len(blocks)} blocks" + (f": {', '.join(hits)}" if hits else "") + "."]
+    lines.append(f"Synthesised in this run: {len(runs)} of {len(blocks)} blocks"
+                 + (f": {', '.join(runs)}" if runs else "") + ".")
+    return "\n".join(lines) + "\n"
 
 
 @click.command()

@@ -92,7 +92,9 @@ def run_circuit(log: ImuLog, engine: str, *, axes: str = "auto", kp: float = 1.0
     from navgate.systems.attitude.rtl_sim import sample_vectors
     from navgate.systems.attitude.top import AttitudeStream
     inputs = sample_vectors(acc, mag, gyro, params)
-    o, run = simulate_native(AttitudeStream(), inputs, top="attitude_stream")
+    # AttitudeStream takes no parameters: its Verilog is cached by the source version alone
+    o, run = simulate_native(AttitudeStream(), inputs, top="attitude_stream",
+                             design="AttitudeStream", params={})
     q = np.column_stack([_f(o[f"out_q{i}"]) for i in range(4)])
     res = _result(log, axes, q, _f(o["out_pitch"]), _f(o["out_roll"]), _f(o["out_yaw"]))
     return CircuitRun(res, params, int(np.sum(o["invalid"])), int(np.sum(o["saturated"])),

@@ -40,12 +40,8 @@ The result equals the ``fp32`` engine's bit for bit (tests/systems/ins_trn/ps/te
 
 from __future__ import annotations
 
-import hashlib
-import os
 import weakref
-from pathlib import Path
 
-import amaranth
 import numpy as np
 from amaranth import Module, Signal
 from amaranth.lib import stream, wiring
@@ -200,25 +196,10 @@ class _DmaMemory(wiring.Component):
 
 def sim_verilog(top: InsTrnSimTop) -> str:
     """The co-simulation top's Verilog (module ``dut``), emitted once per version of the
-    gateware: cached beside the Verilator models, keyed by the contents of every source file
-    of the navgate package and the Amaranth version (emitting it takes tens of seconds)."""
-    root = Path(__file__).resolve().parents[3]  # the navgate package
-    h = hashlib.sha256(amaranth.__version__.encode())
-    for path in sorted(root.rglob("*")):
-        if path.suffix in (".py", ".rdl") and path.is_file():
-            h.update(str(path.relative_to(root)).encode())
-            h.update(path.read_bytes())
-    cache = V.verilator_cache_dir()
-    cache.mkdir(parents=True, exist_ok=True)
-    path = cache / f"fpga-sim-dut-{h.hexdigest()[:24]}.v"
-    if path.exists():
-        top._MustUse__silence = top.top._MustUse__silence = True  # not elaborated again
-        return path.read_text()
-    text = V.emit_verilog(top, "dut")
-    tmp = path.with_suffix(f".{os.getpid()}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-    return text
+    gateware: from navgate's Verilog cache (:func:`navgate.cache.cached_verilog`, keyed by
+    the contents of every source file of the navgate package and the Amaranth version;
+    ``InsTrnSimTop`` takes no parameters). Emitting it takes tens of seconds."""
+    return V.emit_verilog(top, "dut", design="InsTrnSimTop", params={})
 
 
 #: state words the navigator reads at every log row and ranger record, fetched in one batch
