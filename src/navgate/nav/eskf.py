@@ -81,6 +81,16 @@ class FilterConfig:
     gyro_bias_tau: float  #: s
     gate_probability: float = 0.999  #: chi-square gate; innovations beyond are rejected
 
+    def __post_init__(self):
+        from navgate.nav import validate
+
+        for name in ("accel_vrw", "gyro_arw", "accel_bias_sigma", "gyro_bias_sigma"):
+            validate.non_negative(name, getattr(self, name))
+        # tau = 0 divides dt by zero in exp(-dt / tau); a correlation time must be positive
+        for name in ("accel_bias_tau", "gyro_bias_tau"):
+            validate.positive(name, getattr(self, name))
+        validate.probability("gate_probability", self.gate_probability)
+
     @classmethod
     def from_imu_spec(cls, spec, *, rate_hz=400.0, residual_accel_bias=0.0,
                       residual_gyro_bias=0.0, tau=3600.0, floor_scale=1.0, **kw):
@@ -233,6 +243,15 @@ def run_propagation(nav, bias_a, bias_g, p, gyro, accel, k0, k1, dt, q_diag,
     return bad
 
 
+def _readings(name, value):
+    """An (N, 3) array (the compiled loop indexes [k, 0..2]); an ndarray is passed on as it
+    is (no copy: callers hand the whole flight's readings with a k0..k1 window each call)."""
+    a = value if isinstance(value, np.ndarray) else np.asarray(value, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"{name}: expected an N x 3 array, got shape {a.shape}")
+    return a
+
+
 @functools.lru_cache(maxsize=64)
 def chi2_gate(probability: float, dof: int) -> float:
     """Chi-square gate: the ``probability`` quantile with ``dof`` degrees of freedom.
@@ -264,14 +283,19 @@ class ErrorStateFilter:
         if self.nav.shape != (strapdown.NAV_SIZE,):
             raise ValueError("nav0 must be [lat, lon, h, vN, vE, vD, q0, q1, q2, q3]")
         validate.finite_array("nav0", self.nav)
-        validate.latitude_rad("nav0[0] (latitude)", self.nav[0])
+        validate.nav_latitude("nav0[0] (latitude)", self.nav[0])
+        validate.height_m("nav0[2] (height)", self.nav[2])
         validate.unit_quaternion("nav0[6:10] (attitude quaternion)", self.nav[6:10])
         self.p = np.array(validate.covariance("p0", p0, N_STATES), dtype=float)
         self.p = 0.5 * (self.p + self.p.T)
         self.config = config
         self.dt = 1.0 / validate.positive("rate_hz", rate_hz)
-        self.bias_a = np.zeros(3) if bias_a0 is None else np.array(bias_a0, float)
-        self.bias_g = np.zeros(3) if bias_g0 is None else np.array(bias_g0, float)
+        self.bias_a = (np.zeros(3) if bias_a0 is None
+                       else np.array(validate.finite_array("bias_a0", bias_a0, (3,))))
+        self.bias_g = (np.zeros(3) if bias_g0 is None
+                       else np.array(validate.finite_array("bias_g0", bias_g0, (3,))))
+        if not isinstance(config, FilterConfig):
+            raise ValueError(f"config: expected a FilterConfig, got {type(config).__name__}")
         c = config
         self.decay_a = math.exp(-self.dt / c.accel_bias_tau)
         self.decay_g = math.exp(-self.dt / c.gyro_bias_tau)
@@ -290,10 +314,28 @@ class ErrorStateFilter:
 
     def propagate(self, gyro, accel, k0, k1, *, propagate_p=True, out_nav=None, out_sigma=None,
                   out_every=1, out_offset=0):
-        """Run samples k0..k1-1 of the calibrated readings through INS and covariance."""
+        """Run samples k0..k1-1 of the calibrated readings through INS and covariance.
+
+        ``gyro``/``accel`` are (N, 3) arrays (NaN/inf samples are held and counted, see
+        :func:`run_propagation`); shapes and the range 0 <= k0 <= k1 <= N are checked here,
+        once per call, because the compiled loop does not bounds-check its reads."""
+        gyro = _readings("gyro", gyro)
+        accel = _readings("accel", accel)
+        if accel.shape != gyro.shape:
+            raise ValueError(f"accel: shape {accel.shape} differs from gyro's {gyro.shape}")
+        if not (isinstance(k0, (int, np.integer)) and isinstance(k1, (int, np.integer))
+                and 0 <= k0 <= k1 <= gyro.shape[0]):
+            raise ValueError(f"k0, k1: need integers 0 <= k0 <= k1 <= {gyro.shape[0]}, got "
+                             f"{k0!r}, {k1!r}")
         if out_nav is None:
             out_nav = np.empty((0, strapdown.NAV_SIZE))
             out_sigma = np.empty((0, N_STATES))
+        elif (np.ndim(out_nav) != 2 or np.shape(out_nav)[1] != strapdown.NAV_SIZE
+              or out_sigma is None or np.shape(out_sigma) != (np.shape(out_nav)[0], N_STATES)):
+            raise ValueError(f"out_nav, out_sigma: expected (M, {strapdown.NAV_SIZE}) and "
+                             f"(M, {N_STATES}) arrays")
+        if not (isinstance(out_every, (int, np.integer)) and out_every >= 1):
+            raise ValueError(f"out_every: must be an integer >= 1, got {out_every!r}")
         if not self._have_good and k1 > k0:
             # seed the hold value with the first finite reading (or a level, resting IMU)
             ok = np.flatnonzero(np.all(np.isfinite(gyro[k0:k1]) & np.isfinite(accel[k0:k1]),
@@ -309,13 +351,28 @@ class ErrorStateFilter:
 
     # -- measurement updates ----------------------------------------------------------------
     def update(self, y, h_matrix, r_matrix, kind: str) -> UpdateResult:
-        """Generic gated Joseph-form update with innovation y = h(x_est) - z = H dx + v."""
-        y = np.atleast_1d(np.asarray(y, float))
-        h_matrix = np.atleast_2d(np.asarray(h_matrix, float))
-        r_matrix = np.atleast_2d(np.asarray(r_matrix, float))
+        """Generic gated Joseph-form update with innovation y = h(x_est) - z = H dx + v.
+
+        ``y`` (m,), ``h_matrix`` (m, 15) finite, ``r_matrix`` an m x m symmetric positive
+        semi-definite covariance (ValueError naming the argument otherwise: a negative or
+        indefinite R would make S, the NIS and the Joseph update meaningless)."""
+        from navgate.nav import validate
+
+        y = np.atleast_1d(validate.finite_array("y", y))
+        if y.ndim != 1:
+            raise ValueError(f"y: expected an innovation vector, got shape {y.shape}")
         m = y.size
-        if not (np.all(np.isfinite(y)) and np.all(np.isfinite(r_matrix))):
-            raise ValueError(f"{kind} update: non-finite innovation or covariance")
+        h_matrix = np.atleast_2d(validate.finite_array("h_matrix", h_matrix))
+        if h_matrix.shape != (m, N_STATES):
+            raise ValueError(f"h_matrix: expected shape ({m}, {N_STATES}), got "
+                             f"{h_matrix.shape}")
+        r_matrix = validate.covariance("r_matrix", np.atleast_2d(np.asarray(r_matrix, float)),
+                                       m)
+        return self._update(y, h_matrix, r_matrix, kind)
+
+    def _update(self, y, h_matrix, r_matrix, kind: str) -> UpdateResult:
+        """:meth:`update` on arguments already checked (float arrays of the right shapes)."""
+        m = y.size
         p = self.p
         pht = p @ h_matrix.T
         s = h_matrix @ pht + r_matrix
@@ -361,6 +418,10 @@ class ErrorStateFilter:
 
     def position_innovation(self, lat_fix, lon_fix):
         """(north, east) metres from the fix to the INS position: y = p_ins - p_fix."""
+        from navgate.nav import validate
+
+        lat_fix = validate.latitude_rad("lat_fix", lat_fix)
+        lon_fix = validate.finite_scalar("lon_fix", lon_fix)
         rn, re = strapdown._frame_terms(self.nav[0], self.nav[2], self.nav[3], self.nav[4])[:2]
         return np.array([(self.nav[0] - lat_fix) * (rn + self.nav[2]),
                          (self.nav[1] - lon_fix) * (re + self.nav[2]) * math.cos(self.nav[0])])
@@ -379,17 +440,29 @@ class ErrorStateFilter:
                                            lag_s)
 
     def update_position_offset(self, y_ne, r_ne, lag_s: float = 0.0) -> UpdateResult:
-        """TRN update from y = p_ins - p_fix (north, east metres), optionally lagged."""
+        """TRN update from y = p_ins - p_fix (north, east metres), optionally lagged.
+
+        ``lag_s`` must be finite and >= 0 (a fix cannot measure the future)."""
+        from navgate.nav import validate
+
+        lag_s = validate.non_negative("lag_s", lag_s)
+        y_ne = validate.finite_array("y_ne", y_ne, (2,))
+        r_ne = validate.covariance("r_ne", r_ne, 2)
         h_matrix = np.zeros((2, N_STATES))
         h_matrix[0, 0] = h_matrix[1, 1] = 1.0
         h_matrix[0, 3] = h_matrix[1, 4] = -float(lag_s)
-        return self.update(np.asarray(y_ne, float), h_matrix, r_ne, "trn")
+        return self._update(y_ne, h_matrix, r_ne, "trn")
 
     def update_altitude(self, h_meas, sigma) -> UpdateResult:
         """Barometric altitude update of the vertical channel: y = p_D,ins - p_D,meas."""
+        from navgate.nav import validate
+
+        h_meas = validate.finite_scalar("h_meas", h_meas)
+        sigma = validate.non_negative("sigma", sigma)
         h_matrix = np.zeros((1, N_STATES))
         h_matrix[0, 2] = 1.0
-        return self.update([h_meas - self.nav[2]], h_matrix, [[sigma**2]], "baro")
+        return self._update(np.array([h_meas - self.nav[2]]), h_matrix, np.array([[sigma**2]]),
+                            "baro")
 
 
 def initial_covariance(*, pos_sigma, vel_sigma, att_sigma, accel_bias_sigma, gyro_bias_sigma):

@@ -30,7 +30,12 @@ import numpy as np
 
 from navgate.numerics.fp32 import bits_to_f32, f32_to_bits
 from navgate.sim.imu_log import ImuLog
-from navgate.systems.attitude.estimate import FLU_TO_FRD, AttitudeResult, resolve_axes
+from navgate.systems.attitude.estimate import (
+    FLU_TO_FRD,
+    AttitudeResult,
+    check_run,
+    resolve_axes,
+)
 from navgate.systems.attitude.mahony import SEED003, MahonyParams
 
 __all__ = ["CircuitRun", "circuit_inputs", "run_circuit", "ENGINES"]
@@ -59,6 +64,8 @@ def circuit_inputs(log: ImuLog, axes: str, kp: float, ki: float):
     acc, mag = log.acc * s, log.mag * s
     dts = np.diff(log.t)
     dt = float(np.float32(np.median(dts))) if len(dts) else SEED003.dt
+    # the reference engine's checks (estimate.check_run), on the period the circuit uses
+    check_run(method="mahony", dt=dt, kp=kp, ki=ki, acc0=acc[0] if len(acc) else None)
     params = replace(SEED003, kp=kp, ki=ki, dt=dt, mag_sign=(1.0, 1.0, 1.0), accel_sign=-1.0)
     words = [f32_to_bits(np.asarray(x, dtype=np.float32)) for x in (acc, mag, gyro)]
     return words, params, axes

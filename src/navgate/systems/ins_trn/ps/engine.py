@@ -56,6 +56,79 @@ class EngineSetup:
     t0: float = 0.0  #: the time of IMU sample count 0 (s; the profile's time base)
 
 
+def check_setup(setup: EngineSetup) -> None:
+    """What every engine refuses before it writes a register (ValueError naming the field):
+    a non-positive or non-finite rate (the PL's dt = 1 / rate), a navigation state out of
+    range, a P0 that is not a finite symmetric positive semi-definite 15 x 15 matrix, non-finite
+    biases, a filter configuration that is not a FilterConfig."""
+    from navgate.nav import validate
+
+    validate.positive("rate_hz", setup.rate_hz)
+    nav = validate.finite_array("nav0", setup.nav0, (strapdown.NAV_SIZE,))
+    validate.nav_latitude("nav0[0] (latitude)", nav[0])
+    validate.height_m("nav0[2] (height)", nav[2])
+    validate.unit_quaternion("nav0[6:10] (attitude quaternion)", nav[6:10])
+    validate.covariance("p0", setup.p0, eskf.N_STATES)
+    validate.finite_array("bias_a0", setup.bias_a0, (3,))
+    validate.finite_array("bias_g0", setup.bias_g0, (3,))
+    if not isinstance(setup.filter, eskf.FilterConfig):
+        raise ValueError(f"filter: expected a FilterConfig, got {type(setup.filter).__name__}")
+    if not isinstance(setup.reference, LocalTangent):
+        raise ValueError(f"reference: expected a LocalTangent, got "
+                         f"{type(setup.reference).__name__}")
+    validate.non_negative("profile_spacing_m", setup.profile_spacing_m)
+    validate.finite_scalar("t0", setup.t0)
+
+
+def check_imu_words(gyro_words, accel_words) -> tuple[np.ndarray, np.ndarray]:
+    """The IMU words of one ``propagate`` call as two finite float64 (N, 3) arrays of equal
+    length. Every engine calls this first: a NaN word has no SPI encoding, and a mis-shaped
+    array would be read out of bounds by the compiled sample loops (memory safety)."""
+    from navgate.nav import validate
+
+    # called for every block the navigator propagates (a few samples each): the fast path is
+    # two conversions, two shape tests and one isfinite pass per array (a few microseconds);
+    # validate.finite_array only runs to name the bad index
+    try:
+        gw = np.ascontiguousarray(gyro_words, dtype=np.float64)
+        aw = np.ascontiguousarray(accel_words, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"gyro_words, accel_words: not numeric arrays ({error})") from None
+    for name, w in (("gyro_words", gw), ("accel_words", aw)):
+        if w.ndim != 2 or w.shape[1] != 3:
+            raise ValueError(f"{name}: expected an N x 3 array of words, got shape {w.shape}")
+        if not np.isfinite(w).all():
+            validate.finite_array(name, w)
+    if gw.shape != aw.shape:
+        raise ValueError(f"accel_words: {aw.shape[0]} samples, gyro_words {gw.shape[0]}")
+    return gw, aw
+
+
+def check_altitude(h_meas, sigma) -> tuple[float, float]:
+    """A barometric update: finite height, finite positive sigma (a zero or negative sigma
+    is a zero or negative R)."""
+    from navgate.nav import validate
+
+    return validate.finite_scalar("h_meas", h_meas), validate.positive("sigma", sigma)
+
+
+def check_trn(y_ne, cov, lag_s) -> tuple[np.ndarray, np.ndarray, float]:
+    """A TRN fix: finite 2-vector, 2 x 2 symmetric positive semi-definite covariance, finite
+    lag >= 0 (a fix cannot measure the future)."""
+    from navgate.nav import validate
+
+    return (validate.finite_array("y_ne", y_ne, (2,)), validate.covariance("cov", cov, 2),
+            validate.non_negative("lag_s", lag_s))
+
+
+def check_inflate(d_p) -> np.ndarray:
+    """The PS's answer to a divergence adds a 2 x 2 covariance: finite, symmetric, positive
+    semi-definite (anything else could leave P indefinite or NaN)."""
+    from navgate.nav import validate
+
+    return validate.covariance("d_p", d_p, 2)
+
+
 @dataclass
 class UpdateOutcome:
     accepted: bool
@@ -73,6 +146,7 @@ class PlEngine(ABC):
     needs_imu_words: bool = False
 
     def __init__(self, setup: EngineSetup):
+        check_setup(setup)
         self.setup = setup
         self.accepted: dict = {}
         self.rejected: dict = {}
@@ -192,6 +266,7 @@ class ReferenceEngine(PlEngine):
                 one(accel_words, cal.accel_lsb, cal.accel_bias, cal.accel_matrix))
 
     def propagate(self, gyro_words, accel_words) -> None:
+        gyro_words, accel_words = check_imu_words(gyro_words, accel_words)
         gyro, accel = self.calibrate(gyro_words, accel_words)
         f = self.filter
         before = f.imu_samples_rejected
@@ -204,18 +279,20 @@ class ReferenceEngine(PlEngine):
                              "" if upd.accepted else "rejected by chi-square gate")
 
     def update_altitude(self, h_meas, sigma) -> UpdateOutcome:
+        h_meas, sigma = check_altitude(h_meas, sigma)
         out = self._outcome(self.filter.update_altitude(h_meas, sigma))
         self.accepted, self.rejected = self.filter.accepted, self.filter.rejected
         return out
 
     def update_trn(self, y_ne, cov, lag_s) -> UpdateOutcome:
+        y_ne, cov, lag_s = check_trn(y_ne, cov, lag_s)
         out = self._outcome(self.filter.update_position_offset(y_ne, cov, lag_s))
         self.accepted, self.rejected = self.filter.accepted, self.filter.rejected
         return out
 
     def inflate_p_horizontal(self, d_p) -> None:
-        d = 0.5 * (np.asarray(d_p, float) + np.asarray(d_p, float).T)
-        self.filter.p[:2, :2] += d
+        d = check_inflate(d_p)
+        self.filter.p[:2, :2] += 0.5 * (d + d.T)
 
     def read_nav(self):
         return self.filter.nav.copy()

@@ -64,7 +64,7 @@ from navgate.systems.ins_trn.pl.sensors.bmp390_emulator import Bmp390Emulator
 from navgate.systems.ins_trn.pl.sensors.tfluna_emulator import SAMPLE_LAYOUT as LIDAR_SAMPLE
 from navgate.systems.ins_trn.pl.sensors.tfluna_emulator import TfLunaEmulator
 from navgate.systems.ins_trn.pl.top import CAL_REGISTER_OF, InsTrnTop
-from navgate.systems.ins_trn.ps.engine import EngineSetup, UpdateOutcome
+from navgate.systems.ins_trn.ps.engine import EngineSetup, UpdateOutcome, check_imu_words
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.ps.pl_profile import VALID_BIT
 
@@ -361,8 +361,7 @@ class FpgaSimEngine(Fp32Engine):
 
     # -- engine calls -----------------------------------------------------------------------------
     def propagate(self, gyro_words, accel_words) -> None:
-        gw = np.asarray(gyro_words).reshape(-1, 3)
-        aw = np.asarray(accel_words).reshape(-1, 3)
+        gw, aw = check_imu_words(gyro_words, accel_words)
         words = np.concatenate([gw, aw], axis=1)
         if not (np.all(np.isfinite(words)) and np.all(words == np.round(words))
                 and words.min(initial=0) >= -32768 and words.max(initial=0) <= 32767):

@@ -26,7 +26,7 @@ from navgate.opflow.machine import CMD_READ, CMD_START, CMD_WRITE, ScheduledMach
 from navgate.systems.ins_trn.pl.engines import ENGINE_UNITS, IMU_WORDS, engine_image
 from navgate.systems.ins_trn.pl.fp32_exec import to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CONFIG_REGS, STATE_REGS
-from navgate.systems.ins_trn.ps.engine import EngineSetup
+from navgate.systems.ins_trn.ps.engine import EngineSetup, check_imu_words
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
 
 __all__ = ["RtlEngine", "NativeLink", "RtlError"]
@@ -172,8 +172,8 @@ class RtlEngine(Fp32Engine):
         self.m.load()
 
     def propagate(self, gyro_words, accel_words) -> None:
-        gw = np.asarray(gyro_words, dtype=np.int64).reshape(-1, 3)
-        aw = np.asarray(accel_words, dtype=np.int64).reshape(-1, 3)
+        gw, aw = check_imu_words(gyro_words, accel_words)
+        gw, aw = gw.astype(np.int64), aw.astype(np.int64)
         self.m.propagate(gw, aw)
         self.samples += gw.shape[0]
 
