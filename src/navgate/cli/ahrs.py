@@ -38,7 +38,8 @@ def _nonneg(ctx, param, value):
 @click.option("--kp", type=float, default=1.0, show_default=True, callback=_nonneg,
               help="Mahony proportional gain (rad/s per unit error); kp * dt must be < 1.")
 @click.option("--ki", type=float, default=0.1, show_default=True, callback=_nonneg,
-              help="Mahony integral gain.")
+              help="Mahony integral gain; ki * dt^2 < 2 (1 - kp dt) keeps the loop stable "
+                   "(checked, all engines).")
 @click.option("--gain", type=float, default=0.02, show_default=True, callback=_nonneg,
               help="Complementary filter correction gain per sample (0..1).")
 @click.option("--axes", type=click.Choice(["auto", "frd", "flu"]), default="auto",
@@ -162,6 +163,10 @@ def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no
 
     if method != "mahony":
         raise CliError(f"--engine {engine} runs seed 003's Mahony circuit; use --filter mahony")
+    if engine == "rtl":
+        from navgate.cli.extras import SIMULATION, require_gateware
+
+        require_gateware("navgate ahrs --engine rtl", SIMULATION)
     if no_mag:
         raise CliError(f"--engine {engine}: the circuit always uses the magnetometer "
                        f"(drop --no-mag)")
@@ -172,13 +177,12 @@ def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no
         raise CliError(str(error)) from None
     if len(log) < 2:
         raise CliError(f"{input_csv}: need at least two samples")
-    # the same bounds as the reference engine: the log's period and the gains, and no zero
-    # specific force (the circuit normalises the accelerometer every sample)
-    check_period_and_gains(float(np.median(np.diff(log.t))), method, kp, ki)
-    zero = int(np.count_nonzero(np.linalg.norm(log.acc, axis=1) == 0.0))
-    if zero:
-        raise CliError(f"{input_csv}: {zero} samples with a zero specific force; the circuit "
-                       "normalises the accelerometer and cannot level on them")
+    from navgate.systems.attitude.circuit_engine import circuit_inputs
+
+    try:  # the checks every engine shares (estimate.check_run), before any message or build
+        circuit_inputs(log, axes, kp, ki)
+    except ValueError as error:
+        raise CliError(str(error)) from None
     if engine == "fp32":
         console.print(f"running the float32 model over {len(log)} samples "
                       f"(about 50 ms a sample)")
@@ -220,35 +224,6 @@ def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no
         console.print(f"wrote {len(res.t)} rows to {out}", highlight=False)
 
 
-#: the shortest sample period taken (100 kHz): IMUs sample at a few kHz at most, so a shorter
-#: period is a log whose time stamps are not in seconds (or are broken)
-MIN_PERIOD_S = 1e-5
-
-
-def check_period_and_gains(dt: float, method: str, kp: float, ki: float) -> None:
-    """One line (CliError) unless the log's period is an IMU's and the Mahony gains give a
-    stable discrete loop. The filter (``mahony_steps``) updates the integral first and then
-    rotates by kp e + integral, so a small tilt error obeys theta' = (1 - kp dt - ki dt^2)
-    theta - dt b, b' = b + ki dt theta: P(z) = z^2 - (2 - kp dt - ki dt^2) z + (1 - kp dt).
-    By Jury's test its roots lie inside the unit circle iff |1 - kp dt| < 1, P(1) = ki dt^2
-    > 0 and P(-1) = 4 - 2 kp dt - ki dt^2 > 0. With kp dt < 1 (the proportional step's own
-    bound, no overshoot) that leaves ki dt^2 < 4 - 2 kp dt."""
-    if not (math.isfinite(dt) and dt >= MIN_PERIOD_S):
-        rate = 1 / dt if dt > 0 else math.inf
-        raise CliError(f"the log's sample period is {dt:.3g} s ({rate:.3g} Hz), shorter than "
-                       f"any IMU's ({MIN_PERIOD_S:g} s, 100 kHz): time stamps not in seconds?")
-    if method != "mahony":
-        return
-    if kp * dt >= 1.0:
-        raise CliError(f"--kp {kp:g} with a {dt:g} s sample period gives kp * dt = {kp * dt:.3g};"
-                       f" the discrete filter needs kp * dt < 1 (here kp < {1 / dt:.4g})")
-    limit = (4.0 - 2.0 * kp * dt) / dt**2
-    if ki >= limit:
-        raise CliError(f"--ki {ki:g} with --kp {kp:g} and a {dt:g} s sample period makes the "
-                       f"discrete filter unstable (it needs ki * dt^2 < 4 - 2 kp dt, here "
-                       f"ki < {limit:.4g})")
-
-
 HEADER = "t,qw,qx,qy,qz,roll_deg,pitch_deg,yaw_deg"
 FMT = ["%.6f"] + ["%.9f"] * 4 + ["%.5f"] * 3
 
@@ -257,9 +232,17 @@ def _make_stream(cls, reader, block, method, axes, kp, ki, gain, no_mag, init, g
                  resolve_axes):
     """The filter for this log: axes resolved, gap threshold and the kp*dt check from the
     log's nominal period."""
+    from navgate.systems.attitude.estimate import check_run
+
     dt = reader.nominal_dt
     if not (math.isfinite(dt) and dt > 0):
         dt = 0.01
-    check_period_and_gains(dt, method, kp, ki)
+    if method == "mahony" and kp * dt >= 1.0:
+        raise CliError(f"--kp {kp:g} with a {dt:g} s sample period gives kp * dt = {kp * dt:.3g};"
+                       f" the discrete filter needs kp * dt < 1 (here kp < {1 / dt:.4g})")
+    # the checks every engine shares (the circuit engines run the same in circuit_inputs)
+    check_run(method=method, dt=dt, kp=kp, ki=ki, gain=gain,
+              acc0=block.acc[0] if init == "accel" and len(block.acc) else None,
+              use_mag=not no_mag and block.mag is not None)
     return cls(method, axes=resolve_axes(block, axes), kp=kp, ki=ki, gain=gain,
                use_mag=not no_mag, init=init, gap_s=gap_periods * dt)
