@@ -33,6 +33,9 @@ G0 = 9.80665
 #: commands (paths of names) that write no file, and why
 NO_OUTPUTS = {
     ("trn-serve",): "a network/serial service: it answers requests and writes no file",
+    ("cache", "info"): "reads the cache root and prints its sizes; writes no file",
+    ("cache", "clear"): "deletes cache entries under the cache root only (its own refusal "
+                        "of paths outside the root is tested in tests/cli/test_cache.py)",
 }
 
 
