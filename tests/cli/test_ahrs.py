@@ -203,3 +203,47 @@ def test_real_xio_log(tmp_path, capsys):
         assert len(res) == len(log)
         assert np.all(np.abs(res[still, 5] - roll_acc) < 0.5)
         assert np.all(np.abs(res[still, 6] - pitch_acc) < 0.5)
+
+
+def _level_log(path, n=300, hz=100.0, t_scale=1.0, roll_deg=0.0, acc_scale=1.0):
+    t = np.arange(n) / hz * t_scale
+    r = math.radians(roll_deg)
+    acc = np.tile([0.0, -G0 * math.sin(r), -G0 * math.cos(r)], (n, 1)) * acc_scale
+    np.savetxt(path, np.column_stack([t, np.zeros((n, 3)), acc, np.tile([20.0, 0.0, 40.0],
+                                                                         (n, 1))]),
+               delimiter=",", header="t,gx,gy,gz,ax,ay,az,mx,my,mz", comments="", fmt="%.10g")
+    return path
+
+
+def _one_line(err):
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in err and "internal error" not in err, err
+    return lines[0]
+
+
+@pytest.mark.parametrize("engine", ["reference", "fp32", "rtl"])
+def test_absurd_period_and_gains_refused_by_every_engine(engine, tmp_path, capsys):
+    """The circuit engines keep the reference's bounds (issue 31): a picosecond time step, an
+    unstable --ki, --kp 1e6 and a zero accelerometer are one line, exit 2, before any run."""
+    pico = _level_log(tmp_path / "pico.csv", t_scale=1e-10)
+    level = _level_log(tmp_path / "level.csv")
+    zero = _level_log(tmp_path / "zero.csv", acc_scale=0.0)
+    for args, needle in (([pico], "1e-12 s"),
+                         # with a magnetometer the bound is ki T^2 < 2 (1 - kp T)
+                         ([level, "--ki", "1e5"], "ki < 1.98e+04"),
+                         ([level, "--kp", "1e6"], "kp * dt = 1e+04"),
+                         ([zero], "zero specific force")):
+        code, _, err = run_cli([*args, "--engine", engine], capsys)
+        assert code == 2 and needle in _one_line(err), (args, err)
+
+
+def test_ki_bound_is_the_discrete_stability_limit(tmp_path, capsys):
+    """Just inside the bound (ki dt^2 < 4 - 2 kp dt) the filter still levels a 10 deg tilt
+    from an identity start; just outside it is refused."""
+    tilt = _level_log(tmp_path / "tilt.csv", n=3000, roll_deg=10.0)
+    code, out, err = run_cli([tilt, "--init", "identity", "--no-mag", "--ki", "39000"], capsys)
+    assert code == 0, err
+    roll = float(re.search(r"final roll / pitch / yaw\s*│\s*([-\d.]+)", out).group(1))
+    assert roll == pytest.approx(10.0, abs=0.05)
+    code, _, err = run_cli([tilt, "--init", "identity", "--ki", "39801"], capsys)
+    assert code == 2 and "unstable" in _one_line(err)

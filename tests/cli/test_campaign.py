@@ -52,3 +52,54 @@ def test_short_campaign_writes_every_output(tmp_path):
                     "cep50_m", "cep95_m"):
             assert c[key] is not None, key
     assert "Monte Carlo" in proc.stdout and "pmf" in proc.stdout
+
+
+def test_table_fits_120_columns_when_redirected(capsys):
+    """Redirected (not a terminal), the table is 120 columns wide, not 200."""
+    import io
+
+    from rich.console import Console
+
+    from navgate.cli import campaign as cmd
+
+    conf = {"label": "default / pmf / long-range", "runs": 10, "failed": 0,
+            "rms_second_half_m_mean": 12.3, "rms_second_half_m_max": 45.6, "cep50_m": 8.1,
+            "cep95_m": 30.2, "final_error_m_mean": 11.0, "ins_only_final_error_m_mean": 812.4,
+            "runs_trn_worse_than_ins_only": 0, "time_to_first_fix_s_mean": 31.5,
+            "nees_mean": 1.93, "nees_band_95": [1.51, 2.55], "outside_3sigma_fraction": 0.004}
+    summary = {"runs": 10, "duration_s": 600.0, "wall_time_s": 321.0, "workers": 2,
+               "configurations": [conf], "failed_runs": [], "run_wall_s_mean": 64.0,
+               "scaling_ratio": 1.0}
+    redirected = Console(file=io.StringIO())
+    assert not redirected.is_terminal
+    cmd._print_table(cmd._table_console(redirected), summary)
+    out = capsys.readouterr().out
+    widths = [len(line) for line in out.splitlines()]
+    assert max(widths) <= cmd.TABLE_WIDTH_REDIRECTED, max(widths)
+    assert "default" in out and "1.93" in out and "Monte Carlo: 10 runs" in out
+
+
+def test_dask_shutdown_warnings_are_silenced_then_restored():
+    import logging
+
+    from navgate.systems.ins_trn.ps import campaign as camp
+
+    nanny = logging.getLogger("distributed.nanny")
+    before = nanny.level
+    seen = []
+
+    class Catch(logging.Handler):
+        def emit(self, record):
+            seen.append(record.getMessage())
+
+    handler = Catch(logging.WARNING)
+    logging.getLogger().addHandler(handler)
+    try:
+        with camp._quiet_dask_shutdown():
+            nanny.warning("Worker process still alive after 3.9999 seconds, killing")
+            nanny.error("a real failure")
+        nanny.warning("after the shutdown")
+    finally:
+        logging.getLogger().removeHandler(handler)
+    assert seen == ["a real failure", "after the shutdown"]
+    assert nanny.level == before

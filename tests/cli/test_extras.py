@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from navgate.cli.common import CliError
+from navgate.cli.errors import CliError
 from navgate.cli.extras import require
 
 

@@ -88,7 +88,7 @@ def test_unwritable_output_directory(tmp_path):
 
 def test_hardware_line_reports_the_simulated_pl():
     """The fly/replay line for a simulated PL's counts (summary "hardware")."""
-    from navgate.cli.common import hardware_line
+    from navgate.cli.console import hardware_line
 
     line = hardware_line({"simulated_cycles": 322_200_000, "cycles_per_imu_sample": 1342.4,
                           "update_interrupts": 15040, "profile_dmas": 108,
@@ -99,3 +99,35 @@ def test_hardware_line_reports_the_simulated_pl():
     assert "108 profile DMAs" in line and "6,000 ranger frames" in line
     assert hardware_line({"engine_cycles": 2_500_000, "engine_cycles_per_imu_sample": 669.0}) \
         == "2.5 M engine cycles (669 per IMU sample)"
+
+
+@pytest.mark.parametrize("engine, key", [
+    ("fp32", "fp32_vs_reference_max_position_difference_m"),
+    ("rtl", "rtl_vs_reference_max_position_difference_m"),
+    ("fpga-sim", "fpga_sim_vs_reference_max_position_difference_m"),
+])
+def test_engine_comparison_is_named_after_the_engine(engine, key, capsys):
+    """rtl and fpga-sim flights store and print their own comparison with the reference,
+    not "fp32 vs reference" (issue 31)."""
+    import dataclasses
+
+    from rich.console import Console
+
+    from navgate.cli import fly as cmd
+    from navgate.systems.ins_trn.ps import flight
+    from navgate.trn.dem import Dem
+
+    dem = Dem.default()
+    cfg = flight.FlightConfig(duration_s=2.0, trn=False)
+    result = flight.fly(dem, cfg)
+    ref = {name: dataclasses.replace(run, nav=run.nav.copy()) for name, run in
+           result.runs.items()}
+    ref["ins_only"].nav[-1, 0] += 1e-6  # the reference ends 6.4 m north
+    result = dataclasses.replace(result, engine=engine, reference_runs=ref)
+    s = result.summary()
+    assert [k for k in s if k.endswith("_vs_reference_max_position_difference_m")] == [key]
+    assert s[key] == pytest.approx(6.37, abs=0.05)
+    cmd._print_table(Console(file=sys.stderr, width=120), s)
+    err = capsys.readouterr().err
+    assert f"{engine} vs reference: max position difference {s[key]:.2f} m" in err
+    assert engine == "fp32" or "fp32" not in err

@@ -83,9 +83,11 @@ def _quat(ini):
     ini["nav"][6:10] = [0.0, 0.0, 0.0, 0.0]
 
 
-@pytest.mark.parametrize("edit, word", [(_p0_nan, "p0"), (_p0_indefinite, "p0"),
-                                        (_lat_100, "nav0[0]"), (_height, "nav0[2]"),
-                                        (_quat, "nav0[6:10]")],
+@pytest.mark.parametrize("edit, word", [(_p0_nan, "initial.p0 holds non-finite"),
+                                        (_p0_indefinite, "initial.p0 is not positive"),
+                                        (_lat_100, "initial.nav latitude"),
+                                        (_height, "initial.nav height"),
+                                        (_quat, "initial.nav quaternion")],
                          ids=["p0 nan", "p0 indefinite", "latitude 100", "height", "quaternion"])
 def test_damaged_initial_state_is_one_line_exit_2(tmp_path, capsys, edit, word):
     path = damaged(tmp_path, edit)
@@ -93,5 +95,5 @@ def test_damaged_initial_state_is_one_line_exit_2(tmp_path, capsys, edit, word):
     lines = err.strip().splitlines()
     assert code == 2, err
     assert len(lines) == 1 and lines[0].startswith("navgate replay: error:"), err
-    assert f"({word}" in lines[0], lines[0]
+    assert word in lines[0], lines[0]  # the header check names the field
     assert not (tmp_path / "rep").exists()

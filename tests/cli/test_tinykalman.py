@@ -157,7 +157,7 @@ def test_decode_serial_with_pyserial(tmp_path, capsys, monkeypatch):
     (["decode"], "exactly one of FILE or --serial"),
     (["decode", "x.bin", "--serial", "p"], "exactly one of FILE or --serial"),
     (["decode", "/nonexistent/x.bin"], "cannot read"),
-    (["/nonexistent/log.csv"], "no such file"),
+    (["/nonexistent/log.csv"], "No such file"),
     (["log.csv", "--engine", "fpga"], "Invalid value"),
     (["log.csv", "--engine", "rtl", "--variant", "bitwise"], "Invalid value"),
 ])

@@ -4,7 +4,7 @@ Each sub-command lives in its own module and is imported only when it is run, so
 ``navgate --help`` stays fast and a sub-command's heavy dependencies (numba, Amaranth,
 Yosys) load only when needed. To add a command, add one line to ``COMMANDS``.
 
-Errors: a sub-command raises :class:`navgate.cli.common.CliError` (or a click usage
+Errors: a sub-command raises :class:`navgate.cli.errors.CliError` (or a click usage
 error) and the user sees exactly one line on stderr, ``navgate <cmd>: error: ...``,
 with exit status 2 and no traceback.
 """
@@ -18,14 +18,14 @@ import sys
 import click
 
 from navgate import __version__
-from navgate.cli.common import (
+from navgate.cli.errors import (
     INTERRUPTED,
     CliError,
     interrupted_by,
     os_error_message,
     sigint_flagged,
-    warning_handler,
 )
+from navgate.cli.warnings import warning_handler
 
 #: command name -> "module:attribute" of a click command
 COMMANDS: dict[str, str] = {
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> None:
     Expected failures (CliError, click usage errors, any OSError) exit 2; an interrupt exits
     130; anything else is a bug, reported as one ``internal error`` line with exit 3 (set
     ``NAVGATE_DEBUG=1`` to see the traceback). Library warnings become one line each
-    (:func:`navgate.cli.common.warning_handler`).
+    (:func:`navgate.cli.warnings.warning_handler`).
     """
     args = sys.argv[1:] if argv is None else list(argv)
     if not args:  # plain ``navgate``: the help, not a usage error squeezed into one line

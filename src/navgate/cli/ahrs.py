@@ -15,13 +15,10 @@ import click
 import numpy as np
 from rich.table import Table
 
-from navgate.cli.common import (
-    CliError,
-    atomic_output_file,
-    consoles,
-    numba_note,
-    out_option,
-)
+from navgate.cli.console import consoles, numba_note
+from navgate.cli.errors import CliError
+from navgate.cli.inputs import fifo_guard
+from navgate.cli.outputs import atomic_output_file, out_option
 
 
 def _nonneg(ctx, param, value):
@@ -82,7 +79,8 @@ def ahrs(input_csv, method, out, kp, ki, gain, axes, gyro_unit, no_mag, init, en
         return
     start = time.perf_counter()
     try:
-        reader = ImuLogReader(input_csv, use_mag=not no_mag, gyro_unit=gyro_unit)
+        reader = ImuLogReader(input_csv, use_mag=not no_mag, gyro_unit=gyro_unit,
+                              fileobj=fifo_guard(input_csv))
     except LogError as error:
         raise CliError(str(error)) from None
     stats = {"rows": 0, "t0": None, "t1": None, "last": None}
@@ -174,7 +172,7 @@ def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no
                        f"(drop --no-mag)")
     start = time.perf_counter()
     try:
-        log = read_imu_csv(input_csv, gyro_unit=gyro_unit)
+        log = read_imu_csv(input_csv, gyro_unit=gyro_unit, fileobj=fifo_guard(input_csv))
     except LogError as error:
         raise CliError(str(error)) from None
     if len(log) < 2:

@@ -24,10 +24,13 @@ import click
 from rich.console import Console
 from rich.progress import BarColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-from navgate.cli.common import (
-    CliError,
+from navgate.cli.errors import CliError
+from navgate.cli.outputs import (
     atomic_output_dir,
     atomic_output_file,
+    check_not_input,
+    check_out_dir,
+    check_outputs_early,
     check_writable_file,
     out_option,
 )
@@ -129,7 +132,9 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
     """Emit Verilog for BLOCK, describe it and synthesise it for resource figures."""
     _require_toolchain("navgate build", timing)
     from navgate.hw.blocks import all_blocks
+    from navgate.hw.synth import allow_tools
 
+    allow_tools()  # an earlier report in this process may have cancelled the tools
     blocks = all_blocks()
     if list_:
         width = max(len(name) for name in blocks)
@@ -145,8 +150,12 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
     nx_seeds = _parse_seeds(nexus_seeds, "--nexus-seeds")
     liberty_path = _check_asic(asic, liberty)
     out_dir = Path(out)
+    check_out_dir(out_dir)
+    check_outputs_early(out_dir, [block + suffix for suffix in (
+        ".v", ".json", ".utilization.json", ".asic.json", ".timing.json")], [liberty_path])
     console = Console(stderr=True, soft_wrap=True)
-    with atomic_output_dir(out_dir) as stage, _progress(console) as progress:
+    with atomic_output_dir(out_dir, inputs=[liberty_path]) as stage, \
+            _progress(console) as progress:
         if _yowasp_note(timing):
             console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
         task = progress.add_task(block, total=1)
@@ -278,7 +287,11 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
                 return _run_build(name, out_dir, target, timing, progress, task,
                                   asic=asic, liberty=liberty)
 
-            with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+            from navgate.hw.synth import allow_tools, cancel_tools
+
+            allow_tools()
+            pool = ThreadPoolExecutor(max_workers=max(1, jobs))
+            try:
                 futures = {pool.submit(one, name): name for name in blocks}
                 for future in as_completed(futures):
                     name = futures[future]
@@ -293,6 +306,15 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
                     progress.console.print(f"[{len(rows)}/{len(blocks)}] {name} done "
                                            f"({time.perf_counter() - start:.0f} s, {source})",
                                            highlight=False)
+            except BaseException:
+                # the first Ctrl-C (or a failed block) stops the report: no queued block
+                # starts and the running tools are killed, rather than every block started
+                # running to its end while the interrupt waits
+                # queued blocks first, so that no thread whose tool is killed picks up another
+                pool.shutdown(wait=False, cancel_futures=True)
+                cancel_tools()
+                raise
+            pool.shutdown(wait=True)
     return report_table([rows[name] for name in blocks],
                         [paths[name] for name in blocks if name in paths]) + \
         cache_note(blocks, cached)
@@ -329,9 +351,11 @@ def report(timing: bool, target: str, out: str | None, jobs: int, asic: str | No
     _check_target(target)
     liberty_path = _check_asic(asic, liberty)
     out_path = check_writable_file(out) if out is not None else None
+    if out_path is not None:
+        check_not_input(out_path, [liberty_path])
     table = report_markdown(timing, target, Console(stderr=True, soft_wrap=True), jobs, asic,
                             liberty_path)
     click.echo(table, nl=False)
     if out_path is not None:
-        with atomic_output_file(out_path) as tmp:
+        with atomic_output_file(out_path, inputs=[liberty_path]) as tmp:
             tmp.write_text(table)

@@ -17,7 +17,8 @@ import json
 
 import click
 
-from navgate.cli.common import CliError, consoles
+from navgate.cli.console import consoles
+from navgate.cli.errors import CliError
 
 
 def _size(n: int) -> str:

@@ -12,17 +12,23 @@ import math
 
 import click
 
-from navgate.cli.common import (
-    CliError,
+from navgate.cli.console import consoles
+from navgate.cli.errors import CliError
+from navgate.cli.extras import require
+from navgate.cli.inputs import dem_input
+from navgate.cli.outputs import (
     atomic_output_dir,
     check_out_dir,
-    consoles,
+    check_outputs_early,
     default_out_dir,
-    non_finite_keys,
     out_option,
-    write_summary,
 )
-from navgate.cli.extras import require
+from navgate.cli.summary import non_finite_keys, write_summary
+
+#: the files campaign writes into --out
+OUTPUTS = ("summary.json", "results.csv", "error_cdf.png", "nees_hist.png")
+#: the most runs (seeds x configurations) one campaign takes
+MAX_RUNS = 100_000
 
 
 @click.command()
@@ -46,7 +52,6 @@ from navgate.cli.extras import require
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")
 def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quiet):
     """Monte Carlo campaign of GPS-denied flights: seeds x DEMs x TRN options, on Dask."""
-    from rich.console import Console
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -80,15 +85,21 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
             raise CliError(f"--ranger: unknown preset {r!r}; choose from "
                            f"{', '.join(RANGER_PRESETS)}")
     dems = tuple(dict.fromkeys(dems)) or ("default",)
+    n_planned = len(seed_list) * len(dems) * len(trns) * len(rangers)
+    if n_planned > MAX_RUNS:
+        raise CliError(f"{len(seed_list)} seeds x {len(dems) * len(trns) * len(rangers)} "
+                       f"configurations = {n_planned:,} runs, more than the {MAX_RUNS:,} one "
+                       "campaign runs")
+    check_out_dir(out)
+    check_outputs_early(out, OUTPUTS, [d for d in dems if d != "default"])
     # every DEM must load and hold the route before any worker starts
     for d in dems:
         try:
-            dem = camp._load_dem(d)
+            dem = camp._load_dem(dem_input(d))
             plan_route(dem, FlightConfig(duration_s=duration))
         except (DemError, RouteError) as error:
             raise CliError(str(error)) from None
     spec = camp.Campaign.build(seed_list, dems, trns, rangers, duration_s=duration)
-    check_out_dir(out)
     table_console, console = consoles(quiet)
     n_runs = len(spec.tasks())
     console.print(f"[bold]navgate campaign[/]: {len(seed_list)} seeds x "
@@ -124,12 +135,24 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
         files = camp.write_report(result, stage)
         write_summary(stage, summary)
     if not quiet:
-        _print_table(Console(width=max(table_console.width, 200)), summary)
+        _print_table(_table_console(table_console), summary)
     console.print(f"wrote summary.json and {', '.join(p.name for p in files.values())} in "
                   f"{out}", highlight=False)
     bad = non_finite_keys(summary)
     if bad:
         raise CliError(f"the campaign produced non-finite results ({', '.join(bad[:4])})")
+
+
+#: the table's width when stdout is not a terminal (a file, a pipe): rich wraps the headers
+TABLE_WIDTH_REDIRECTED = 120
+
+
+def _table_console(console):
+    """The console for the results table: the terminal's own width on a terminal, else
+    :data:`TABLE_WIDTH_REDIRECTED` columns (never the 200 that a log file had to take)."""
+    from rich.console import Console
+
+    return console if console.is_terminal else Console(width=TABLE_WIDTH_REDIRECTED)
 
 
 def _fmt(v, spec=".1f"):

@@ -15,7 +15,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
-from navgate.cli.common import CliError
+from navgate.cli.errors import CliError
 
 #: module (top-level import name) -> the navgate extra that provides it
 EXTRA_OF: dict[str, str] = {

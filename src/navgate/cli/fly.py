@@ -15,21 +15,21 @@ from pathlib import Path
 
 import click
 
-from navgate.cli.common import (
-    CliError,
-    atomic_output_dir,
+from navgate.cli.console import consoles, hardware_line, numba_note
+from navgate.cli.engines import engine_choice, load_engine_class
+from navgate.cli.errors import CliError, simulation_errors
+from navgate.cli.inputs import dem_input
+from navgate.cli.outputs import (
+    check_not_input,
     check_out_dir,
-    consoles,
+    check_outputs_early,
+    check_writable_file,
     default_out_dir,
-    engine_choice,
-    hardware_line,
-    load_engine_class,
-    non_finite_keys,
-    numba_note,
     out_option,
-    simulation_errors,
-    write_summary,
+    reject_empty,
+    staged_outputs,
 )
+from navgate.cli.summary import non_finite_keys, write_summary
 
 
 def _positive_float(ctx, param, value):
@@ -75,6 +75,7 @@ def _positive_float(ctx, param, value):
                    "reference the reference "
                    "flies too, for the comparison in summary.json.")
 @click.option("--record", "record_path", type=click.Path(dir_okay=False), default=None,
+              callback=reject_empty,
               help="Also write the sensor record stream to this log file (navgate replay).")
 @click.option("--trn-service", "trn_service", default=None,
               metavar="tcp://HOST:PORT|serial:PORT[@BAUD]|spawn",
@@ -126,7 +127,7 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         raise CliError(f"--engine {engine} needs the IMU's int16 output words, which "
                        "--ideal-sensors does not produce")
     try:
-        dem = load_terrain(dem_path, cache_mb=tile_cache_mb, priority=tile_priority)
+        dem = load_terrain(dem_input(dem_path), cache_mb=tile_cache_mb, priority=tile_priority)
     except DemError as error:
         raise CliError(str(error)) from None
     if (tile_cache_mb is not None or tile_priority != "check") and not hasattr(dem, "stats"):
@@ -142,6 +143,9 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
     except (flight.RouteError, DemError) as error:
         raise CliError(str(error)) from None
     check_out_dir(out)
+    check_outputs_early(out, REPORT_FILES, [dem_path])
+    if record_path is not None:
+        _check_record(record_path, out, dem_path)
     if not (math.isfinite(trn_latency) and 0.0 <= trn_latency <= 60.0):
         raise CliError(f"--trn-latency must lie in [0, 60] s, got {trn_latency:g}")
     if not (math.isfinite(link_flip_rate) and 0.0 <= link_flip_rate <= 1.0):
@@ -181,9 +185,12 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         start = time.perf_counter()
         columns = (TextColumn("{task.description}"), BarColumn(),
                    TextColumn("{task.percentage:>3.0f}%"))
-        with numba_note(console), atomic_output_dir(out, inputs=[dem_path]) as stage, Progress(
+        records = [] if record_path is None else [record_path]
+        with numba_note(console), staged_outputs(out, files=records, inputs=[dem_path],
+                                                 names=REPORT_FILES) as staging, Progress(
                 *columns, TimeElapsedColumn(), console=console, disable=quiet,
                 transient=False) as bar:
+            stage = staging.dir
             task = bar.add_task("simulating sensors", total=total)
             try:
                 result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
@@ -205,21 +212,37 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
             if record_path is not None:
                 from navgate.systems.ins_trn.ps.records import write_log
 
-                if dem_path is not None and Path(record_path).resolve() == Path(dem_path).resolve():
-                    raise CliError(f"--record {record_path} would overwrite the input DEM")
-                try:
-                    write_log(result.stream, record_path)
-                except OSError as error:
-                    raise CliError(f"cannot write {record_path}: {error.strerror}") from None
+                bar.update(task, description="writing the record log")
+                write_log(result.stream, staging.file(record_path))
                 summary["record_log"] = str(record_path)
             write_summary(stage, summary)
         _print_table(table_console, summary)
         console.print(f"wrote summary.json, {', '.join(p.name for p in files.values())} in {out}",
                       highlight=False)
+        if record_path is not None:
+            console.print(f"wrote the sensor record log {record_path} "
+                          f"({len(result.stream):,} records; navgate replay {record_path})",
+                          highlight=False)
         bad = non_finite_keys(summary)
         if bad:
             raise CliError(f"the run produced non-finite results ({', '.join(bad[:4])}); "
                            f"check the DEM heights and options (files in {out})")
+
+
+#: the files fly writes into --out (navgate.systems.ins_trn.ps.report.write_report)
+REPORT_FILES = ("summary.json", "trajectory.csv", "trn_fixes.csv", "track.png", "errors.png")
+
+
+def _check_record(record_path, out, dem_path) -> None:
+    """--record FILE, checked before the flight: a regular file or absent (never a FIFO,
+    device or directory), in a directory that exists, not the DEM, not one of the files the
+    run writes into --out."""
+    record = Path(record_path)
+    check_writable_file(record)
+    check_not_input(record, [dem_path])
+    if record.parent.resolve() == Path(out).resolve() and record.name in REPORT_FILES:
+        raise CliError(f"--record {record_path} is one of the files this run writes into "
+                       f"--out {out}; choose another name")
 
 
 def _print_table(console, s):
@@ -254,9 +277,9 @@ def _print_table(console, s):
         hw = s.get(name, {}).get("hardware")
         if hw:
             console.print(f"{label}: {hardware_line(hw)}", highlight=False)
-    if "fp32_vs_reference_max_position_difference_m" in s:
-        console.print(f"fp32 vs reference: max position difference "
-                      f"{s['fp32_vs_reference_max_position_difference_m']:.2f} m; engine wall "
-                      f"time {s['engine_wall_time_s']:.1f} s vs "
-                      f"{s['reference_engine_wall_time_s']:.1f} s")
-
+    engine = s.get("engine", "reference")
+    key = f"{engine.replace('-', '_')}_vs_reference_max_position_difference_m"
+    if key in s:
+        console.print(f"{engine} vs reference: max position difference {s[key]:.2f} m; "
+                      f"{engine} wall time {s['engine_wall_time_s']:.1f} s vs "
+                      f"{s['reference_engine_wall_time_s']:.1f} s", highlight=False)

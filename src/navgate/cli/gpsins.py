@@ -22,17 +22,10 @@ from pathlib import Path
 import click
 import numpy as np
 
-from navgate.cli.common import (
-    CliError,
-    atomic_output_dir,
-    check_out_dir,
-    consoles,
-    default_out_dir,
-    non_finite_keys,
-    numba_note,
-    out_option,
-    write_summary,
-)
+from navgate.cli.console import consoles, numba_note
+from navgate.cli.errors import CliError
+from navgate.cli.outputs import atomic_output_dir, check_out_dir, default_out_dir, out_option
+from navgate.cli.summary import non_finite_keys, write_summary
 
 
 def _finite(ctx, param, value):

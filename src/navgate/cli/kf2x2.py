@@ -18,14 +18,10 @@ from pathlib import Path
 import click
 import numpy as np
 
-from navgate.cli.common import (
-    CliError,
-    atomic_output_dir,
-    consoles,
-    default_out_dir,
-    out_option,
-    write_summary,
-)
+from navgate.cli.console import consoles
+from navgate.cli.errors import CliError
+from navgate.cli.outputs import atomic_output_dir, default_out_dir, out_option
+from navgate.cli.summary import write_summary
 
 SIGMA_PROCESS = 0.1
 SIGMA_MEAS = 1.0

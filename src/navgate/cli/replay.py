@@ -1,26 +1,49 @@
 """``navgate replay``: run seed 000's navigator on a sensor record log (``navgate fly --record``).
 
 The log format is documented in :mod:`navgate.systems.ins_trn.ps.records`. Bad records
-(truncated, unparsable, non-finite, out-of-order time, int16 overflow) are counted by reason,
-skipped and reported in summary.json; only a log without a valid IMU record is an error. When
-the log holds truth records, both runs are scored exactly as ``navgate fly`` scores them.
+(truncated, unparsable, non-finite, int16 overflow) are counted by reason, skipped and
+reported in summary.json; time order is resynchronised (one wrong stamp costs one record).
+The fraction of the log's records used is in summary.json and on the table; below
+``--min-used`` the log is not navigated (one line, exit 2). A header that does not describe a
+usable navigator (NaN or indefinite P0, wrong shapes, a latitude off the Earth, ...) is one
+line, exit 2. When the log holds truth records, both runs are scored exactly as ``navgate
+fly`` scores them (truth taken at the solutions' times) and ``trajectory.csv``,
+``trn_fixes.csv``, ``track.png`` and ``errors.png`` are written as ``fly`` writes them;
+without truth, ``trajectory.csv`` holds the solutions and ``trn_fixes.csv`` the fixes.
 """
 
 from __future__ import annotations
 
+import csv
+import math
 import time
+from pathlib import Path
+from types import SimpleNamespace
 
 import click
+import numpy as np
 
-from navgate.cli.common import (
-    CliError,
-    engine_choice,
-    hardware_line,
-    load_engine_class,
-    prepare_out_dir,
-    simulation_errors,
-    write_summary,
+from navgate.cli.console import consoles, hardware_line
+from navgate.cli.engines import engine_choice, load_engine_class
+from navgate.cli.errors import CliError, simulation_errors
+from navgate.cli.inputs import dem_input, regular_input
+from navgate.cli.outputs import (
+    check_out_dir,
+    check_outputs_early,
+    default_out_dir,
+    out_option,
+    staged_outputs,
 )
+from navgate.cli.summary import non_finite_keys, write_summary
+
+#: the files replay writes into --out (the plots only for a log with truth)
+OUTPUTS = ("summary.json", "trajectory.csv", "trn_fixes.csv", "track.png", "errors.png")
+
+
+def _fraction(ctx, param, value):
+    if not (math.isfinite(value) and 0.0 <= value <= 1.0):
+        raise click.BadParameter(f"must be a fraction in [0, 1], got {value:g}")
+    return value
 
 
 @click.command()
@@ -31,37 +54,30 @@ from navgate.cli.common import (
 @click.option("--dem", "dem_path", type=click.Path(dir_okay=True), default=None,
               help="DEM for TRN (default: the embedded Jacksboro fault DEM).")
 @click.option("--no-trn", is_flag=True, help="Run INS-only (with baro) and skip TRN.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False), default="navgate-replay",
-              show_default=True, help="Output directory.")
-@click.option("--quiet", is_flag=True, help="No table on stdout.")
-def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
+@click.option("--min-used", type=float, default=0.95, show_default=True, callback=_fraction,
+              help="Refuse a log of which less than this fraction of the records is usable.")
+@out_option(default_out_dir("replay"), "Output directory (written atomically).")
+@click.option("--quiet", is_flag=True, help="No progress and no table.")
+def replay(log_path, engine, dem_path, no_trn, min_used, out, quiet):
     """Navigate a recorded sensor stream; score it when the log carries truth."""
-    from dataclasses import fields, replace
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from navgate.sim.flight import FlightConfig, score
     from navgate.systems.ins_trn.ps.flight import fly_stream
-    from navgate.systems.ins_trn.ps.records import LogError, read_log
+    from navgate.systems.ins_trn.ps.records import LogError, check_header, read_log
     from navgate.trn.dem import DemError
-    from navgate.trn.pmf import PmfConfig
-    from navgate.trn.tercom import TercomConfig
     from navgate.trn.tiles import load_terrain
 
+    table_console, console = consoles(quiet)
+    check_out_dir(out)
+    check_outputs_early(out, OUTPUTS, [log_path, dem_path])
     try:
-        stream = read_log(log_path)
+        stream = read_log(regular_input(log_path))
+        check_header(stream.header)
     except LogError as error:
-        raise CliError(str(error)) from None
+        raise CliError(f"{log_path}: {error}" if str(log_path) not in str(error)
+                       else str(error)) from None
     header = stream.header
-    try:
-        conf = dict(header["config"])
-        conf["tercom"] = TercomConfig(**conf.get("tercom", {}))
-        conf["pmf"] = PmfConfig(**conf.get("pmf", {}))
-        known = {f.name for f in fields(FlightConfig)}
-        cfg = FlightConfig(**{k: v for k, v in conf.items() if k in known})
-        for key in ("ideal", "t0", "calibration", "initial", "reference"):
-            header[key]
-    except (KeyError, TypeError, ValueError) as error:
-        raise CliError(f"{log_path}: header lacks a usable flight configuration ({error})"
-                       ) from None
+    cfg = _flight_config(header, log_path, no_trn)
     try:  # the engines' own checks of the initial state (p0, nav0, rate, ...), up front
         from navgate.systems.ins_trn.ps.engine import check_setup
         from navgate.systems.ins_trn.ps.navigator import engine_setup
@@ -73,74 +89,195 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
     if header.get("ideal") and load_engine_class(engine, "navgate replay").needs_imu_words:
         raise CliError(f"{log_path}: --engine {engine} needs the IMU's int16 output words; "
                        "this log has the ideal sensors' float words")
-    if no_trn:
-        cfg = replace(cfg, trn=False)
+    used = stream.used_fraction
+    bad_total = int(sum(stream.bad_records.values()))
+    if used < min_used:
+        reasons = ", ".join(f"{n} {r}" for r, n in sorted(stream.bad_records.items(),
+                                                          key=lambda kv: -kv[1])[:3])
+        raise CliError(f"{log_path}: only {100 * used:.1f} % of its {stream.records_read:,} "
+                       f"records are usable ({reasons}), below --min-used {min_used:g}; "
+                       "not navigated")
     try:
-        dem = load_terrain(dem_path)
+        dem = load_terrain(dem_input(dem_path))
     except DemError as error:
         raise CliError(str(error)) from None
-    out = prepare_out_dir(out_dir)
+    console.print(f"[bold]navgate replay[/]: {log_path}, {stream.n_imu:,} IMU records "
+                  f"({100 * used:.1f} % of the log used), engine {engine}", highlight=False)
     start = time.perf_counter()
+    runs_n = 2 if cfg.trn else 1
+    columns = (TextColumn("{task.description}"), BarColumn(),
+               TextColumn("{task.percentage:>3.0f}%"), TimeElapsedColumn())
+    with staged_outputs(out, inputs=[log_path, dem_path], names=OUTPUTS) as staging, \
+            Progress(*columns, console=console, disable=quiet) as bar:
+        task = bar.add_task("navigating", total=runs_n * stream.n_imu)
+        try:
+            runs = fly_stream(stream, dem, cfg, engine=engine,
+                              progress=lambda n: bar.advance(task, n),
+                              stage=lambda s: bar.update(task, description=s))
+        except simulation_errors() as error:
+            raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
+        except DemError as error:
+            raise CliError(str(error)) from None
+        bar.update(task, description="writing report", completed=runs_n * stream.n_imu)
+        summary = {
+            "log": str(log_path), "engine": engine, "dem": dem.name,
+            "log_dem": header.get("dem"), "records": len(stream),
+            "records_read": stream.records_read, "used_fraction": used,
+            "min_used": min_used, "imu_records": stream.n_imu,
+            "bad_records": dict(stream.bad_records), "bad_records_total": bad_total,
+        }
+        result = _Replayed(runs, stream, dem)
+        summary["scored"] = bool(result.scores)
+        for name, run in runs.items():
+            s = {"wall_time_s": run.wall_time_s,
+                 "baro_updates_accepted": run.accepted.get("baro", 0),
+                 "baro_updates_rejected": run.rejected.get("baro", 0),
+                 "baro_samples_invalid": run.rejected.get("baro invalid sample", 0),
+                 "imu_samples_rejected": run.imu_samples_rejected,
+                 "final_lat_deg": math.degrees(float(run.nav[-1, 0])),
+                 "final_lon_deg": math.degrees(float(run.nav[-1, 1])),
+                 "final_h_m": float(run.nav[-1, 2])}
+            if result.scores:
+                s.update(result.scores[name].summary(run.t))
+            if name == "trn_aided":
+                applied = [f for f in run.fixes if f["applied"]]
+                s["fixes_attempted"] = len(run.fixes)
+                s["fixes_accepted"] = len(applied)
+                s["fixes_rejected"] = len(run.fixes) - len(applied)
+            if run.hardware:
+                s["hardware"] = run.hardware
+            summary[name] = s
+        summary["wall_time_s"] = time.perf_counter() - start
+        files = _write_report(result, staging.dir)
+        write_summary(staging.dir, summary)
+    _print_table(table_console, summary, runs, engine, stream)
+    console.print(f"wrote summary.json, {', '.join(files)} in {out}", highlight=False)
+    bad = non_finite_keys(summary)
+    if bad:
+        raise CliError(f"the replay produced non-finite results ({', '.join(bad[:4])}); "
+                       f"files in {out}")
+
+
+def _flight_config(header, log_path, no_trn):
+    """The flight configuration the log was recorded with (one line when unusable)."""
+    from dataclasses import fields, replace
+
+    from navgate.sim.flight import FlightConfig
+    from navgate.trn.pmf import PmfConfig
+    from navgate.trn.tercom import TercomConfig
+
     try:
-        runs = fly_stream(stream, dem, cfg, engine=engine)
-    except simulation_errors() as error:
-        raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
-    except DemError as error:
-        raise CliError(str(error)) from None
-    summary = {
-        "log": str(log_path), "engine": engine, "dem": dem.name,
-        "log_dem": header.get("dem"), "records": len(stream), "imu_records": stream.n_imu,
-        "bad_records": dict(stream.bad_records),
-        "bad_records_total": int(sum(stream.bad_records.values())),
-        "scored": stream.truth.shape[0] > 0,
-    }
-    log_every = 1
-    truth = None
-    if stream.truth.shape[0]:
-        truth = _Truth(stream.truth)
-    for name, run in runs.items():
-        s = {"wall_time_s": run.wall_time_s,
-             "baro_updates_accepted": run.accepted.get("baro", 0),
-             "baro_updates_rejected": run.rejected.get("baro", 0),
-             "baro_samples_invalid": run.rejected.get("baro invalid sample", 0),
-             "imu_samples_rejected": run.imu_samples_rejected,
-             "final_lat_deg": float(run.nav[-1, 0] * 180.0 / 3.141592653589793),
-             "final_lon_deg": float(run.nav[-1, 1] * 180.0 / 3.141592653589793),
-             "final_h_m": float(run.nav[-1, 2])}
-        if truth is not None and len(truth) >= run.t.size:
-            s.update(score(run, truth, log_every).summary(run.t))
-        if name == "trn_aided":
-            applied = [f for f in run.fixes if f["applied"]]
-            s["fixes_attempted"] = len(run.fixes)
-            s["fixes_accepted"] = len(applied)
-            s["fixes_rejected"] = len(run.fixes) - len(applied)
-        if run.hardware:
-            s["hardware"] = run.hardware
-        summary[name] = s
-    summary["wall_time_s"] = time.perf_counter() - start
-    path = write_summary(out, summary)
-    if not quiet:
-        click.echo(f"replayed {stream.n_imu} IMU records ({summary['bad_records_total']} bad "
-                   f"records skipped) with the {engine} engine")
-        for name in runs:
-            r = summary[name]
-            if "final_horizontal_error_m" in r:
-                click.echo(f"  {name}: final error {r['final_horizontal_error_m']:.1f} m, "
-                           f"RMS 2nd half {r['rms_horizontal_error_second_half_m']:.1f} m, "
-                           f"NEES {r['nees_position_mean']:.2f}")
-            else:
-                click.echo(f"  {name}: final position {r['final_lat_deg']:.6f}, "
-                           f"{r['final_lon_deg']:.6f}, {r['final_h_m']:.1f} m")
-            if "hardware" in r:
-                click.echo(f"  {name}: {hardware_line(r['hardware'])}")
-    click.echo(f"wrote {path}")
+        conf = dict(header["config"])
+        conf["tercom"] = TercomConfig(**conf.get("tercom", {}))
+        conf["pmf"] = PmfConfig(**conf.get("pmf", {}))
+        known = {f.name for f in fields(FlightConfig)}
+        cfg = FlightConfig(**{k: v for k, v in conf.items() if k in known})
+        if not (math.isfinite(cfg.imu_rate_hz) and 0 < cfg.imu_rate_hz <= 1e5):
+            raise ValueError(f"imu_rate_hz {cfg.imu_rate_hz}")
+        if not (math.isfinite(cfg.log_rate_hz) and 0 < cfg.log_rate_hz <= cfg.imu_rate_hz):
+            raise ValueError(f"log_rate_hz {cfg.log_rate_hz}")
+    except (KeyError, TypeError, ValueError, ArithmeticError) as error:
+        raise CliError(f"{log_path}: header lacks a usable flight configuration "
+                       f"({str(error)[:120]})") from None
+    return replace(cfg, trn=False) if no_trn else cfg
+
+
+class _Replayed:
+    """A replay shaped as navgate.systems.ins_trn.ps.report expects a flight: the runs, the
+    DEM, and (with truth records) the truth at the solutions' log times and the scores."""
+
+    def __init__(self, runs, stream, dem):
+        from navgate.sim.flight import score
+
+        self.runs, self.dem, self.log_every = runs, dem, 1
+        self.scores = {}
+        self.data = None
+        rows = stream.truth
+        if not rows.shape[0]:
+            return
+        from navgate.systems.ins_trn.ps.records import TRUTH
+
+        t_truth = stream.t[stream.kind == TRUTH]
+        t_log = next(iter(runs.values())).t
+        # the truth record nearest each solution time (the rows fly scores against); no score
+        # where the truth does not reach a solution time within one log period
+        k = np.searchsorted(t_truth, t_log)
+        lo = np.clip(k - 1, 0, t_truth.size - 1)
+        hi = np.clip(k, 0, t_truth.size - 1)
+        j = np.where(np.abs(t_truth[lo] - t_log) <= np.abs(t_truth[hi] - t_log), lo, hi)
+        period = 1.0 / stream_log_rate(stream)
+        if np.max(np.abs(t_truth[j] - t_log)) > period * (1 + 1e-9):
+            return
+        truth = SimpleNamespace(t=t_truth[j], lat=rows[j, 0], lon=rows[j, 1], h=rows[j, 2])
+        self.data = SimpleNamespace(truth=_Truth(truth))
+        self.scores = {name: score(run, self.data.truth, 1) for name, run in runs.items()}
+
+
+def stream_log_rate(stream) -> float:
+    """The log rate (Hz) of the flight configuration in the stream's header."""
+    return float(stream.header["config"].get("log_rate_hz", 10.0))
 
 
 class _Truth:
-    """Truth at the log rows (lat, lon, h), shaped for navgate.sim.flight.score."""
+    """Truth rows (t, lat, lon, h), shaped for navgate.sim.flight.score and the report."""
 
     def __init__(self, rows):
-        self.lat, self.lon, self.h = rows[:, 0], rows[:, 1], rows[:, 2]
+        self.t, self.lat, self.lon, self.h = rows.t, rows.lat, rows.lon, rows.h
 
     def __len__(self):
         return self.lat.size
+
+
+def _write_report(result, out: Path) -> list[str]:
+    """fly's report files for a log with truth; the solutions and fixes without truth."""
+    from navgate.systems.ins_trn.ps import report
+
+    if result.data is not None:
+        return [p.name for p in report.write_report(result, out).values()]
+    tan = report._tangent(result)
+    cols = {"t_s": next(iter(result.runs.values())).t}
+    for name, run in result.runs.items():
+        n, e = tan.to_ned(run.nav[:, 0], run.nav[:, 1])
+        cols[f"{name}_lat_deg"] = np.degrees(run.nav[:, 0])
+        cols[f"{name}_lon_deg"] = np.degrees(run.nav[:, 1])
+        cols[f"{name}_h_m"] = run.nav[:, 2]
+        cols[f"{name}_north_m"], cols[f"{name}_east_m"] = n, e
+        cols[f"{name}_sigma_north_m"] = run.sigma[:, 0]
+        cols[f"{name}_sigma_east_m"] = run.sigma[:, 1]
+    with open(out / "trajectory.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(cols.keys())
+        for row in zip(*cols.values(), strict=True):
+            w.writerow([f"{v:.9g}" for v in row])
+    report.write_fixes_csv(result, out / "trn_fixes.csv")
+    return ["trajectory.csv", "trn_fixes.csv"]
+
+
+def _print_table(console, s, runs, engine, stream):
+    from rich.table import Table
+
+    table = Table(title=f"replay of {s['log']} ({engine} engine)")
+    table.add_column("solution")
+    for col in ("final error (m)", "RMS 2nd half (m)", "NEES mean (2 dof)", "final position",
+                "TRN fixes acc/rej"):
+        table.add_column(col, justify="right")
+    for name, label in (("ins_only", "INS only (+baro)"), ("trn_aided", "INS + TRN")):
+        if name not in s:
+            continue
+        r = s[name]
+        scored = "final_horizontal_error_m" in r
+        fixes = f"{r['fixes_accepted']}/{r['fixes_rejected']}" if name == "trn_aided" else "-"
+        table.add_row(label,
+                      f"{r['final_horizontal_error_m']:.1f}" if scored else "- (no truth)",
+                      f"{r['rms_horizontal_error_second_half_m']:.1f}" if scored else "-",
+                      f"{r['nees_position_mean']:.2f}" if scored else "-",
+                      f"{r['final_lat_deg']:.6f}, {r['final_lon_deg']:.6f}, "
+                      f"{r['final_h_m']:.1f} m", fixes)
+    console.print(table)
+    reasons = ", ".join(f"{n} {k}" for k, n in s["bad_records"].items())
+    console.print(f"used {100 * s['used_fraction']:.2f} % of the log's {s['records_read']:,} "
+                  f"records ({s['imu_records']:,} IMU); {s['bad_records_total']} bad"
+                  + (f": {reasons}" if reasons else ""), highlight=False)
+    for name in runs:
+        if "hardware" in s[name]:
+            console.print(f"{name}: {hardware_line(s[name]['hardware'])}", highlight=False)

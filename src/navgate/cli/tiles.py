@@ -17,15 +17,17 @@ import re
 
 import click
 
-from navgate.cli.common import (
-    CliError,
+from navgate.cli.console import consoles
+from navgate.cli.errors import CliError
+from navgate.cli.inputs import dem_input
+from navgate.cli.outputs import (
     atomic_output_dir,
     check_out_dir,
-    consoles,
+    check_outputs_early,
     default_out_dir,
     out_option,
-    write_summary,
 )
+from navgate.cli.summary import write_summary
 
 
 @click.group()
@@ -59,12 +61,13 @@ def split(dem_path, grid, out, quiet):
 
     table_console, console = consoles(quiet)
     try:
-        dem = Dem.default() if dem_path == "default" else Dem.from_file(dem_path)
+        dem = Dem.default() if dem_path == "default" else Dem.from_file(dem_input(dem_path))
     except DemError as error:
         raise CliError(str(error)) from None
     check_out_dir(out)
     rows, cols = grid
     inputs = [] if dem_path == "default" else [dem_path]
+    check_outputs_early(out, ["tiles.json"], inputs)
     with atomic_output_dir(out, inputs=inputs) as stage:
         try:
             paths = split_dem(dem, rows, cols, stage)
@@ -121,6 +124,7 @@ def info(directory, out, quiet):
     table_console, console = consoles(quiet)
     if out is not None:
         check_out_dir(out)
+        check_outputs_early(out, ["tiles.json"], [directory])
     try:
         store = TileStore(directory)
         summary = _describe(store)

@@ -23,7 +23,16 @@ from pathlib import Path
 import click
 import numpy as np
 
-from navgate.cli.common import CliError, prepare_out_dir, write_summary
+from navgate.cli.errors import CliError
+from navgate.cli.inputs import read_bounded, regular_input
+from navgate.cli.outputs import (
+    check_out_dir,
+    check_outputs_early,
+    default_out_dir,
+    out_option,
+    staged_outputs,
+)
+from navgate.cli.summary import write_summary
 
 
 class _ImpliedRunGroup(click.Group):
@@ -52,6 +61,11 @@ def _write_roll_pitch(path: Path, angles, t=None) -> None:
             w.writerow([k, tk, r, p, f"{float(bam_to_deg(r)):.5f}", f"{float(bam_to_deg(p)):.5f}"])
 
 
+#: the files run and decode write into --out
+RUN_OUTPUTS = ("mpu6500_words.csv", "uart.bin", "roll_pitch.csv", "summary.json")
+DECODE_OUTPUTS = ("capture.bin", "roll_pitch.csv", "summary.json")
+
+
 @tinykalman.command("run")
 @click.argument("log_csv", type=click.Path(dir_okay=False))
 @click.option("--engine", type=click.Choice(["model", "rtl"]), default="model", show_default=True,
@@ -70,10 +84,9 @@ def _write_roll_pitch(path: Path, angles, t=None) -> None:
                    "45.4k in SG13G2, 621 clocks). Same arithmetic, byte-identical UART stream; "
                    "the default keeps the chip earlier runs recorded and simulates faster.")
 @click.option("--limit", type=int, default=None, help="Use only the first N samples.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False),
-              default="navgate-out/tinykalman", show_default=True, help="Output directory.")
+@out_option(default_out_dir("tinykalman"), "Output directory (written atomically).")
 @click.option("--quiet", is_flag=True, help="No table.")
-def run(log_csv, engine, sim, variant, axes, limit, out_dir, quiet):
+def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
     """Run an IMU log (CSV) through TinyKalman; write words, uart.bin, roll/pitch, summary."""
     from navgate.cli.extras import SIMULATION, require_gateware
 
@@ -84,16 +97,17 @@ def run(log_csv, engine, sim, variant, axes, limit, out_dir, quiet):
     from rich.table import Table
 
     from navgate.sim.imu_log import LogError, read_imu_csv
-    from navgate.systems.tinykalman.model import decode_stream
-    from navgate.systems.tinykalman.run import model_stream, words_from_imu
+    from navgate.systems.tinykalman.run import words_from_imu
     from navgate.systems.tinykalman.top import timing
 
     console = Console(stderr=True, quiet=quiet)
     if limit is not None and limit < 1:
         raise CliError(f"--limit must be positive, got {limit}")
+    check_out_dir(out)
+    check_outputs_early(out, RUN_OUTPUTS, [log_csv])
     t_start = time.perf_counter()
     try:
-        log = read_imu_csv(log_csv)
+        log = read_imu_csv(regular_input(log_csv))
     except LogError as error:
         raise CliError(str(error)) from None
     frd = axes == "frd" or (axes == "auto" and log.style != "x-io")
@@ -102,7 +116,50 @@ def run(log_csv, engine, sim, variant, axes, limit, out_dir, quiet):
         words = words_from_imu(log.acc[:n], log.gyro[:n], frd=frd)
     except ValueError as error:
         raise CliError(str(error)) from None
-    out = prepare_out_dir(out_dir)
+    with staged_outputs(out, inputs=[log_csv], names=RUN_OUTPUTS) as staging:
+        rtl_info, stream, stats, angles, model_seconds = _run_chip(
+            staging.dir, log, words, n, engine, sim, variant, console)
+        wall = time.perf_counter() - t_start
+        rate = (n - 1) / (log.t[n - 1] - log.t[0]) if n > 1 else None
+        deg = [(r * 180 / 32768, p * 180 / 32768) for r, p in angles]
+        summary = {
+            "log": str(log_csv), "samples": n, "log_rate_hz": rate,
+            "axes": "frd" if frd else "flu",
+            "skipped_rows": log.skipped_rows, "saturated_words": words.saturated,
+            "engine": engine, "uart_bytes": len(stream), "packets": stats.packets,
+            "skipped_bytes": stats.skipped_bytes, "trailing_bytes": stats.trailing_bytes,
+            "final_roll_deg": deg[-1][0] if deg else None,
+            "final_pitch_deg": deg[-1][1] if deg else None,
+            "model_seconds": round(model_seconds, 3), "wall_seconds": round(wall, 3),
+            "chip_timing_default": timing(), **({"rtl": rtl_info} if rtl_info else {}),
+        }
+        write_summary(staging.dir, summary)
+    table = Table(title=f"tinykalman {engine}: {log_csv}")
+    table.add_column("item")
+    table.add_column("value")
+    table.add_row("samples", str(n))
+    table.add_row("packets", str(stats.packets))
+    table.add_row("saturated words", str(words.saturated))
+    if deg:
+        table.add_row("final roll / pitch (deg)", f"{deg[-1][0]:.2f} / {deg[-1][1]:.2f}")
+    if rtl_info:
+        table.add_row("rtl equal to model", str(rtl_info["equal_to_model"]))
+        table.add_row("rtl wall time (s)", f"{rtl_info['rtl_seconds']:.1f}")
+    table.add_row("wall time (s)", f"{wall:.2f}")
+    console.print(table)
+    console.print(f"wrote {out}/mpu6500_words.csv, uart.bin, roll_pitch.csv, summary.json")
+    if rtl_info and not rtl_info["equal_to_model"]:
+        raise CliError(f"the chip's stream differs from the model's at byte "
+                       f"{rtl_info['first_differing_byte']}")
+
+
+def _run_chip(out: Path, log, words, n, engine, sim, variant, console):
+    """Write the words, run the model (and the chip with ``rtl``) and write the stream and
+    its decoding into ``out`` (a staging directory)."""
+    from navgate.systems.tinykalman.model import decode_stream
+    from navgate.systems.tinykalman.run import model_stream
+    from navgate.systems.tinykalman.top import timing
+
     with open(out / "mpu6500_words.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["sample", "t", "ax", "ay", "az", "temp", "gx", "gy", "gz"])
@@ -151,36 +208,7 @@ def run(log_csv, engine, sim, variant, axes, limit, out_dir, quiet):
     (out / "uart.bin").write_bytes(stream)
     angles, stats = decode_stream(stream)
     _write_roll_pitch(out / "roll_pitch.csv", angles, log.t[:n])
-    wall = time.perf_counter() - t_start
-    rate = (n - 1) / (log.t[n - 1] - log.t[0]) if n > 1 else None
-    deg = [(r * 180 / 32768, p * 180 / 32768) for r, p in angles]
-    summary = {
-        "log": str(log_csv), "samples": n, "log_rate_hz": rate, "axes": "frd" if frd else "flu",
-        "skipped_rows": log.skipped_rows, "saturated_words": words.saturated,
-        "engine": engine, "uart_bytes": len(stream), "packets": stats.packets,
-        "skipped_bytes": stats.skipped_bytes, "trailing_bytes": stats.trailing_bytes,
-        "final_roll_deg": deg[-1][0] if deg else None,
-        "final_pitch_deg": deg[-1][1] if deg else None,
-        "model_seconds": round(model_seconds, 3), "wall_seconds": round(wall, 3),
-        "chip_timing_default": timing(), **({"rtl": rtl_info} if rtl_info else {}),
-    }
-    write_summary(out, summary)
-    table = Table(title=f"tinykalman {engine}: {log_csv}")
-    table.add_column("item")
-    table.add_column("value")
-    table.add_row("samples", str(n))
-    table.add_row("packets", str(stats.packets))
-    table.add_row("saturated words", str(words.saturated))
-    if deg:
-        table.add_row("final roll / pitch (deg)", f"{deg[-1][0]:.2f} / {deg[-1][1]:.2f}")
-    if rtl_info:
-        table.add_row("rtl equal to model", str(rtl_info["equal_to_model"]))
-        table.add_row("rtl wall time (s)", f"{rtl_info['rtl_seconds']:.1f}")
-    table.add_row("wall time (s)", f"{wall:.2f}")
-    console.print(table)
-    console.print(f"wrote {out}/mpu6500_words.csv, uart.bin, roll_pitch.csv, summary.json")
-    if rtl_info and not rtl_info["equal_to_model"]:
-        raise CliError(f"the chip's stream differs from the model's at byte {first_bad}")
+    return rtl_info, stream, stats, angles, model_seconds
 
 
 def _read_serial(port: str, baud: int, seconds: float) -> bytes:
@@ -195,11 +223,19 @@ def _read_serial(port: str, baud: int, seconds: float) -> bytes:
     data = bytearray()
     end = time.monotonic() + seconds
     try:
-        while time.monotonic() < end:
+        while time.monotonic() < end and len(data) <= MAX_STREAM_BYTES:
             data += dev.read(256)
     finally:
         dev.close()
     return bytes(data)
+
+
+#: the longest --serial capture (a day) and the largest captured stream read (at 9600 baud a
+#: TinyKalman sends about 1 kB/s: 64 MiB is some 18 hours)
+MAX_CAPTURE_S = 86_400.0
+MAX_STREAM_BYTES = 64 << 20
+#: how long reading a FILE that is a FIFO or a device may take before it is an error
+MAX_READ_S = 10.0
 
 
 @tinykalman.command("decode")
@@ -208,46 +244,51 @@ def _read_serial(port: str, baud: int, seconds: float) -> bytes:
               "(pyserial URL or device, e.g. /dev/ttyUSB0).")
 @click.option("--baud", type=int, default=9600, show_default=True)
 @click.option("--seconds", type=float, default=10.0, show_default=True,
-              help="Capture time with --serial.")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False),
-              default="navgate-out/tinykalman-decode", show_default=True)
+              help=f"Capture time with --serial (at most {MAX_CAPTURE_S:g} s).")
+@out_option(default_out_dir("tinykalman-decode"), "Output directory (written atomically).")
 @click.option("--quiet", is_flag=True)
-def decode(file, port, baud, seconds, out_dir, quiet):
+def decode(file, port, baud, seconds, out, quiet):
     """Decode a TinyKalman UART stream (FILE) or a live board (--serial PORT)."""
     from rich.console import Console
-
-    from navgate.systems.tinykalman.model import PacketDecoder
 
     console = Console(stderr=True, quiet=quiet)
     if (file is None) == (port is None):
         raise CliError("give exactly one of FILE or --serial PORT")
     if baud <= 0 or not seconds > 0:
         raise CliError("--baud and --seconds must be positive")
+    if not seconds <= MAX_CAPTURE_S:  # also NaN
+        raise CliError(f"--seconds must be at most {MAX_CAPTURE_S:g} s "
+                       f"({MAX_CAPTURE_S / 3600:g} h), got {seconds:g}")
+    check_out_dir(out)
+    check_outputs_early(out, DECODE_OUTPUTS, [file])
     if file is not None:
-        try:
-            data = Path(file).read_bytes()
-        except OSError as error:
-            raise CliError(f"cannot read {file}: {error.strerror}") from None
+        data = read_bounded(file, MAX_STREAM_BYTES, MAX_READ_S)
         source = str(file)
     else:
         data = _read_serial(port, baud, seconds)
         source = f"serial:{port}"
-    out = prepare_out_dir(out_dir)
-    if port is not None:
-        (out / "capture.bin").write_bytes(data)
-    dec = PacketDecoder()
-    angles = []
-    for k in range(0, len(data), 4096):  # a live stream arrives in chunks
-        angles += dec.feed(data[k:k + 4096])
-    dec.close()
-    _write_roll_pitch(out / "roll_pitch.csv", angles)
-    st = dec.stats
-    summary = {"source": source, "bytes": len(data), "packets": st.packets,
-               "skipped_bytes": st.skipped_bytes, "trailing_bytes": st.trailing_bytes}
-    write_summary(out, summary)
+    with staged_outputs(out, inputs=[file], names=DECODE_OUTPUTS) as staging:
+        if port is not None:
+            (staging.dir / "capture.bin").write_bytes(data)
+        angles, st = _decode_into(staging.dir, data)
+        summary = {"source": source, "bytes": len(data), "packets": st.packets,
+                   "skipped_bytes": st.skipped_bytes, "trailing_bytes": st.trailing_bytes}
+        write_summary(staging.dir, summary)
     console.print(f"{source}: {len(data)} bytes, {st.packets} packets, {st.skipped_bytes} "
                   f"skipped, {st.trailing_bytes} trailing; wrote {out}/roll_pitch.csv")
     if angles:
         r, p = angles[-1]
         console.print(f"last roll {r * 180 / 32768:.2f} deg, pitch {p * 180 / 32768:.2f} deg")
     return np.asarray(angles)
+
+
+def _decode_into(out: Path, data: bytes):
+    from navgate.systems.tinykalman.model import PacketDecoder
+
+    dec = PacketDecoder()
+    angles = []
+    for k in range(0, len(data), 4096):  # a live stream arrives in chunks
+        angles += dec.feed(data[k:k + 4096])
+    dec.close()
+    _write_roll_pitch(out / "roll_pitch.csv", angles)
+    return angles, dec.stats

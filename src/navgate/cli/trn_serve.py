@@ -14,7 +14,8 @@ import os
 
 import click
 
-from navgate.cli.common import CliError
+from navgate.cli.errors import CliError
+from navgate.cli.inputs import dem_input
 
 
 def _cache(ctx, param, value):
@@ -57,7 +58,7 @@ def trn_serve(tiles_path, cache_mb, listen, serial_port, baud, fd, max_requests)
     if cache_mb is not None and (tiles_path is None or not os.path.isdir(tiles_path)):
         raise CliError("--cache-mb needs --tiles to be a tile directory")
     try:
-        terrain = load_terrain(tiles_path, cache_mb=cache_mb)
+        terrain = load_terrain(dem_input(tiles_path), cache_mb=cache_mb)
     except DemError as error:
         raise CliError(str(error)) from None
     service = TrnService(terrain)

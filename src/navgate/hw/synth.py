@@ -32,6 +32,7 @@ import json
 import re
 import subprocess
 import sys
+import threading
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -90,21 +91,53 @@ ECP5_DEVICE = {"flag": "--85k", "package": "CABGA381", "name": "LFE5U-85F-6BG381
 ECP5_SEED = 1
 
 
+#: the tool processes running now (several at once under ``navgate report -j N``), and the
+#: flag :func:`cancel_tools` sets: an interrupted report stops every tool at once instead of
+#: letting its worker threads finish the blocks they started
+_CHILDREN: set[subprocess.Popen] = set()
+_CHILDREN_LOCK = threading.Lock()
+_CANCELLED = threading.Event()
+
+
+def cancel_tools() -> None:
+    """Stop every running tool process and refuse to start new ones (until
+    :func:`allow_tools`); tool runs then end with a :class:`SynthesisError`."""
+    _CANCELLED.set()
+    with _CHILDREN_LOCK:
+        children = list(_CHILDREN)
+    for child in children:
+        try:
+            child.kill()
+        except OSError:  # pragma: no cover - already gone
+            pass
+
+
+def allow_tools() -> None:
+    """Let tools run again after :func:`cancel_tools`."""
+    _CANCELLED.clear()
+
+
 def _run_tool(module: str, function: str, argv: list[str], cwd: Path, log: Path) -> None:
     """Run a YoWASP tool in a child interpreter (isolates the WebAssembly runtime)."""
     code = f"import sys, {module}; sys.exit({module}.{function}(sys.argv[1:]))"
-    result = subprocess.run(
-        [sys.executable, "-c", code, *argv],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    log.write_text(result.stdout + result.stderr)
-    if result.returncode != 0:
-        tail = (result.stdout + result.stderr).strip().splitlines()[-5:]
+    with _CHILDREN_LOCK:
+        if _CANCELLED.is_set():
+            raise SynthesisError("cancelled")
+        child = subprocess.Popen([sys.executable, "-c", code, *argv], cwd=cwd,
+                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        _CHILDREN.add(child)
+    try:
+        stdout, stderr = child.communicate()
+    finally:
+        with _CHILDREN_LOCK:
+            _CHILDREN.discard(child)
+    if _CANCELLED.is_set():
+        raise SynthesisError("cancelled")
+    log.write_text(stdout + stderr)
+    if child.returncode != 0:
+        tail = (stdout + stderr).strip().splitlines()[-5:]
         tool = module.removeprefix("yowasp_").replace("_", "-")
-        raise SynthesisError(f"{tool} failed (exit {result.returncode}): " + " | ".join(tail))
+        raise SynthesisError(f"{tool} failed (exit {child.returncode}): " + " | ".join(tail))
 
 
 def run_yosys(script: str, cwd: Path, log_name: str = "yosys.log") -> None:

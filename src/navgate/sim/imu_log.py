@@ -160,7 +160,7 @@ class ImuLogReader:
     """
 
     def __init__(self, path: str | Path, *, use_mag: bool = True, gyro_unit: str | None = None,
-                 chunk_rows: int | None = None):
+                 chunk_rows: int | None = None, fileobj=None):
         self.path = Path(path)
         self.chunk_rows = int(CHUNK_ROWS if chunk_rows is None else chunk_rows)
         self.skipped_rows = 0
@@ -176,7 +176,9 @@ class ImuLogReader:
         if path.is_dir():
             raise LogError(f"{path}: is a directory, not a CSV file")
         try:
-            self._fh = open(path, "rb")  # noqa: SIM115 - closed by the generator
+            # ``fileobj``: an already open binary stream for ``path`` (a FIFO the command line
+            # opened while waiting for its writer)
+            self._fh = fileobj if fileobj is not None else open(path, "rb")  # noqa: SIM115
         except FileNotFoundError:
             raise LogError(f"{path}: no such file") from None
         except OSError as error:
@@ -378,9 +380,10 @@ class ImuLogReader:
 
 
 def read_imu_csv(path: str | Path, *, use_mag: bool = True, gyro_unit: str | None = None,
-                 chunk_rows: int | None = None) -> ImuLog:
+                 chunk_rows: int | None = None, fileobj=None) -> ImuLog:
     """Read a whole IMU log (see :class:`ImuLogReader` for formats, checks and counts)."""
-    reader = ImuLogReader(path, use_mag=use_mag, gyro_unit=gyro_unit, chunk_rows=chunk_rows)
+    reader = ImuLogReader(path, use_mag=use_mag, gyro_unit=gyro_unit, chunk_rows=chunk_rows,
+                          fileobj=fileobj)
     blocks = list(reader)
     if reader.rows == 0 and reader.skipped_rows == 0 and reader.implausible_rows == 0:
         raise LogError(f"{reader.path}: no data rows after the header")

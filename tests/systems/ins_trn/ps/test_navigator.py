@@ -154,6 +154,8 @@ def test_bad_records_are_counted_and_skipped(short, tmp_path):
     lines[imu_lines[200]] = lines[imu_lines[200]].replace("I,", "I,nan,", 1).rsplit(",", 1)[0]
     t = lines[imu_lines[300]].split(",")
     lines[imu_lines[300]] = ",".join([t[0], "0.5", *t[2:]])  # time goes backwards
+    t = lines[imu_lines[350]].split(",")
+    lines[imu_lines[350]] = ",".join([t[0], "1e6", *t[2:]])  # one stamp far ahead
     lines[imu_lines[400]] = lines[imu_lines[400]].rsplit(",", 1)[0] + ",40000"  # not int16
     b_line = next(i for i, ln in enumerate(lines) if ln.startswith("B,"))
     lines[b_line] = lines[b_line].split(",")[0] + "," + lines[b_line].split(",")[1] + ",inf,0"
@@ -161,10 +163,13 @@ def test_bad_records_are_counted_and_skipped(short, tmp_path):
     lines.append("I,1e9,1,2")  # a truncated last line
     path.write_text("\n".join(lines) + "\n")
     back = read_log(path)
+    # resynchronised: each wrong stamp costs its own record only, not the rest of the log
     assert back.bad_records == {"truncated record": 2, "non-finite time": 1,
-                                "time goes backwards": 1, "IMU word outside int16": 1,
+                                "time out of order": 2, "IMU word outside int16": 1,
                                 "bad barometer sample": 1, "unknown record kind": 1}
-    assert back.n_imu == stream.n_imu - 4
+    assert back.n_imu == stream.n_imu - 5
+    assert back.records_read == len(stream) + 2  # the unknown kind and the truncated last line
+    assert back.used_fraction == (len(stream) - 6) / (len(stream) + 2)
     run = navigate(back, cfg, engine="reference", dem=dem, use_trn=True)
     assert np.all(np.isfinite(run.nav))
 

@@ -29,11 +29,14 @@ Statistics per configuration (docs/trn.md, "Campaigns"):
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import itertools
+import logging
 import math
 import time as _time
 import traceback
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -49,8 +52,17 @@ RESULT_FIELDS = [
 ]
 
 
+#: the most seeds one campaign takes, and the largest seed (NumPy's SeedSequence takes any
+#: non-negative integer; the results table and summary.json store seeds as 64-bit integers)
+MAX_SEEDS = 100_000
+MAX_SEED = 2**63 - 1
+
+
 def parse_seeds(text: str) -> list[int]:
-    """'0-49', '3', '0,2,5-7' -> sorted list of distinct non-negative seeds."""
+    """'0-49', '3', '0,2,5-7' -> sorted list of distinct non-negative seeds.
+
+    At most :data:`MAX_SEEDS` seeds, checked before any range is expanded (a range such as
+    0-1180591620717411303424 is refused at once, not enumerated)."""
     seeds: set[int] = set()
     for part in str(text).split(","):
         part = part.strip()
@@ -64,6 +76,9 @@ def parse_seeds(text: str) -> list[int]:
                 raise ValueError(f"bad seed range {part!r} (expected A-B)") from None
             if lo < 0 or hi < lo:
                 raise ValueError(f"bad seed range {part!r}")
+            if hi - lo + 1 + len(seeds) > MAX_SEEDS:
+                raise ValueError(f"more than {MAX_SEEDS} seeds ({part} alone is "
+                                 f"{hi - lo + 1:,})")
             seeds.update(range(lo, hi + 1))
         else:
             try:
@@ -73,8 +88,10 @@ def parse_seeds(text: str) -> list[int]:
             if s < 0:
                 raise ValueError(f"seeds must be non-negative, got {s}")
             seeds.add(s)
-    if len(seeds) > 100_000:
-        raise ValueError("more than 100000 seeds")
+    if len(seeds) > MAX_SEEDS:
+        raise ValueError(f"more than {MAX_SEEDS} seeds")
+    if max(seeds, default=0) > MAX_SEED:
+        raise ValueError(f"seeds must be below 2**63, got {max(seeds)}")
     return sorted(seeds)
 
 
@@ -294,6 +311,30 @@ def aggregate(conf: Configuration, rows: list) -> dict:
     return out
 
 
+#: Dask's loggers that report a normal shutdown as warnings ("Worker process still alive
+#: after 3.9 seconds, killing", closed comms): silenced to errors while the cluster closes
+_DASK_LOGGERS = ("distributed", "distributed.nanny", "distributed.core", "distributed.worker",
+                 "distributed.scheduler", "distributed.comm", "distributed.batched",
+                 "distributed.client")
+
+
+@contextlib.contextmanager
+def _quiet_dask_shutdown():
+    """Within the block, Dask's loggers pass errors only (their warnings at the end of a
+    normal run say nothing to a user; a failed run is reported through its row)."""
+    loggers = [logging.getLogger(name) for name in _DASK_LOGGERS]
+    levels = [lg.level for lg in loggers]
+    for lg in loggers:
+        lg.setLevel(logging.ERROR)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        for lg, level in zip(loggers, levels, strict=True):
+            lg.setLevel(level)
+
+
 def run_campaign(campaign: Campaign, *, workers: int = 2, scheduler: str | None = None,
                  progress=None) -> CampaignResult:
     """Run every (configuration, seed) on Dask; ``progress(row)`` after each run."""
@@ -329,9 +370,10 @@ def run_campaign(campaign: Campaign, *, workers: int = 2, scheduler: str | None 
             if progress is not None:
                 progress(row)
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        with _quiet_dask_shutdown():
+            client.close()
+            if cluster is not None:
+                cluster.close()
     order = {(c, s): i for i, (c, s) in enumerate(campaign.tasks())}
     rows.sort(key=lambda r: order.get((Configuration(r["dem"], r["trn"], r["ranger"]),
                                        r["seed"]), 0))

@@ -106,7 +106,9 @@ class FlightResult:
                 diffs.append(max_position_difference(self.dem, run, ref))
                 ref_wall += ref.wall_time_s
                 out[name]["reference_wall_time_s"] = ref.wall_time_s
-            out["fp32_vs_reference_max_position_difference_m"] = float(max(diffs))
+            # named after the engine that flew (fp32, rtl, fpga_sim), never "fp32" for all
+            engine = out.get("engine", "fp32").replace("-", "_")
+            out[f"{engine}_vs_reference_max_position_difference_m"] = float(max(diffs))
             eng_wall = sum(r.wall_time_s for r in self.runs.values())
             out["engine_wall_time_s"] = eng_wall
             out["reference_engine_wall_time_s"] = ref_wall

@@ -31,13 +31,19 @@ Log file (UTF-8 text, one record a line)::
 Numbers are written with Python's ``repr`` (the shortest string that reads back to the same
 float64), so a log replays bit for bit. Reading (:func:`read_log`) checks every record:
 truncated or unparsable lines, an unknown kind, non-finite numbers where a value is required
-(the time; IMU words; a valid barometer altitude or ranger range), int16 words out of range,
-and times that go backwards are *bad records*: counted by reason, skipped, reported. Only a
-log with no valid IMU record is an error (:class:`LogError`).
+(the time; IMU words; a valid barometer altitude or ranger range), int16 words out of range
+are *bad records*: counted by reason, skipped, reported. Time order is resynchronised: of the
+remaining records the longest run that never goes back in time is kept, so one wrong stamp
+(far ahead or behind) costs one record, not the rest of the log ("time out of order").
+``records_read`` and ``used_fraction`` say how much of the log a stream holds. Lines are read
+in bounded pieces (:data:`MAX_RECORD_CHARS`, :data:`MAX_HEADER_CHARS`). Only a log with no
+valid IMU record, or an unreadable header, is an error (:class:`LogError`);
+:func:`check_header` checks that the header describes a usable navigator.
 """
 
 from __future__ import annotations
 
+import bisect
 import json
 import math
 from dataclasses import asdict, dataclass, field
@@ -70,6 +76,12 @@ class RecordStream:
     truth: np.ndarray  #: (T, 3) lat, lon, h
     header: dict = field(default_factory=dict)
     bad_records: dict = field(default_factory=dict)  #: reason -> count (from a log)
+    records_read: int = 0  #: records in the log (used and bad; 0 when not from a log)
+
+    @property
+    def used_fraction(self) -> float:
+        """The fraction of the log's records this stream holds (1.0 when not from a log)."""
+        return len(self) / self.records_read if self.records_read else 1.0
 
     def __len__(self):
         return self.kind.size
@@ -157,6 +169,76 @@ def make_header(cfg, data, init, calibration, reference) -> dict:
     }
 
 
+def _array(value, shape, name):
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise LogError(f"header {name} is not an array of numbers") from None
+    if a.shape != shape:
+        raise LogError(f"header {name} has shape {a.shape}, expected {shape}")
+    if not np.all(np.isfinite(a)):
+        raise LogError(f"header {name} holds non-finite values")
+    return a
+
+
+def _number(value, name, lo=-math.inf, hi=math.inf, lo_open=False):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise LogError(f"header {name} is not a number")
+    v = float(value)
+    if not math.isfinite(v) or v > hi or v < lo or (lo_open and v == lo):
+        raise LogError(f"header {name} = {v:g} is outside [{lo:g}, {hi:g}]")
+    return v
+
+
+def check_header(header: dict) -> None:
+    """Raise :class:`LogError` (one line naming the field) unless the header describes a
+    usable navigator: calibration vectors (3,) and matrices (3, 3), positive LSBs, an initial
+    state of 10 finite values with a latitude inside (-90, 90) deg, a height within
+    [-1 km, 100 km] and a unit quaternion, a symmetric positive definite 15 x 15 P0, finite
+    biases, a reference point on the Earth and a positive IMU rate."""
+    try:
+        cal, ini, ref = header["calibration"], header["initial"], header["reference"]
+        for part, name in ((cal, "calibration"), (ini, "initial"), (ref, "reference")):
+            if not isinstance(part, dict):
+                raise LogError(f"header {name} is not an object")
+        for key in ("gyro_bias", "accel_bias"):
+            _array(cal[key], (3,), f"calibration.{key}")
+        for key in ("gyro_matrix", "accel_matrix"):
+            _array(cal[key], (3, 3), f"calibration.{key}")
+        for key in ("gyro_lsb", "accel_lsb"):
+            _number(cal[key], f"calibration.{key}", 0.0, lo_open=True)
+        nav = _array(ini["nav"], (10,), "initial.nav")
+        half_pi = math.pi / 2
+        _number(nav[0], "initial.nav latitude (rad)", -half_pi, half_pi)
+        if abs(nav[0]) >= half_pi:
+            raise LogError("header initial.nav latitude is at a pole")
+        _number(nav[1], "initial.nav longitude (rad)", -2 * math.pi, 2 * math.pi)
+        _number(nav[2], "initial.nav height (m)", -1000.0, 100_000.0)
+        if abs(float(np.linalg.norm(nav[6:10])) - 1.0) > 1e-6:
+            raise LogError("header initial.nav quaternion is not a unit quaternion")
+        p0 = _array(ini["p0"], (15, 15), "initial.p0")
+        if not np.allclose(p0, p0.T, rtol=1e-9, atol=0.0):
+            raise LogError("header initial.p0 is not symmetric")
+        try:
+            np.linalg.cholesky(p0)
+        except np.linalg.LinAlgError:
+            raise LogError("header initial.p0 is not positive definite") from None
+        for key in ("bias_a", "bias_g"):
+            _array(ini[key], (3,), f"initial.{key}")
+        lat = _number(ref["lat_rad"], "reference.lat_rad", -half_pi, half_pi)
+        if abs(lat) >= half_pi:
+            raise LogError("header reference.lat_rad is at a pole")
+        _number(ref["lon_rad"], "reference.lon_rad", -2 * math.pi, 2 * math.pi)
+        _number(ref["h_m"], "reference.h_m", -1000.0, 100_000.0)
+        _number(header["t0"], "t0")
+        if "imu_rate_hz" in header:
+            _number(header["imu_rate_hz"], "imu_rate_hz", 0.0, 1e6, lo_open=True)
+    except KeyError as error:
+        raise LogError(f"header lacks {error}") from None
+    except TypeError as error:
+        raise LogError(f"header has a field of the wrong type ({error})") from None
+
+
 # ------------------------------------------------------------------ writing and reading
 
 
@@ -194,6 +276,48 @@ def write_log(stream: RecordStream, path) -> None:
 
 
 _FIELDS = {"I": 8, "B": 4, "R": 4, "T": 5}
+#: the longest header line and record line read: a longer line (a binary file, a file of
+#: zeros) is an error or a bad record, never a line read without end
+MAX_HEADER_CHARS = 1 << 22
+MAX_RECORD_CHARS = 1 << 10
+
+
+def _lines(fh):
+    """The file's lines, each at most MAX_RECORD_CHARS long; a longer line is yielded as
+    None (an over-long record) and skipped to its end in bounded pieces."""
+    while True:
+        line = fh.readline(MAX_RECORD_CHARS)
+        if not line:
+            return
+        if len(line) >= MAX_RECORD_CHARS and not line.endswith("\n"):
+            while line and not line.endswith("\n"):
+                line = fh.readline(MAX_RECORD_CHARS)
+            yield None
+            continue
+        yield line
+
+
+def _in_time_order(times: list) -> list:
+    """Indices of the longest subsequence of ``times`` that never goes backwards (patience
+    sorting, O(n log n)); ties keep file order."""
+    tails: list = []  # tails[k]: smallest last time of a kept run of length k + 1
+    tail_at: list = []
+    previous = [-1] * len(times)
+    for i, t in enumerate(times):
+        k = bisect.bisect_right(tails, t)
+        if k == len(tails):
+            tails.append(t)
+            tail_at.append(i)
+        else:
+            tails[k] = t
+            tail_at[k] = i
+        previous[i] = tail_at[k - 1] if k else -1
+    keep = []
+    i = tail_at[-1] if tail_at else -1
+    while i >= 0:
+        keep.append(i)
+        i = previous[i]
+    return keep[::-1]
 
 
 def read_log(path) -> RecordStream:
@@ -207,29 +331,40 @@ def read_log(path) -> RecordStream:
     def reject(reason):
         bad[reason] = bad.get(reason, 0) + 1
 
-    kinds, ts, idxs = [], [], []
-    gyro, accel, balt, bst, rr, rst, truth = [], [], [], [], [], [], []
+    recs: list = []  # (kind, t, values) of every record that passed its own checks
+    read = 0
     float_words = False
     with fh:
-        first = fh.readline().strip()
+        first = fh.readline(64).strip()
         if first != MAGIC:
             raise LogError(f"{path} is not a navgate record log (first line {first[:40]!r})")
-        hline = fh.readline()
+        hline = fh.readline(MAX_HEADER_CHARS)
         if not hline.startswith("H "):
             raise LogError(f"{path}: missing header line")
+        if len(hline) >= MAX_HEADER_CHARS and not hline.endswith("\n"):
+            raise LogError(f"{path}: header line longer than {MAX_HEADER_CHARS} characters")
         try:
             header = json.loads(hline[2:])
         except json.JSONDecodeError as error:
             raise LogError(f"{path}: unreadable header ({error.msg})") from None
+        except RecursionError:
+            raise LogError(f"{path}: unreadable header (nested too deeply)") from None
+        if not isinstance(header, dict):
+            raise LogError(f"{path}: unreadable header (not a JSON object)")
         float_words = bool(header.get("ideal", False))
-        last_t = -math.inf
-        for line in fh:
+        for line in _lines(fh):
+            if line is None:
+                read += 1
+                reject("over-long record")
+                continue
             parts = line.rstrip("\n").split(",")
             kind = parts[0]
             if kind not in _FIELDS:
                 if line.strip():
+                    read += 1
                     reject("unknown record kind")
                 continue
+            read += 1
             if len(parts) != _FIELDS[kind]:
                 reject("truncated record")
                 continue
@@ -242,9 +377,6 @@ def read_log(path) -> RecordStream:
             if not math.isfinite(t):
                 reject("non-finite time")
                 continue
-            if t < last_t:
-                reject("time goes backwards")
-                continue
             if kind == "I":
                 w = vals[1:]
                 if not all(math.isfinite(v) for v in w):
@@ -254,37 +386,49 @@ def read_log(path) -> RecordStream:
                                                for v in w):
                     reject("IMU word outside int16")
                     continue
-                kinds.append(IMU)
-                idxs.append(len(gyro))
-                gyro.append(w[:3])
-                accel.append(w[3:])
             elif kind == "B":
                 alt, st = vals[1], vals[2]
                 if st not in (0.0, 1.0) or (st == 0.0 and not math.isfinite(alt)):
                     reject("bad barometer sample")
                     continue
-                kinds.append(BARO)
-                idxs.append(len(balt))
-                balt.append(alt if st == 0.0 else math.nan)
-                bst.append(int(st))
             elif kind == "R":
                 rng, st = vals[1], vals[2]
                 if st not in (0.0, 1.0, 2.0) or (st == 0.0 and not math.isfinite(rng)):
                     reject("bad ranger frame")
                     continue
-                kinds.append(RANGER)
-                idxs.append(len(rr))
-                rr.append(rng if st == 0.0 else math.nan)
-                rst.append(int(st))
-            else:
-                if not all(math.isfinite(v) for v in vals[1:]):
-                    reject("non-finite truth")
-                    continue
-                kinds.append(TRUTH)
-                idxs.append(len(truth))
-                truth.append(vals[1:])
-            ts.append(t)
-            last_t = t
+            elif not all(math.isfinite(v) for v in vals[1:]):
+                reject("non-finite truth")
+                continue
+            recs.append((kind, t, vals))
+    # resynchronise on time: keep the longest run of records in time order; a record whose
+    # stamp jumps ahead or falls back is dropped alone, not everything after it
+    keep = _in_time_order([r[1] for r in recs])
+    if len(keep) < len(recs):
+        bad["time out of order"] = len(recs) - len(keep)
+    kinds, ts, idxs = [], [], []
+    gyro, accel, balt, bst, rr, rst, truth = [], [], [], [], [], [], []
+    for i in keep:
+        kind, t, vals = recs[i]
+        if kind == "I":
+            kinds.append(IMU)
+            idxs.append(len(gyro))
+            gyro.append(vals[1:4])
+            accel.append(vals[4:])
+        elif kind == "B":
+            kinds.append(BARO)
+            idxs.append(len(balt))
+            balt.append(vals[1] if vals[2] == 0.0 else math.nan)
+            bst.append(int(vals[2]))
+        elif kind == "R":
+            kinds.append(RANGER)
+            idxs.append(len(rr))
+            rr.append(vals[1] if vals[2] == 0.0 else math.nan)
+            rst.append(int(vals[2]))
+        else:
+            kinds.append(TRUTH)
+            idxs.append(len(truth))
+            truth.append(vals[1:])
+        ts.append(t)
     if not gyro:
         raise LogError(f"{path}: no valid IMU record"
                        + (f" ({sum(bad.values())} bad records)" if bad else ""))
@@ -293,4 +437,4 @@ def read_log(path) -> RecordStream:
         np.array(kinds, np.uint8), np.array(ts, float), np.array(idxs, np.int64),
         np.array(gyro, float).astype(wdtype), np.array(accel, float).astype(wdtype),
         np.array(balt, float), np.array(bst, np.int8), np.array(rr, float),
-        np.array(rst, np.int8), np.array(truth, float).reshape(-1, 3), header, bad)
+        np.array(rst, np.int8), np.array(truth, float).reshape(-1, 3), header, bad, read)

@@ -117,7 +117,7 @@ def plot_track(result, path: Path) -> Path:
                           [f["fix_north_m"] / 1000 for f in acc],
                           dict(marker="o", ms=4, mfc="white", mec="tab:green", ls="none"),
                           f"TRN fix accepted ({len(acc)})"))
-        if rej_all:
+        if rej:  # a legend entry only where there are markers to show
             fixes.append(([f["fix_east_m"] / 1000 for f in rej],
                           [f["fix_north_m"] / 1000 for f in rej],
                           dict(marker="x", ms=6, color="tab:orange", ls="none"),
@@ -138,7 +138,10 @@ def plot_track(result, path: Path) -> Path:
                     arrowprops=dict(arrowstyle="-|>", color="k", lw=1.2, mutation_scale=15))
     ax.set_xlabel("east (km)")
     ax.set_ylabel("north (km)")
-    ax.set_title(f"GPS-denied flight over {dem.name}")
+    unplotted = len(rej_all) - len(rej) if run is not None else 0
+    ax.set_title(f"GPS-denied flight over {dem.name}" + (
+        f"\n({unplotted} rejected TRN attempt{'s' if unplotted != 1 else ''} without a "
+        "position, not plotted)" if unplotted and not rej else ""))
     ax.legend(loc="upper right", fontsize=8)
     ax.set_aspect("equal")
     # zoomed inset around the end of the flight: every solution's final position in view
@@ -155,6 +158,8 @@ def plot_track(result, path: Path) -> Path:
     inset.set_ylim(cy - half, cy + half)
     inset.set_aspect("equal")
     inset.set_title(f"end of flight, {2000 * half:.0f} m wide", fontsize=7)
+    inset.set_xlabel("east (km)", fontsize=6, labelpad=1)
+    inset.set_ylabel("north (km)", fontsize=6, labelpad=1)
     inset.tick_params(labelsize=6)
     ax.indicate_inset_zoom(inset, edgecolor="0.3")
     fig.tight_layout()
@@ -182,6 +187,11 @@ def plot_errors(result, path: Path) -> Path:
             for i, t_fix in enumerate(applied):
                 ax.axvline(t_fix, color="tab:green", lw=0.4, alpha=0.5,
                            label=f"TRN fix applied ({len(applied)})" if i == 0 else None)
+        if name == "ins_only":
+            ax.text(0.99, 0.97, "the INS-only error can fall in turns: the barometer then "
+                    "observes tilt,\nwhich is correlated with position "
+                    "(docs/seed000-navigator.md, section 6)", transform=ax.transAxes,
+                    ha="right", va="top", fontsize=7, color="0.35")
         ax.set_ylabel("horizontal position error (m)")
         ax.set_ylim(bottom=0)
         ax.grid(alpha=0.3)

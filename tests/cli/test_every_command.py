@@ -1,0 +1,289 @@
+"""Every command and sub-command of ``navgate`` through the same hostile-output checks
+(issue 31): discovered from the click group, so that a new command cannot skip them.
+
+For every output option of every command (``--out``, and ``fly --record``):
+
+- ``OPT ''`` is an error: one line, exit 2;
+- ``OPT INPUT`` (the output is one of the run's input files) is refused with one line, exit 2,
+  and the input is unchanged; for a command that writes a directory, an input lying where one
+  of its output files goes (``OUT/NAME``) is refused the same way, before the run;
+- ``OPT FILE/sub`` (the output under a regular file) is one line, exit 2;
+- never a traceback, never an "internal error".
+
+A command that writes nothing is listed in :data:`NO_OUTPUTS` with the reason; a command with
+no input file says so in :data:`CASES` (``inputs`` empty). The invocations are the cheapest
+that reach the check (every check fails before the long part of a run).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import click
+import numpy as np
+import pytest
+import rasterio
+from rasterio.transform import from_origin
+
+from navgate.cli import cli
+
+G0 = 9.80665
+
+#: commands (paths of names) that write no file, and why
+NO_OUTPUTS = {
+    ("trn-serve",): "a network/serial service: it answers requests and writes no file",
+    ("cache", "info"): "reads the cache root and prints its sizes; writes no file",
+    ("cache", "clear"): "deletes cache entries under the cache root only (its own refusal "
+                        "of paths outside the root is tested in tests/cli/test_cache.py)",
+}
+
+
+def leaves(group: click.Group = cli, path: tuple = ()) -> list[tuple]:
+    """Every runnable command under ``group``, as the names typed after ``navgate``."""
+    ctx = click.Context(group)
+    found = []
+    for name in group.list_commands(ctx):
+        command = group.get_command(ctx, name)
+        if isinstance(command, click.Group):
+            found += leaves(command, (*path, name))
+        else:
+            found.append((*path, name))
+    return found
+
+
+def command_of(path: tuple) -> click.Command:
+    command = cli
+    for name in path:
+        command = command.get_command(click.Context(command), name)
+    return command
+
+
+@dataclass
+class Case:
+    """How to run one command cheaply: its arguments (without the output option), the output
+    options it has (option -> "dir" or "file"), its input files, and for a directory output
+    the name of one file it writes there."""
+
+    args: list
+    outputs: dict
+    inputs: list = field(default_factory=list)
+    writes: str | None = None
+
+
+def _imu_csv(path: Path, n: int = 200, hz: float = 100.0) -> Path:
+    t = np.arange(n) / hz
+    cols = [t, np.zeros((n, 3)), np.tile([0.0, 0.0, -G0], (n, 1))]
+    np.savetxt(path, np.column_stack(cols), delimiter=",", header="t,gx,gy,gz,ax,ay,az",
+               comments="", fmt="%.10g")
+    return path
+
+
+def _dem(path: Path) -> Path:
+    transform = from_origin(-84.3, 36.7, 1 / 1200, 1 / 1200)
+    rng = np.random.default_rng(0)
+    with rasterio.open(path, "w", driver="GTiff", width=400, height=400, count=1,
+                       dtype="float32", crs="EPSG:4326", transform=transform) as d:
+        d.write(rng.uniform(200, 600, (400, 400)).astype("float32"), 1)
+    return path
+
+
+def _record_log(path: Path) -> Path:
+    """A short but valid record log (the format of navgate.systems.ins_trn.ps.records)."""
+    from navgate.systems.ins_trn.ps.records import MAGIC
+
+    lines = [MAGIC, 'H {"ideal": false}']
+    lines += [f"I,{k / 400!r},0,0,0,0,0,-16000" for k in range(1, 9)]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _liberty(path: Path) -> Path:
+    path.write_text("library (x) { }\n")
+    return path
+
+
+def make_case(path: tuple, d: Path) -> Case:
+    """The cheap invocation of each command; the files are made in ``d`` by the case."""
+    name = " ".join(path)
+    if name == "fly":
+        dem = _dem(d / "dem.tif")
+        return Case(["fly", "--dem", dem, "--duration", 5, "--no-trn", "--quiet"],
+                    {"--out": "dir", "--record": "file"}, [dem], "trajectory.csv")
+    if name == "replay":
+        log = _record_log(d / "flight.log")
+        return Case(["replay", log, "--no-trn", "--quiet"], {"--out": "dir"}, [log],
+                    "summary.json")
+    if name == "campaign":
+        dem = _dem(d / "dem.tif")
+        return Case(["campaign", "--seeds", "0", "--duration", 5, "--dem", dem, "--quiet"],
+                    {"--out": "dir"}, [dem], "results.csv")
+    if name == "ahrs":
+        log = _imu_csv(d / "imu.csv")
+        return Case(["ahrs", log, "--quiet"], {"--out": "file"}, [log])
+    if name == "gpsins":  # a simulation: no input file
+        return Case(["gpsins", "--duration", 5, "--quiet"], {"--out": "dir"})
+    if name == "kf2x2":  # a simulation: no input file
+        return Case(["kf2x2", "--frames", 10], {"--out": "dir"})
+    if name == "build":
+        lib = _liberty(d / "cells.lib")
+        return Case(["build", "fixed_mul", "--asic", "sg13g2", "--liberty", lib],
+                    {"--out": "dir"}, [lib], "fixed_mul.v")
+    if name == "report":
+        lib = _liberty(d / "cells.lib")
+        return Case(["report", "--asic", "sg13g2", "--liberty", lib], {"--out": "file"}, [lib])
+    if name == "tinykalman run":
+        log = _imu_csv(d / "imu.csv")
+        return Case(["tinykalman", "run", log, "--quiet"], {"--out": "dir"}, [log],
+                    "mpu6500_words.csv")
+    if name == "tinykalman decode":
+        capture = d / "uart.bin"
+        capture.write_bytes(bytes(range(256)))
+        return Case(["tinykalman", "decode", capture, "--quiet"], {"--out": "dir"}, [capture],
+                    "roll_pitch.csv")
+    if name == "tiles split":
+        dem = _dem(d / "dem.tif")
+        return Case(["tiles", "split", dem, "--into", "1x2", "--quiet"], {"--out": "dir"},
+                    [dem], "tiles.json")
+    if name == "tiles info":
+        tiles = d / "tiles"
+        tiles.mkdir()
+        _dem(tiles / "a.tif")
+        return Case(["tiles", "info", tiles, "--quiet"], {"--out": "dir"}, [tiles / "a.tif"],
+                    "tiles.json")
+    raise KeyError(name)
+
+
+COVERED = ["fly", "replay", "campaign", "ahrs", "gpsins", "kf2x2", "build", "report",
+           "tinykalman run", "tinykalman decode", "tiles split", "tiles info"]
+
+
+def test_every_command_is_covered_or_listed():
+    """A new command (or sub-command) fails here until it has a case or a reason."""
+    found = {" ".join(p) for p in leaves()}
+    listed = set(COVERED) | {" ".join(p) for p in NO_OUTPUTS}
+    assert found == listed, (sorted(found - listed), sorted(listed - found))
+    assert {"fly", "replay", "tinykalman run", "tinykalman decode", "tiles split"} <= found
+    for path in leaves():
+        has_out = any(p.name == "out" for p in command_of(path).params)
+        assert has_out == (path not in NO_OUTPUTS), path
+
+
+def _snapshot(paths) -> dict:
+    return {p: p.read_bytes() for p in paths}
+
+
+#: the output options of each command: --out everywhere, plus fly --record
+OPTIONS = {"fly": {"--out": "dir", "--record": "file"}}
+
+
+def _options(name):
+    return OPTIONS.get(name, {"--out": "file" if name in ("ahrs", "report") else "dir"})
+
+
+def test_output_options_are_the_ones_checked():
+    """Every option that names an output is in OPTIONS: a new output option fails here."""
+    for name in COVERED:
+        params = {p.name for p in command_of(tuple(name.split())).params}
+        extra = {p for p in params if p in ("record_path",)}
+        assert ("--record" in _options(name)) == bool(extra), name
+
+
+@pytest.mark.parametrize("name, option", [(n, o) for n in COVERED for o in _options(n)])
+def test_hostile_outputs(name, option, tmp_path, navgate_run):
+    case = make_case(tuple(name.split()), tmp_path)
+    assert case.outputs == _options(name)
+    before = _snapshot(case.inputs)
+
+    def refused(args, needle=""):
+        code, _, err = navgate_run([*case.args, *args])
+        line = navgate_run.one_line(err)
+        assert code == 2, err
+        assert needle in line, line
+        assert _snapshot(case.inputs) == before  # no input touched
+        return line
+
+    # 1. an empty output path
+    refused([option, ""], option)
+    # 2. the output is one of the inputs
+    for source in case.inputs:
+        refused([option, source])
+    if case.outputs[option] == "dir" and case.writes and case.inputs:
+        # an input where one of the outputs goes: OUT/NAME
+        out = case.inputs[0].parent
+        target = out / case.writes
+        if case.inputs[0] != target:
+            case.inputs[0].rename(target)
+            case.args = [target if a == case.inputs[0] else a for a in case.args]
+            case.inputs[0] = target
+            before = _snapshot(case.inputs)
+        refused([option, out], "is the input")
+    # 3. the output under a regular file
+    blocker = tmp_path / "plain-file"
+    blocker.write_text("x")
+    refused([option, blocker / "sub"])
+    assert blocker.read_text() == "x"
+    # no staging left behind anywhere
+    assert not [p for p in tmp_path.rglob("*navgate-tmp*")]
+
+
+def _disk_full(*args, **kwargs):
+    """A writer that leaves a truncated file and then finds the disk full."""
+    import errno
+
+    target = next(a for a in args if isinstance(a, (str, Path)))
+    Path(target).write_text("truncated,")
+    raise OSError(errno.ENOSPC, "No space left on device", str(target))
+
+
+def _interrupt(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+# command -> (its case, "module:function" that writes one output late in the run, the
+# outputs planted as previous results: (option, names in the directory or None for a file))
+LATE_WRITERS = {
+    "tinykalman run": ("navgate.cli.tinykalman:_write_roll_pitch",
+                       ["mpu6500_words.csv", "uart.bin", "roll_pitch.csv", "summary.json"]),
+    "tinykalman decode": ("navgate.cli.tinykalman:_write_roll_pitch",
+                          ["roll_pitch.csv", "summary.json"]),
+    "fly": ("navgate.systems.ins_trn.ps.records:write_log", None),
+}
+
+
+@pytest.mark.parametrize("name", sorted(LATE_WRITERS))
+@pytest.mark.parametrize("failure", ["disk full", "interrupt"])
+def test_failed_run_leaves_previous_results(name, failure, tmp_path, navgate_run,
+                                            monkeypatch):
+    """A full disk or a Ctrl-C late in the run: exit 2 / 130, every previous output
+    byte for byte as it was (the 13.5 MB words file once left at 33 bytes, the record
+    log at 3.7 KB), no staging left."""
+    import importlib
+
+    case = make_case(tuple(name.split()), tmp_path)
+    target, names = LATE_WRITERS[name]
+    out = tmp_path / "out"
+    out.mkdir()
+    planted = [out / n for n in (names or ["summary.json", "trajectory.csv"])]
+    args = [*case.args, "--out", out]
+    if name == "fly":
+        record = tmp_path / "flight.log"
+        planted.append(record)
+        args += ["--record", record]
+    for p in planted:
+        p.write_text(f"previous {p.name}\n")
+    before = _snapshot(planted)
+    module, attr = target.split(":")
+    monkeypatch.setattr(importlib.import_module(module), attr,
+                        _disk_full if failure == "disk full" else _interrupt)
+    code, _, err = navgate_run(args)
+    line = navgate_run.one_line(err)
+    if failure == "disk full":
+        assert code == 2 and "No space left on device" in line, line
+        assert "navgate-tmp" not in line  # named by its final path, not the staging path
+    else:
+        assert code == 130 and "interrupted" in line, line
+    assert _snapshot(planted) == before
+    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in planted
+                                                          if p.parent == out)
+    assert not [p for p in tmp_path.rglob("*navgate-tmp*")]
