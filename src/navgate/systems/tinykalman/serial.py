@@ -40,9 +40,11 @@ from amaranth.lib import data, enum, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.numerics.cordic import atan_table
+from navgate.systems.tinykalman.datapath import DATAPATH_IN
 from navgate.systems.tinykalman.model import ANGLE_BITS, ITERATIONS, WIDTH
 
-__all__ = ["TinyKalmanSerialCordic", "SERIAL_CORDIC_LATENCY", "REG_WIDTH", "PASSES"]
+__all__ = ["TinyKalmanSerialCordic", "TinyKalmanSerialDatapath", "SERIAL_CORDIC_LATENCY",
+           "SERIAL_DATAPATH_LATENCY", "REG_WIDTH", "PASSES"]
 
 REG_WIDTH = WIDTH + 2  #: the model's vectoring register width (no guard bits)
 PASSES = ITERATIONS + 1  #: pre-rotation + iterations
@@ -51,13 +53,19 @@ SERIAL_CORDIC_LATENCY = 2 * PASSES * REG_WIDTH + 1
 SERIAL_ANGLES_IN = data.StructLayout({"ax": signed(16), "ay": signed(16), "az": signed(16)})
 SERIAL_ANGLES_OUT = data.StructLayout({"roll": signed(16), "pitch": signed(16),
                                        "sat": unsigned(1)})
+FILTER_PASS = ANGLE_BITS  #: clocks per filter pass (16-bit words)
+SERIAL_DATAPATH_LATENCY = 2 * (PASSES * REG_WIDTH + 3 * FILTER_PASS) + 1
+SERIAL_DATAPATH_OUT = data.StructLayout({"roll": signed(16), "pitch": signed(16),
+                                         "sat": unsigned(1), "ok": unsigned(1)})
 
 
-class _Phase(enum.Enum, shape=2):
+class _Phase(enum.Enum, shape=3):
     IDLE = 0
     ROLL = 1
     PITCH = 2
     OUT = 3
+    ROLL_F = 4  # the roll filter update (TinyKalmanSerialDatapath)
+    PITCH_F = 5  # the pitch filter update
 
 
 def _serial_add(a, b, sub, carry):
@@ -73,42 +81,44 @@ class TinyKalmanSerialCordic(wiring.Component):
 
     LATENCY = SERIAL_CORDIC_LATENCY
     THROUGHPUT = Fraction(1, SERIAL_CORDIC_LATENCY + 1)
+    _FILTER = False
 
     def __init__(self, held_input: bool = False):
         #: ``held_input``: the producer holds ``i.payload`` from the handshake until the output
-        #: is taken (the chip's SPI master does: its word register changes only during the next
-        #: burst, a sample period later); ax is then read again for the pitch pass instead of
-        #: being kept in a 16-bit register. False (default): any stream producer.
+        #: is taken (the chip's SPI master does: its word registers change only during the next
+        #: burst, a sample period later); ax (and in the data path gx, gy, ok) are then read
+        #: from it instead of being kept in registers here. False (default): any producer.
         self.held_input = held_input
-        super().__init__({
-            "i": In(stream.Signature(SERIAL_ANGLES_IN)),
-            "o": Out(stream.Signature(SERIAL_ANGLES_OUT)),
-        })
+        super().__init__(self._signature())
+
+    def _signature(self):
+        return {"i": In(stream.Signature(SERIAL_ANGLES_IN)),
+                "o": Out(stream.Signature(SERIAL_ANGLES_OUT))}
 
     def elaborate(self, platform):
         m = Module()
         W, ab = REG_WIDTH, ANGLE_BITS
         table = [int(t) & ((1 << ab) - 1) for t in atan_table(ITERATIONS, ab)]
+        filt = self._FILTER
+        inp = self.i.payload
 
         phase = Signal(_Phase)
-        x = Signal(W)
-        y = Signal(W)
-        z = Signal(ab)
-        cx, cy, cz = Signal(), Signal(), Signal()
-        sx, sy = Signal(), Signal()  # signs of x and y at the start of the pass
-        k = Signal(range(W))  # bit within the pass
-        p = Signal(range(PASSES))  # 0: pre-rotation, 1..16: iteration p - 1
+        # written before they are read in every sample: no reset (docs: the register list)
+        x = Signal(W, reset_less=True)
+        y = Signal(W, reset_less=True)
+        z = Signal(ab, reset_less=True)
+        cx, cy, cz = (Signal(reset_less=True, name=n) for n in ("cx", "cy", "cz"))
+        # signs of x and y at the start of the pass
+        sx, sy = Signal(reset_less=True, name="sx"), Signal(reset_less=True, name="sy")
+        k = Signal(range(W), reset_less=True)  # bit within the pass
+        p = Signal(range(PASSES), reset_less=True)  # 0: pre-rotation, 1..16: iteration p - 1
+        ax_neg = Signal(signed(16), reset_less=not self.held_input)
         if self.held_input:
-            ax_in = self.i.payload.ax
-            ax_neg = Signal(signed(16))
+            ax_in = inp.ax
             m.d.comb += ax_neg.eq(-((ax_in >> 1) + (ax_in >> 2) + (ax_in >> 4)))
-        else:
-            ax_neg = Signal(signed(16))
-        roll = Signal(signed(ab))
         sat = Signal()
 
         first = k == 0
-        last_bit = k == W - 1
         last_pass = p == PASSES - 1
         it = Signal(range(ITERATIONS))
         m.d.comb += it.eq(p - 1)
@@ -136,17 +146,46 @@ class TinyKalmanSerialCordic(wiring.Component):
                          ya.eq(y[0]), yb.eq(tap_x), ys.eq(pos)]
         cin_x = Mux(first, xs, cx)
         cin_y = Mux(first, ys, cy)
-        cin_z = Mux(first, ~pos, cz)
         sum_x, co_x = _serial_add(xa, xb, xs, cin_x)
         sum_y, co_y = _serial_add(ya, yb, ys, cin_y)
-        sum_z, co_z = _serial_add(z[0], tbit, ~pos, cin_z)
 
+        # the third adder: z's angle accumulation, and in the data path the filter's passes
+        za, zb, zs = Signal(), Signal(), Signal()
+        m.d.comb += [za.eq(z[0]), zb.eq(tbit), zs.eq(~pos)]
+        in_filter = Signal()
+        if filt:
+            roll_s = Signal(signed(ab))  # the filter state (reset: 0, the model's start)
+            pitch_s = Signal(signed(ab))
+            if self.held_input:
+                gx, gy, ok = inp.gx, inp.gy, inp.ok
+            else:
+                gx = Signal(signed(16), reset_less=True)
+                gy = Signal(signed(16), reset_less=True)
+                ok = Signal()
+            m.d.comb += in_filter.eq((phase == _Phase.ROLL_F) | (phase == _Phase.PITCH_F))
+            on_pitch = phase == _Phase.PITCH_F
+            st0 = Mux(on_pitch, pitch_s[0], roll_s[0])
+            g = Mux(on_pitch, gy, gx)
+            # rate >>> 6, bit k: bits 6..15 then the sign
+            rbit = Cat(g[6:], *([g[15]] * 6)).bit_select(k[:4], 1)
+            with m.If(in_filter):
+                with m.Switch(p):
+                    with m.Case(0):  # pred = angle + (rate >>> 6)       -> the state
+                        m.d.comb += [za.eq(st0), zb.eq(rbit), zs.eq(0)]
+                    with m.Case(1):  # innov = meas - pred               -> z
+                        m.d.comb += [za.eq(z[0]), zb.eq(st0), zs.eq(1)]
+                    with m.Default():  # angle = pred + (innov >>> 6)   -> the state
+                        m.d.comb += [za.eq(st0), zb.eq(z[6]), zs.eq(0)]
+        cin_z = Mux(first, zs, cz)
+        sum_z, co_z = _serial_add(za, zb, zs, cin_z)
+
+        if not filt:
+            roll = Signal(signed(ab))  # roll waits beside z for the pitch pass
+            m.d.comb += [self.o.payload.roll.eq(roll), self.o.payload.pitch.eq(z)]
         busy = (phase == _Phase.ROLL) | (phase == _Phase.PITCH)
         m.d.comb += [
             self.i.ready.eq(phase == _Phase.IDLE),
             self.o.valid.eq(phase == _Phase.OUT),
-            self.o.payload.roll.eq(roll),
-            self.o.payload.pitch.eq(z),
             self.o.payload.sat.eq(sat),
         ]
 
@@ -164,28 +203,80 @@ class TinyKalmanSerialCordic(wiring.Component):
             with m.If(p == 0):
                 # z0 = +-90 deg after a pre-rotation, else 0 (z is loaded, not shifted)
                 m.d.sync += z.eq(Mux(sx, Mux(sy, -(1 << (ab - 2)), 1 << (ab - 2)), 0))
-            with m.If(last_bit):
+            with m.If(k == W - 1):
                 m.d.sync += [k.eq(0), p.eq(p + 1), sx.eq(sum_x), sy.eq(sum_y)]
                 with m.If(last_pass):
                     with m.If(phase == _Phase.ROLL):
                         # x (>= 0) is the magnitude K |(x, y)|: saturate it to 16 bits
                         mag = Cat(x[1:], sum_x)
                         over = mag > 32767
-                        m.d.sync += [roll.eq(z), sat.eq(over),
-                                     phase.eq(_Phase.PITCH)]
+                        m.d.sync += [sat.eq(over & ok) if filt else sat.eq(over),
+                                     phase.eq(_Phase.ROLL_F if filt else _Phase.PITCH)]
+                        if not filt:
+                            m.d.sync += roll.eq(z)
                         m.d.sync += load(Mux(over, Const(32767, signed(16)), mag[:16]),
                                          ax_neg)
                     with m.Else():
-                        m.d.sync += phase.eq(_Phase.OUT)
+                        m.d.sync += phase.eq(_Phase.PITCH_F if filt else _Phase.OUT)
+                        if filt:
+                            m.d.sync += p.eq(0)
+        if filt:
+            # three 16-clock passes per axis on the z adder; x, y (the pitch vector) wait.
+            # ok = 0 (failed sensor check): the state rotates unchanged (fixed latency)
+            with m.If(in_filter):
+                m.d.sync += [cz.eq(co_z), k.eq(k + 1)]
+                new_st = Mux((p != 1) & ok, sum_z, st0)
+                with m.If(on_pitch):
+                    m.d.sync += pitch_s.eq(Cat(pitch_s[1:], new_st))
+                with m.Else():
+                    m.d.sync += roll_s.eq(Cat(roll_s[1:], new_st))
+                with m.If(p == 1):
+                    m.d.sync += z.eq(Cat(z[1:], sum_z))
+                with m.Elif(p == 2):  # arithmetic shift: z[6] is innov bit min(k + 6, 15)
+                    m.d.sync += z.eq(Cat(z[1:], z[-1]))
+                with m.If(k == ab - 1):
+                    m.d.sync += [k.eq(0), p.eq(p + 1)]
+                    with m.If(p == 2):
+                        m.d.sync += p.eq(0)
+                        with m.If(on_pitch):
+                            m.d.sync += phase.eq(_Phase.OUT)
+                        with m.Else():
+                            m.d.sync += phase.eq(_Phase.PITCH)
+            m.d.comb += [self.o.payload.roll.eq(roll_s), self.o.payload.pitch.eq(pitch_s),
+                         self.o.payload.ok.eq(ok)]
         with m.Switch(phase):
             with m.Case(_Phase.IDLE):
                 with m.If(self.i.valid):
                     if not self.held_input:
-                        ax = self.i.payload.ax
+                        ax = inp.ax
                         m.d.sync += ax_neg.eq(-((ax >> 1) + (ax >> 2) + (ax >> 4)))
-                    m.d.sync += load(self.i.payload.az >> 1, self.i.payload.ay >> 1)
+                        if filt:
+                            m.d.sync += [gx.eq(inp.gx), gy.eq(inp.gy), ok.eq(inp.ok)]
+                    m.d.sync += load(inp.az >> 1, inp.ay >> 1)
                     m.d.sync += phase.eq(_Phase.ROLL)
             with m.Case(_Phase.OUT):
                 with m.If(self.o.ready):
                     m.d.sync += phase.eq(_Phase.IDLE)
         return m
+
+
+class TinyKalmanSerialDatapath(TinyKalmanSerialCordic):
+    """The serial chip's whole arithmetic: the bit-serial CORDIC (roll, then pitch) and the
+    steady-state filter run bit-serially on the CORDIC's z adder after each angle (three
+    16-clock passes per axis: ``pred = angle + (rate >>> 6)`` into the state, ``innov = meas -
+    pred`` into z, ``angle = pred + (innov >>> 6)`` into the state, ``innov >>> 6`` read at
+    bit 6 of z while z shifts arithmetically). The measured angle is never stored beside z.
+
+    Input :data:`~navgate.systems.tinykalman.datapath.DATAPATH_IN` (``ok = 0``: the sample
+    failed the sensor check; the state is held, the schedule is the same); output
+    ``{roll, pitch, sat, ok}``: the filter state (also the packet's bytes), ``sat`` = mag_yz
+    saturated in a used sample. ``LATENCY = 2 * (17 * 18 + 3 * 16) + 1 = 709`` clocks.
+    """
+
+    LATENCY = SERIAL_DATAPATH_LATENCY
+    THROUGHPUT = Fraction(1, SERIAL_DATAPATH_LATENCY + 1)
+    _FILTER = True
+
+    def _signature(self):
+        return {"i": In(stream.Signature(DATAPATH_IN)),
+                "o": Out(stream.Signature(SERIAL_DATAPATH_OUT))}

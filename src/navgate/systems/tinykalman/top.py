@@ -42,12 +42,17 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.systems.tinykalman.datapath import CORDIC_LATENCY, TinyKalmanDatapath
 from navgate.systems.tinykalman.model import HEADER, PACKET_LEN, WHO_AM_I_VALUE
-from navgate.systems.tinykalman.serial import SERIAL_CORDIC_LATENCY, TinyKalmanSerialCordic
+from navgate.systems.tinykalman.serial import (
+    SERIAL_CORDIC_LATENCY,
+    SERIAL_DATAPATH_LATENCY,
+    TinyKalmanSerialDatapath,
+)
 from navgate.systems.tinykalman.spi import Mpu6500Spi, spi_cycles
 from navgate.systems.tinykalman.uart import BAUD_DIV_9600_AT_10MHZ, UartTx
 
 __all__ = ["TinyKalmanCore", "TinyKalmanTop", "TinyKalmanSerialTop", "min_sample_period",
-           "timing", "CLK_HZ", "TT_MODULE_NAME", "VARIANTS", "cordic_latency"]
+           "timing", "CLK_HZ", "TT_MODULE_NAME", "VARIANTS", "cordic_latency",
+           "datapath_latency"]
 
 CLK_HZ = 10_000_000
 TT_MODULE_NAME = "tt_um_navgate_tinykalman"
@@ -71,9 +76,18 @@ def cordic_latency(variant: str = "parallel") -> int:
                      f"got {variant!r}")
 
 
+def datapath_latency(variant: str = "parallel") -> int:
+    """Clocks from the data path's accepted input to the filter state of that sample: the
+    angle block and the one-clock filter (parallel), or the bit-serial CORDIC with the
+    bit-serial filter passes after each angle (serial)."""
+    if variant == "serial":
+        return SERIAL_DATAPATH_LATENCY
+    return cordic_latency(variant) + 1
+
+
 def min_sample_period(spi_div: int, baud_div: int, variant: str = "parallel") -> int:
     """Shortest sample period for which a sample's packet is sent before the next starts."""
-    return spi_cycles(spi_div) + cordic_latency(variant) + 8 + 10 * PACKET_LEN * baud_div
+    return spi_cycles(spi_div) + datapath_latency(variant) + 7 + 10 * PACKET_LEN * baud_div
 
 
 def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
@@ -82,7 +96,7 @@ def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MH
     """Per-sample schedule in clocks (and seconds): SPI, latency from CS_N rising to the first
     start bit, packet time, busy time and the slack inside the sample period."""
     spi = spi_cycles(spi_div)
-    latency = spi_div + 1 + cordic_latency(variant) + 1 + 1
+    latency = spi_div + 1 + datapath_latency(variant) + 1
     packet = 10 * PACKET_LEN * baud_div
     # start pulse is the cycle the timer is 0; CS_N falls 1 clock later; CS_N rises at
     # spi - spi_div (the end of the burst's hold phase, before the gap)
@@ -109,7 +123,7 @@ class TinyKalmanCore(wiring.Component):
         if not isinstance(sample_period, int) or sample_period < need:
             raise ValueError(f"TinyKalman: sample_period must be an integer >= {need} clocks "
                              f"for spi_div={spi_div}, baud_div={baud_div}; got {sample_period!r}")
-        self.spi = Mpu6500Spi(spi_div)
+        self.spi = Mpu6500Spi(spi_div, direct=variant == "serial")
         self.uart = UartTx(baud_div)
         self.spi_div, self.baud_div, self.sample_period = spi_div, baud_div, sample_period
         self.LATENCY = timing(spi_div, baud_div, sample_period,
@@ -129,8 +143,10 @@ class TinyKalmanCore(wiring.Component):
         m = Module()
         m.submodules.spi = spi = self.spi
         serial = self.variant == "serial"
-        m.submodules.datapath = datapath = TinyKalmanDatapath(
-            TinyKalmanSerialCordic if serial else None, held_input=serial)
+        if serial:
+            m.submodules.datapath = datapath = TinyKalmanSerialDatapath(held_input=True)
+        else:
+            m.submodules.datapath = datapath = TinyKalmanDatapath()
         m.submodules.uart = uart = self.uart
 
         sending = Signal()
@@ -149,7 +165,7 @@ class TinyKalmanCore(wiring.Component):
         dp = datapath.i.payload
         m.d.comb += [
             dp.ax.eq(sp.ax), dp.ay.eq(sp.ay), dp.az.eq(sp.az), dp.gx.eq(sp.gx), dp.gy.eq(sp.gy),
-            dp.ok.eq(sp.who_am_i == WHO_AM_I_VALUE),
+            dp.ok.eq(sp.who_ok if serial else sp.who_am_i == WHO_AM_I_VALUE),
             datapath.i.valid.eq(spi.o.valid),
             spi.o.ready.eq(datapath.i.ready),
         ]
