@@ -83,13 +83,23 @@ class TinyKalmanSerialCordic(wiring.Component):
     THROUGHPUT = Fraction(1, SERIAL_CORDIC_LATENCY + 1)
     _FILTER = False
 
-    def __init__(self, held_input: bool = False):
+    def __init__(self, held_input: bool = False, spi_fed: bool = False):
         #: ``held_input``: the producer holds ``i.payload`` from the handshake until the output
         #: is taken (the chip's SPI master does: its word registers change only during the next
         #: burst, a sample period later); ax (and in the data path gx, gy, ok) are then read
         #: from it instead of being kept in registers here. False (default): any producer.
         self.held_input = held_input
-        super().__init__(self._signature())
+        #: ``spi_fed`` (the serial chip): az and ay are not read from ``i.payload`` but shifted
+        #: into x and y by the SPI master while the block is idle (``spi_bit``, ``shift_az``,
+        #: ``shift_ay``: :class:`~navgate.systems.tinykalman.spi.Mpu6500Spi` with
+        #: ``external=("ay", "az")``); x and y are free then, so the words need no register.
+        self.spi_fed = spi_fed
+        if spi_fed and not held_input:
+            raise ValueError("TinyKalmanSerialCordic: spi_fed needs held_input")
+        sig = self._signature()
+        if spi_fed:
+            sig.update({"spi_bit": In(1), "shift_ay": In(1), "shift_az": In(1)})
+        super().__init__(sig)
 
     def _signature(self):
         return {"i": In(stream.Signature(SERIAL_ANGLES_IN)),
@@ -246,13 +256,23 @@ class TinyKalmanSerialCordic(wiring.Component):
                          self.o.payload.ok.eq(ok)]
         with m.Switch(phase):
             with m.Case(_Phase.IDLE):
+                if self.spi_fed:
+                    # bits 15..1 of az into x, of ay into y, MSB first (bits 17..15 are set
+                    # by the sign extension at the load below)
+                    with m.If(self.shift_az):
+                        m.d.sync += x.eq(Cat(self.spi_bit, x[:-1]))
+                    with m.If(self.shift_ay):
+                        m.d.sync += y.eq(Cat(self.spi_bit, y[:-1]))
                 with m.If(self.i.valid):
                     if not self.held_input:
                         ax = inp.ax
                         m.d.sync += ax_neg.eq(-((ax >> 1) + (ax >> 2) + (ax >> 4)))
                         if filt:
                             m.d.sync += [gx.eq(inp.gx), gy.eq(inp.gy), ok.eq(inp.ok)]
-                    m.d.sync += load(inp.az >> 1, inp.ay >> 1)
+                    if self.spi_fed:
+                        m.d.sync += load(x[:WIDTH - 1].as_signed(), y[:WIDTH - 1].as_signed())
+                    else:
+                        m.d.sync += load(inp.az >> 1, inp.ay >> 1)
                     m.d.sync += phase.eq(_Phase.ROLL)
             with m.Case(_Phase.OUT):
                 with m.If(self.o.ready):

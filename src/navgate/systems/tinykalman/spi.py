@@ -77,7 +77,7 @@ DIRECT_KEEP = {"ax": 1, "ay": 1, "az": 1, "gx": 6, "gy": 6}
 class Mpu6500Spi(wiring.Component):
     """MPU-6500 SPI master: WHO_AM_I read and 14-byte burst per ``start``."""
 
-    def __init__(self, spi_div: int = 5, direct: bool = False):
+    def __init__(self, spi_div: int = 5, direct: bool = False, external: tuple = ()):
         if not isinstance(spi_div, int) or not 2 <= spi_div <= 1 << 16:
             raise ValueError(f"Mpu6500Spi: spi_div must be an integer >= 2 (clocks per SCLK half "
                              f"period), got {spi_div!r}")
@@ -87,9 +87,23 @@ class Mpu6500Spi(wiring.Component):
         #: WHO_AM_I is compared bit by bit as it arrives (one flag, not the byte). The words
         #: change while the next burst comes in. The serial chip's SPI master.
         self.direct = direct
+        #: ``external`` (``direct`` only): words whose registers live in the consumer: the
+        #: master drives ``bit`` (the sampled MISO bit) and ``shift_<word>`` (one clock per kept
+        #: bit, MSB first) and leaves the word 0 in ``o.payload``. The serial chip shifts ay and
+        #: az straight into its CORDIC's y and x registers.
+        self.external = tuple(external)
+        if self.external and not direct:
+            raise ValueError("Mpu6500Spi: external words need direct=True")
+        for name in self.external:
+            if name not in DIRECT_KEEP:
+                raise ValueError(f"Mpu6500Spi: unknown word {name!r} in external")
         self.LATENCY = spi_cycles(spi_div)
         self.THROUGHPUT = Fraction(1, self.LATENCY)
+        ports = {f"shift_{name}": Out(1) for name in self.external}
+        if self.external:
+            ports["bit"] = Out(1)
         super().__init__({
+            **ports,
             "start": In(1),
             "busy": Out(1),
             "miso": In(1),
@@ -113,11 +127,14 @@ class Mpu6500Spi(wiring.Component):
         if self.direct:
             # written during each transaction before the result is offered: no reset
             regs = {name: Signal(16 - lo, name=f"{name}_bits", reset_less=True)
-                    for name, lo in DIRECT_KEEP.items()}
+                    for name, lo in DIRECT_KEEP.items() if name not in self.external}
             who_ok = Signal(reset_less=True)
             m.d.comb += out.who_ok.eq(who_ok)
             for name, lo in DIRECT_KEEP.items():
-                m.d.comb += getattr(out, name).eq(Cat(Const(0, lo), regs[name]))
+                if name in regs:
+                    m.d.comb += getattr(out, name).eq(Cat(Const(0, lo), regs[name]))
+            if self.external:
+                m.d.comb += self.bit.eq(sync2)
         out_valid = Signal()
 
         m.d.sync += [sync1.eq(self.miso), sync2.eq(sync1)]
@@ -188,16 +205,17 @@ class Mpu6500Spi(wiring.Component):
                                      nbit.eq(0)]
         return m
 
-    @staticmethod
-    def _direct_bit(m, nbit, burst, bit, regs, who_ok):
+    def _direct_bit(self, m, nbit, burst, bit, regs, who_ok):
         """``direct``: the MISO bit of burst bit ``nbit`` into the register that keeps it
         (MSB first; a word register shifts during its kept bits only), or, in the WHO_AM_I
         transaction, compared with the expected bit of 0x70."""
         with m.If(burst):
             for name, last in SPI_WORDS:
-                reg = regs[name]
                 with m.If((nbit >= last - 15) & (nbit <= last - DIRECT_KEEP[name])):
-                    m.d.sync += reg.eq(Cat(bit, reg[:-1]))
+                    if name in regs:
+                        m.d.sync += regs[name].eq(Cat(bit, regs[name][:-1]))
+                    else:
+                        m.d.comb += getattr(self, f"shift_{name}").eq(1)
         with m.Elif(nbit >= 8):
             want = Const(WHO_AM_I_VALUE, 8).bit_select(~nbit[:3], 1)
             with m.If(bit != want):

@@ -123,7 +123,10 @@ class TinyKalmanCore(wiring.Component):
         if not isinstance(sample_period, int) or sample_period < need:
             raise ValueError(f"TinyKalman: sample_period must be an integer >= {need} clocks "
                              f"for spi_div={spi_div}, baud_div={baud_div}; got {sample_period!r}")
-        self.spi = Mpu6500Spi(spi_div, direct=variant == "serial")
+        if variant == "serial":
+            self.spi = Mpu6500Spi(spi_div, direct=True, external=("ay", "az"))
+        else:
+            self.spi = Mpu6500Spi(spi_div)
         self.uart = UartTx(baud_div)
         self.spi_div, self.baud_div, self.sample_period = spi_div, baud_div, sample_period
         self.LATENCY = timing(spi_div, baud_div, sample_period,
@@ -144,7 +147,10 @@ class TinyKalmanCore(wiring.Component):
         m.submodules.spi = spi = self.spi
         serial = self.variant == "serial"
         if serial:
-            m.submodules.datapath = datapath = TinyKalmanSerialDatapath(held_input=True)
+            m.submodules.datapath = datapath = TinyKalmanSerialDatapath(held_input=True,
+                                                                         spi_fed=True)
+            m.d.comb += [datapath.spi_bit.eq(spi.bit), datapath.shift_ay.eq(spi.shift_ay),
+                         datapath.shift_az.eq(spi.shift_az)]
         else:
             m.submodules.datapath = datapath = TinyKalmanDatapath()
         m.submodules.uart = uart = self.uart
