@@ -48,7 +48,7 @@ from navgate.systems.tinykalman.serial import (
     TinyKalmanSerialDatapath,
 )
 from navgate.systems.tinykalman.spi import Mpu6500Spi, spi_cycles
-from navgate.systems.tinykalman.uart import BAUD_DIV_9600_AT_10MHZ, UartTx
+from navgate.systems.tinykalman.uart import BAUD_DIV_9600_AT_10MHZ, UartPacketTx, UartTx
 
 __all__ = ["TinyKalmanCore", "TinyKalmanTop", "TinyKalmanSerialTop", "min_sample_period",
            "timing", "CLK_HZ", "TT_MODULE_NAME", "VARIANTS", "cordic_latency",
@@ -96,7 +96,9 @@ def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MH
     """Per-sample schedule in clocks (and seconds): SPI, latency from CS_N rising to the first
     start bit, packet time, busy time and the slack inside the sample period."""
     spi = spi_cycles(spi_div)
-    latency = spi_div + 1 + datapath_latency(variant) + 1
+    # the parallel chip registers the packet before its UART takes the first byte; the serial
+    # chip's UART starts on the data path's valid output
+    latency = spi_div + 1 + datapath_latency(variant) + (variant == "parallel")
     packet = 10 * PACKET_LEN * baud_div
     # start pulse is the cycle the timer is 0; CS_N falls 1 clock later; CS_N rises at
     # spi - spi_div (the end of the burst's hold phase, before the gap)
@@ -127,7 +129,8 @@ class TinyKalmanCore(wiring.Component):
             self.spi = Mpu6500Spi(spi_div, direct=True, external=("ay", "az"))
         else:
             self.spi = Mpu6500Spi(spi_div)
-        self.uart = UartTx(baud_div)
+        self.uart = (UartPacketTx(PACKET_LEN, baud_div) if variant == "serial"
+                     else UartTx(baud_div))
         self.spi_div, self.baud_div, self.sample_period = spi_div, baud_div, sample_period
         self.LATENCY = timing(spi_div, baud_div, sample_period,
                               variant=variant)["latency_cs_rise_to_start_bit"]
@@ -175,17 +178,31 @@ class TinyKalmanCore(wiring.Component):
             datapath.i.valid.eq(spi.o.valid),
             spi.o.ready.eq(datapath.i.ready),
         ]
-        with m.If(datapath.o.valid & ~sending):
-            m.d.sync += [self.fault.eq(~datapath.o.payload.ok),
-                         self.sat.eq(datapath.o.payload.sat)]
+        if serial:
+            # the flags change while the sample is computed, before its packet: fault when the
+            # data path takes the sample, sat is the data path's own flag (set after roll)
+            with m.If(datapath.i.valid & datapath.i.ready):
+                m.d.sync += self.fault.eq(~dp.ok)
+            m.d.comb += self.sat.eq(datapath.o.payload.sat)
+        else:
+            with m.If(datapath.o.valid & ~sending):
+                m.d.sync += [self.fault.eq(~datapath.o.payload.ok),
+                             self.sat.eq(datapath.o.payload.sat)]
         # filter -> packet -> UART
-        index = Signal(range(PACKET_LEN))
         if serial:
             # the serial chip sends the filter state itself (it holds until the next sample's
-            # update, after this packet: sample_period >= min_sample_period)
+            # update, after this packet: sample_period >= min_sample_period), bit by bit
             roll, pitch = datapath.o.payload.roll, datapath.o.payload.pitch
-        else:
-            roll, pitch = Signal(16), Signal(16)
+            m.d.comb += [
+                uart.packet.eq(Cat(Const(HEADER[0], 8), Const(HEADER[1], 8), roll[8:],
+                                   roll[:8], pitch[8:], pitch[:8])),
+                uart.start.eq(datapath.o.valid),
+                sending.eq(uart.busy),
+                datapath.o.ready.eq(~sending),
+            ]
+            return m
+        index = Signal(range(PACKET_LEN))
+        roll, pitch = Signal(16), Signal(16)
         packet = Array([Const(HEADER[0], 8), Const(HEADER[1], 8), roll[8:], roll[:8],
                         pitch[8:], pitch[:8]])
         m.d.comb += [
@@ -194,11 +211,8 @@ class TinyKalmanCore(wiring.Component):
             uart.i.payload.eq(packet[index]),
         ]
         with m.If(datapath.o.valid & ~sending):
-            if serial:
-                m.d.sync += [sending.eq(1), index.eq(0)]
-            else:
-                m.d.sync += [roll.eq(datapath.o.payload.roll),
-                             pitch.eq(datapath.o.payload.pitch), sending.eq(1), index.eq(0)]
+            m.d.sync += [roll.eq(datapath.o.payload.roll),
+                         pitch.eq(datapath.o.payload.pitch), sending.eq(1), index.eq(0)]
         with m.If(sending & uart.i.ready):
             m.d.sync += index.eq(index + 1)
             with m.If(index == PACKET_LEN - 1):
