@@ -48,13 +48,14 @@ __all__ = ["TinyKalmanSerialCordic", "TinyKalmanSerialDatapath", "SERIAL_CORDIC_
 
 REG_WIDTH = WIDTH + 2  #: the model's vectoring register width (no guard bits)
 PASSES = ITERATIONS + 1  #: pre-rotation + iterations
-SERIAL_CORDIC_LATENCY = 2 * PASSES * REG_WIDTH + 1
+AXN_PASSES = 3  #: y <- 0 - (ax >>> 1) - (ax >>> 2) - (ax >>> 4)
+SERIAL_CORDIC_LATENCY = (2 * PASSES + AXN_PASSES) * REG_WIDTH + 1
 
 SERIAL_ANGLES_IN = data.StructLayout({"ax": signed(16), "ay": signed(16), "az": signed(16)})
 SERIAL_ANGLES_OUT = data.StructLayout({"roll": signed(16), "pitch": signed(16),
                                        "sat": unsigned(1)})
 FILTER_PASS = ANGLE_BITS  #: clocks per filter pass (16-bit words)
-SERIAL_DATAPATH_LATENCY = 2 * (PASSES * REG_WIDTH + 3 * FILTER_PASS) + 1
+SERIAL_DATAPATH_LATENCY = SERIAL_CORDIC_LATENCY + 2 * 3 * FILTER_PASS
 SERIAL_DATAPATH_OUT = data.StructLayout({"roll": signed(16), "pitch": signed(16),
                                          "sat": unsigned(1), "ok": unsigned(1)})
 
@@ -66,6 +67,7 @@ class _Phase(enum.Enum, shape=3):
     OUT = 3
     ROLL_F = 4  # the roll filter update (TinyKalmanSerialDatapath)
     PITCH_F = 5  # the pitch filter update
+    AXN = 6  # y <- -((ax >>> 1) + (ax >>> 2) + (ax >>> 4)): three serial subtractions
 
 
 def _serial_add(a, b, sub, carry):
@@ -122,10 +124,10 @@ class TinyKalmanSerialCordic(wiring.Component):
         sx, sy = Signal(reset_less=True, name="sx"), Signal(reset_less=True, name="sy")
         k = Signal(range(W), reset_less=True)  # bit within the pass
         p = Signal(range(PASSES), reset_less=True)  # 0: pre-rotation, 1..16: iteration p - 1
-        ax_neg = Signal(signed(16), reset_less=not self.held_input)
+        # ax bits 1..15 (the bits the pitch vector uses)
+        ax_bits = Signal(WIDTH - 1, reset_less=not self.held_input)
         if self.held_input:
-            ax_in = inp.ax
-            m.d.comb += ax_neg.eq(-((ax_in >> 1) + (ax_in >> 2) + (ax_in >> 4)))
+            m.d.comb += ax_bits.eq(inp.ax[1:])
         sat = Signal()
 
         first = k == 0
@@ -192,6 +194,19 @@ class TinyKalmanSerialCordic(wiring.Component):
         if not filt:
             roll = Signal(signed(ab))  # roll waits beside z for the pitch pass
             m.d.comb += [self.o.payload.roll.eq(roll), self.o.payload.pitch.eq(z)]
+        # the pitch vector's y: 0 - (ax >>> 1) - (ax >>> 2) - (ax >>> 4) (= the model's
+        # -((ax>>>1) + (ax>>>2) + (ax>>>4)): floor shifts, exact sums) in three passes of y's
+        # adder; (ax >>> s) bit k is ax bit min(k + s, 15), i.e. ax_bits[min(k + s - 1, 14)]
+        in_axn = phase == _Phase.AXN
+        ax_ext = Cat(ax_bits, *([ax_bits[-1]] * (W + 4 - (WIDTH - 1))))
+        with m.If(in_axn):
+            m.d.comb += [ya.eq(y[0]), yb.eq(ax_ext.bit_select(
+                k + Mux(p == 0, 0, Mux(p == 1, 1, 3)), 1)), ys.eq(1)]
+            m.d.sync += [y.eq(Cat(y[1:], sum_y)), cy.eq(co_y), k.eq(k + 1)]
+            with m.If(k == W - 1):
+                m.d.sync += [k.eq(0), p.eq(p + 1), sy.eq(sum_y)]
+                with m.If(p == 2):
+                    m.d.sync += [p.eq(0), phase.eq(_Phase.ROLL_F if filt else _Phase.PITCH)]
         busy = (phase == _Phase.ROLL) | (phase == _Phase.PITCH)
         m.d.comb += [
             self.i.ready.eq(phase == _Phase.IDLE),
@@ -221,11 +236,11 @@ class TinyKalmanSerialCordic(wiring.Component):
                         mag = Cat(x[1:], sum_x)
                         over = mag > 32767
                         m.d.sync += [sat.eq(over & ok) if filt else sat.eq(over),
-                                     phase.eq(_Phase.ROLL_F if filt else _Phase.PITCH)]
+                                     phase.eq(_Phase.AXN)]
                         if not filt:
                             m.d.sync += roll.eq(z)
                         m.d.sync += load(Mux(over, Const(32767, signed(16)), mag[:16]),
-                                         ax_neg)
+                                         Const(0, signed(16)))
                     with m.Else():
                         m.d.sync += phase.eq(_Phase.PITCH_F if filt else _Phase.OUT)
                         if filt:
@@ -266,7 +281,7 @@ class TinyKalmanSerialCordic(wiring.Component):
                 with m.If(self.i.valid):
                     if not self.held_input:
                         ax = inp.ax
-                        m.d.sync += ax_neg.eq(-((ax >> 1) + (ax >> 2) + (ax >> 4)))
+                        m.d.sync += ax_bits.eq(ax[1:])
                         if filt:
                             m.d.sync += [gx.eq(inp.gx), gy.eq(inp.gy), ok.eq(inp.ok)]
                     if self.spi_fed:
