@@ -117,12 +117,15 @@ class Mpu6500Spi(wiring.Component):
         m = Module()
         div = self.spi_div
         state = Signal(_State)
-        cnt = Signal(range(div))
-        nbit = Signal(range(BURST_BITS))
-        burst = Signal()  # 0: WHO_AM_I transaction, 1: burst
+        # direct: the counters are set when a transaction starts and the synchroniser refills
+        # in two clocks, so they need no reset (the serial chip's list of registers)
+        rl = self.direct
+        cnt = Signal(range(div), reset_less=rl)
+        nbit = Signal(range(BURST_BITS), reset_less=rl)
+        burst = Signal(reset_less=rl)  # 0: WHO_AM_I transaction, 1: burst
         shift = Signal(16)
-        sync1 = Signal()
-        sync2 = Signal()
+        sync1 = Signal(reset_less=rl)
+        sync2 = Signal(reset_less=rl)
         out = Signal(DIRECT_PAYLOAD if self.direct else PAYLOAD)
         if self.direct:
             # written during each transaction before the result is offered: no reset
