@@ -55,12 +55,15 @@ SERIAL_ANGLES_IN = data.StructLayout({"ax": signed(16), "ay": signed(16), "az": 
 SERIAL_ANGLES_OUT = data.StructLayout({"roll": signed(16), "pitch": signed(16),
                                        "sat": unsigned(1)})
 FILTER_PASS = ANGLE_BITS  #: clocks per filter pass (16-bit words)
-SERIAL_DATAPATH_LATENCY = SERIAL_CORDIC_LATENCY + 2 * 3 * FILTER_PASS
+#: the chip's data path (``spi_fed``): the predictions run during the burst, so the update is
+#: two filter passes per axis after each angle; a stream producer: + the two predictions
+SERIAL_DATAPATH_LATENCY = SERIAL_CORDIC_LATENCY + 2 * 2 * FILTER_PASS
+SERIAL_DATAPATH_LATENCY_STREAM = SERIAL_DATAPATH_LATENCY + 2 * FILTER_PASS
 SERIAL_DATAPATH_OUT = data.StructLayout({"roll": signed(16), "pitch": signed(16),
                                          "sat": unsigned(1), "ok": unsigned(1)})
 
 
-class _Phase(enum.Enum, shape=3):
+class _Phase(enum.Enum, shape=4):
     IDLE = 0
     ROLL = 1
     PITCH = 2
@@ -68,6 +71,8 @@ class _Phase(enum.Enum, shape=3):
     ROLL_F = 4  # the roll filter update (TinyKalmanSerialDatapath)
     PITCH_F = 5  # the pitch filter update
     AXN = 6  # y <- -((ax >>> 1) + (ax >>> 2) + (ax >>> 4)): three serial subtractions
+    PRED_R = 7  # roll state <- roll state + (gx >>> 6), from the rate bits in z
+    PRED_P = 8  # pitch state <- pitch state + (gy >>> 6)
 
 
 def _serial_add(a, b, sub, carry):
@@ -98,9 +103,15 @@ class TinyKalmanSerialCordic(wiring.Component):
         self.spi_fed = spi_fed
         if spi_fed and not held_input:
             raise ValueError("TinyKalmanSerialCordic: spi_fed needs held_input")
+        if self._FILTER and not spi_fed:
+            self.LATENCY = SERIAL_DATAPATH_LATENCY_STREAM
+            self.THROUGHPUT = Fraction(1, self.LATENCY + 1)
         sig = self._signature()
         if spi_fed:
             sig.update({"spi_bit": In(1), "shift_ay": In(1), "shift_az": In(1)})
+            if self._FILTER:
+                sig.update({"shift_gx": In(1), "shift_gy": In(1), "last_gx": In(1),
+                            "last_gy": In(1)})
         super().__init__(sig)
 
     def _signature(self):
@@ -168,26 +179,20 @@ class TinyKalmanSerialCordic(wiring.Component):
         if filt:
             roll_s = Signal(signed(ab))  # the filter state (reset: 0, the model's start)
             pitch_s = Signal(signed(ab))
-            if self.held_input:
-                gx, gy, ok = inp.gx, inp.gy, inp.ok
-            else:
-                gx = Signal(signed(16), reset_less=True)
-                gy = Signal(signed(16), reset_less=True)
-                ok = Signal()
+            ok = inp.ok if self.held_input else Signal()
+            if not self.spi_fed:
+                gy_bits = Signal(10, reset_less=True)  # gy bits 6..15 until PRED_P
+            in_pred = (phase == _Phase.PRED_R) | (phase == _Phase.PRED_P)
             m.d.comb += in_filter.eq((phase == _Phase.ROLL_F) | (phase == _Phase.PITCH_F))
-            on_pitch = phase == _Phase.PITCH_F
+            on_pitch = (phase == _Phase.PITCH_F) | (phase == _Phase.PRED_P)
             st0 = Mux(on_pitch, pitch_s[0], roll_s[0])
-            g = Mux(on_pitch, gy, gx)
-            # rate >>> 6, bit k: bits 6..15 then the sign
-            rbit = Cat(g[6:], *([g[15]] * 6)).bit_select(k[:4], 1)
+            with m.If(in_pred):  # pred = angle + (rate >>> 6)      -> the state
+                m.d.comb += [za.eq(st0), zb.eq(z[0]), zs.eq(0)]
             with m.If(in_filter):
-                with m.Switch(p):
-                    with m.Case(0):  # pred = angle + (rate >>> 6)       -> the state
-                        m.d.comb += [za.eq(st0), zb.eq(rbit), zs.eq(0)]
-                    with m.Case(1):  # innov = meas - pred               -> z
-                        m.d.comb += [za.eq(z[0]), zb.eq(st0), zs.eq(1)]
-                    with m.Default():  # angle = pred + (innov >>> 6)   -> the state
-                        m.d.comb += [za.eq(st0), zb.eq(z[6]), zs.eq(0)]
+                with m.If(p == 0):  # innov = meas - pred              -> z
+                    m.d.comb += [za.eq(z[0]), zb.eq(st0), zs.eq(1)]
+                with m.Else():  # angle = pred + (innov >>> 6)         -> the state
+                    m.d.comb += [za.eq(st0), zb.eq(z[6]), zs.eq(0)]
         cin_z = Mux(first, zs, cz)
         sum_z, co_z = _serial_add(za, zb, zs, cin_z)
 
@@ -246,22 +251,36 @@ class TinyKalmanSerialCordic(wiring.Component):
                         if filt:
                             m.d.sync += p.eq(0)
         if filt:
-            # three 16-clock passes per axis on the z adder; x, y (the pitch vector) wait.
-            # ok = 0 (failed sensor check): the state rotates unchanged (fixed latency)
-            with m.If(in_filter):
+            # 16-clock passes on the z adder; x, y (the pitch vector) wait. ok = 0 (failed
+            # sensor check): the state rotates unchanged (the schedule stays the same)
+            with m.If(in_filter | in_pred):
                 m.d.sync += [cz.eq(co_z), k.eq(k + 1)]
-                new_st = Mux((p != 1) & ok, sum_z, st0)
+                new_st = Mux((in_pred | (p == 1)) & ok, sum_z, st0)
                 with m.If(on_pitch):
                     m.d.sync += pitch_s.eq(Cat(pitch_s[1:], new_st))
                 with m.Else():
                     m.d.sync += roll_s.eq(Cat(roll_s[1:], new_st))
-                with m.If(p == 1):
+            with m.If(in_pred):
+                # z[:10] holds rate bits 6..15: an arithmetic shift puts bit min(k + 6, 15)
+                # at z[0] in clock k
+                m.d.sync += z[:10].eq(Cat(z[1:10], z[9]))
+                with m.If(k == ab - 1):
+                    m.d.sync += k.eq(0)
+                    if self.spi_fed:
+                        m.d.sync += phase.eq(_Phase.IDLE)  # back to the burst
+                    else:
+                        with m.If(phase == _Phase.PRED_R):
+                            m.d.sync += [z[:10].eq(gy_bits), phase.eq(_Phase.PRED_P)]
+                        with m.Else():
+                            m.d.sync += phase.eq(_Phase.ROLL)
+            with m.If(in_filter):
+                with m.If(p == 0):
                     m.d.sync += z.eq(Cat(z[1:], sum_z))
-                with m.Elif(p == 2):  # arithmetic shift: z[6] is innov bit min(k + 6, 15)
+                with m.Else():  # arithmetic shift: z[6] is innov bit min(k + 6, 15)
                     m.d.sync += z.eq(Cat(z[1:], z[-1]))
                 with m.If(k == ab - 1):
                     m.d.sync += [k.eq(0), p.eq(p + 1)]
-                    with m.If(p == 2):
+                    with m.If(p == 1):
                         m.d.sync += p.eq(0)
                         with m.If(on_pitch):
                             m.d.sync += phase.eq(_Phase.OUT)
@@ -278,17 +297,31 @@ class TinyKalmanSerialCordic(wiring.Component):
                         m.d.sync += x.eq(Cat(self.spi_bit, x[:-1]))
                     with m.If(self.shift_ay):
                         m.d.sync += y.eq(Cat(self.spi_bit, y[:-1]))
+                    if filt:
+                        # gx (then gy) bits 15..6 into z[:10]; after the last one the state
+                        # takes the rate (the prediction needs no measurement): 16 clocks,
+                        # inside the bits the chip drops before the next word
+                        with m.If(self.shift_gx | self.shift_gy):
+                            m.d.sync += z[:10].eq(Cat(self.spi_bit, z[:9]))
+                        with m.If(self.last_gx):
+                            m.d.sync += [phase.eq(_Phase.PRED_R), k.eq(0)]
+                        with m.If(self.last_gy):
+                            m.d.sync += [phase.eq(_Phase.PRED_P), k.eq(0)]
                 with m.If(self.i.valid):
                     if not self.held_input:
                         ax = inp.ax
                         m.d.sync += ax_bits.eq(ax[1:])
                         if filt:
-                            m.d.sync += [gx.eq(inp.gx), gy.eq(inp.gy), ok.eq(inp.ok)]
+                            m.d.sync += [z[:10].eq(inp.gx[6:]), gy_bits.eq(inp.gy[6:]),
+                                         ok.eq(inp.ok)]
                     if self.spi_fed:
                         m.d.sync += load(x[:WIDTH - 1].as_signed(), y[:WIDTH - 1].as_signed())
                     else:
                         m.d.sync += load(inp.az >> 1, inp.ay >> 1)
-                    m.d.sync += phase.eq(_Phase.ROLL)
+                    if filt and not self.spi_fed:
+                        m.d.sync += [phase.eq(_Phase.PRED_R), k.eq(0)]
+                    else:
+                        m.d.sync += phase.eq(_Phase.ROLL)
             with m.Case(_Phase.OUT):
                 with m.If(self.o.ready):
                     m.d.sync += phase.eq(_Phase.IDLE)

@@ -89,7 +89,8 @@ class Mpu6500Spi(wiring.Component):
         self.direct = direct
         #: ``external`` (``direct`` only): words whose registers live in the consumer: the
         #: master drives ``bit`` (the sampled MISO bit) and ``shift_<word>`` (one clock per kept
-        #: bit, MSB first) and leaves the word 0 in ``o.payload``. The serial chip shifts ay and
+        #: bit, MSB first) with ``last_<word>`` on the last one, and leaves the word 0 in
+        #: ``o.payload``. The serial chip shifts ay and
         #: az straight into its CORDIC's y and x registers.
         self.external = tuple(external)
         if self.external and not direct:
@@ -99,7 +100,8 @@ class Mpu6500Spi(wiring.Component):
                 raise ValueError(f"Mpu6500Spi: unknown word {name!r} in external")
         self.LATENCY = spi_cycles(spi_div)
         self.THROUGHPUT = Fraction(1, self.LATENCY)
-        ports = {f"shift_{name}": Out(1) for name in self.external}
+        ports = {f"{kind}_{name}": Out(1) for name in self.external
+                 for kind in ("shift", "last")}
         if self.external:
             ports["bit"] = Out(1)
         super().__init__({
@@ -219,6 +221,8 @@ class Mpu6500Spi(wiring.Component):
                         m.d.sync += regs[name].eq(Cat(bit, regs[name][:-1]))
                     else:
                         m.d.comb += getattr(self, f"shift_{name}").eq(1)
+                        with m.If(nbit == last - DIRECT_KEEP[name]):
+                            m.d.comb += getattr(self, f"last_{name}").eq(1)
         with m.Elif(nbit >= 8):
             want = Const(WHO_AM_I_VALUE, 8).bit_select(~nbit[:3], 1)
             with m.If(bit != want):

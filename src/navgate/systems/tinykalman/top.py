@@ -126,7 +126,7 @@ class TinyKalmanCore(wiring.Component):
             raise ValueError(f"TinyKalman: sample_period must be an integer >= {need} clocks "
                              f"for spi_div={spi_div}, baud_div={baud_div}; got {sample_period!r}")
         if variant == "serial":
-            self.spi = Mpu6500Spi(spi_div, direct=True, external=("ay", "az"))
+            self.spi = Mpu6500Spi(spi_div, direct=True, external=("ay", "az", "gx", "gy"))
         else:
             self.spi = Mpu6500Spi(spi_div)
         self.uart = (UartPacketTx(PACKET_LEN, baud_div) if variant == "serial"
@@ -152,8 +152,11 @@ class TinyKalmanCore(wiring.Component):
         if serial:
             m.submodules.datapath = datapath = TinyKalmanSerialDatapath(held_input=True,
                                                                          spi_fed=True)
-            m.d.comb += [datapath.spi_bit.eq(spi.bit), datapath.shift_ay.eq(spi.shift_ay),
-                         datapath.shift_az.eq(spi.shift_az)]
+            m.d.comb += [datapath.spi_bit.eq(spi.bit)]
+            for name in spi.external:
+                m.d.comb += getattr(datapath, f"shift_{name}").eq(getattr(spi, f"shift_{name}"))
+            for name in ("gx", "gy"):
+                m.d.comb += getattr(datapath, f"last_{name}").eq(getattr(spi, f"last_{name}"))
         else:
             m.submodules.datapath = datapath = TinyKalmanDatapath()
         m.submodules.uart = uart = self.uart
