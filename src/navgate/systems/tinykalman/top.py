@@ -52,7 +52,7 @@ from navgate.systems.tinykalman.uart import BAUD_DIV_9600_AT_10MHZ, UartPacketTx
 
 __all__ = ["TinyKalmanCore", "TinyKalmanTop", "TinyKalmanSerialTop", "min_sample_period",
            "timing", "CLK_HZ", "TT_MODULE_NAME", "VARIANTS", "cordic_latency",
-           "datapath_latency"]
+           "datapath_latency", "lfsr_timer", "LFSR_TAPS"]
 
 CLK_HZ = 10_000_000
 TT_MODULE_NAME = "tt_um_navgate_tinykalman"
@@ -83,6 +83,35 @@ def datapath_latency(variant: str = "parallel") -> int:
     if variant == "serial":
         return SERIAL_DATAPATH_LATENCY
     return cordic_latency(variant) + 1
+
+
+#: maximal-length Fibonacci LFSR taps (1-indexed bits, XOR feedback into bit 1), from Xilinx
+#: XAPP052 "Efficient Shift Registers, LFSR Counters, and Long Pseudo-Random Sequence
+#: Generators" table 3; :func:`lfsr_timer` checks the period it needs by stepping
+LFSR_TAPS = {3: (3, 2), 4: (4, 3), 5: (5, 3), 6: (6, 5), 7: (7, 6), 8: (8, 6, 5, 4),
+             9: (9, 5), 10: (10, 7), 11: (11, 9), 12: (12, 6, 4, 1), 13: (13, 4, 3, 1),
+             14: (14, 5, 3, 1), 15: (15, 14), 16: (16, 15, 13, 4), 17: (17, 14),
+             18: (18, 11), 19: (19, 6, 2, 1), 20: (20, 17)}
+
+
+def lfsr_timer(period: int) -> tuple[int, tuple[int, ...], int, int]:
+    """The serial chip's sample timer: ``(width, taps, seed, last)`` of the shortest LFSR
+    (:data:`LFSR_TAPS`) whose sequence from ``seed = 1`` does not come back to the seed within
+    ``period`` states; ``last`` is state ``period - 1``, after which the timer reloads the
+    seed (so the period is exactly ``period`` clocks)."""
+    width = next((n for n in sorted(LFSR_TAPS) if (1 << n) - 1 >= period), None)
+    if width is None:
+        raise ValueError(f"lfsr_timer: period {period} is longer than the widest LFSR")
+    taps, seed = LFSR_TAPS[width], 1
+    state = seed
+    for i in range(1, period):
+        bit = 0
+        for t in taps:
+            bit ^= (state >> (t - 1)) & 1
+        state = ((state << 1) | bit) & ((1 << width) - 1)
+        if state == seed:
+            raise ValueError(f"lfsr_timer: the {width}-bit LFSR repeats after {i} states")
+    return width, taps, seed, state
 
 
 def min_sample_period(spi_div: int, baud_div: int, variant: str = "parallel") -> int:
@@ -162,10 +191,22 @@ class TinyKalmanCore(wiring.Component):
         m.submodules.uart = uart = self.uart
 
         sending = Signal()
-        timer = Signal(range(self.sample_period))
-        m.d.sync += timer.eq(Mux(timer == self.sample_period - 1, 0, timer + 1))
+        if serial:
+            # the sample timer as a linear-feedback shift register (no incrementer): it starts
+            # at the seed, steps, and goes back to the seed after sample_period states
+            width, taps, seed, last = lfsr_timer(self.sample_period)
+            timer = Signal(width, init=seed)
+            feedback = timer[taps[0] - 1]
+            for t in taps[1:]:
+                feedback = feedback ^ timer[t - 1]
+            m.d.sync += timer.eq(Mux(timer == last, seed, Cat(feedback, timer[:-1])))
+            start = timer == seed
+        else:
+            timer = Signal(range(self.sample_period))
+            m.d.sync += timer.eq(Mux(timer == self.sample_period - 1, 0, timer + 1))
+            start = timer == 0
         m.d.comb += [
-            spi.start.eq(timer == 0),
+            spi.start.eq(start),
             spi.miso.eq(self.miso),
             self.mosi.eq(spi.mosi),
             self.sclk.eq(spi.sclk),
