@@ -1,9 +1,10 @@
 """Seed 001 TinyKalman, the SERIAL chip (``tinykalman_serial_top``): one bit-serial CORDIC
-vectoring unit time-shared between roll and pitch, bit-exact to
-:mod:`navgate.systems.tinykalman.model` (issue 30: fit one TinyTapeout IHP SG13G2 tile).
+vectoring unit time-shared between roll and pitch, and the steady-state filter run bit-serially
+on the same adders, bit-exact to :mod:`navgate.systems.tinykalman.model` (issue 30: fit one
+TinyTapeout IHP SG13G2 tile).
 
-Reference: seed 001 ("Angle Estimation (CORDIC)"); :mod:`navgate.numerics.cordic` (the
-vectoring datapath step for step: pre-rotation by +-90 deg, ``x' = x + d (y >>> i)``,
+Reference: seed 001 ("Angle Estimation (CORDIC)", "Sensor Fusion"); :mod:`navgate.numerics.cordic`
+(the vectoring datapath step for step: pre-rotation by +-90 deg, ``x' = x + d (y >>> i)``,
 ``y' = y - d (x >>> i)``, ``z' = z + d T[i]``, ``d = +1`` when y >= 0); R. Andraka, "A survey
 of CORDIC algorithms for FPGA based computers", FPGA '98, section "bit-serial" (one full adder
 per register, the shifted operand read from a tap of the circulating shift register).
@@ -23,12 +24,27 @@ otherwise: a negation is the same serial adder with a = 0); passes 1..16 are the
 iterations; the angle table bit ``T[i]`` bit ``k`` comes from a constant lookup on
 ``(i, k)``.
 
-Schedule per sample: the roll vector ``(az >>> 1, ay >>> 1)`` (17 passes), then the pitch
-vector ``(min(mag, 32767), -((ax>>>1) + (ax>>>2) + (ax>>>4)))`` (17 passes), then the
-output: ``LATENCY = 2 * 17 * 18 + 1 = 613`` clocks from the accepted input to the valid
-output (measured in the tests). The stream interface is the parallel
+Schedule per sample: the roll vector ``(az >>> 1, ay >>> 1)`` (17 passes); then x takes
+``min(mag, 32767)`` and y is built as ``0 - (ax >>> 1) - (ax >>> 2) - (ax >>> 4)`` in three
+passes of y's own adder (the model's ``-((ax>>>1) + (ax>>>2) + (ax>>>4))``: the same integer;
+``(ax >>> s)`` bit k is ax bit ``min(k + s, 15)``, a tap of the held ax bits); then the pitch
+vector (17 passes). ``LATENCY = (2 * 17 + 3) * 18 + 1 = 667`` clocks from the accepted input
+to the valid output (measured in the tests). The stream interface is the parallel
 :class:`~navgate.systems.tinykalman.datapath.TinyKalmanCordic`'s, less ``mag`` (the chip does
 not use it): input ``{ax, ay, az}``, output ``{roll, pitch, sat}``.
+
+:class:`TinyKalmanSerialDatapath` (the chip's arithmetic) adds the filter on z's adder, 16-clock
+passes on 16-bit wrap-around words: the prediction ``state += rate >>> 6`` (rate bits 6..15 in
+``z[:10]``, shifted arithmetically so that z[0] is bit ``min(k + 6, 15)`` in clock k), and after
+each angle ``z = meas - state`` (the innovation, z held the measured angle) then
+``state += z >>> 6`` (read at z[6] while z shifts arithmetically). The filter state registers
+rotate through the adder and are the packet's bytes.
+
+In the chip (``held_input=True, spi_fed=True``) the SPI master shifts az and ay straight into x
+and y and the rates into ``z[:10]`` while the block is idle (x, y, z are free between samples);
+each prediction runs as soon as its rate's last kept bit is in (16 clocks inside the 6 dropped
+bits of the word, 24 clocks at the shortest ``spi_div = 2``), before the next word arrives; ax
+and the WHO_AM_I flag are read from the master's held registers.
 """
 
 from __future__ import annotations
@@ -330,15 +346,17 @@ class TinyKalmanSerialCordic(wiring.Component):
 
 class TinyKalmanSerialDatapath(TinyKalmanSerialCordic):
     """The serial chip's whole arithmetic: the bit-serial CORDIC (roll, then pitch) and the
-    steady-state filter run bit-serially on the CORDIC's z adder after each angle (three
-    16-clock passes per axis: ``pred = angle + (rate >>> 6)`` into the state, ``innov = meas -
-    pred`` into z, ``angle = pred + (innov >>> 6)`` into the state, ``innov >>> 6`` read at
-    bit 6 of z while z shifts arithmetically). The measured angle is never stored beside z.
+    steady-state filter run bit-serially on the CORDIC's z adder (16-clock passes:
+    ``pred = angle + (rate >>> 6)`` into the state, first; after each angle ``innov = meas -
+    pred`` into z, then ``angle = pred + (innov >>> 6)`` into the state, ``innov >>> 6`` read
+    at bit 6 of z while z shifts arithmetically). The measured angle is never stored beside z.
 
     Input :data:`~navgate.systems.tinykalman.datapath.DATAPATH_IN` (``ok = 0``: the sample
     failed the sensor check; the state is held, the schedule is the same); output
     ``{roll, pitch, sat, ok}``: the filter state (also the packet's bytes), ``sat`` = mag_yz
-    saturated in a used sample. ``LATENCY = 2 * (17 * 18 + 3 * 16) + 1 = 709`` clocks.
+    saturated in a used sample. ``LATENCY``: as a stream block ``667 + 2 * 16 + 2 * 2 * 16 =
+    763`` clocks (the two predictions run after the input is taken); in the chip
+    (``spi_fed``) ``667 + 2 * 2 * 16 = 731`` (the predictions ran during the burst).
     """
 
     LATENCY = SERIAL_DATAPATH_LATENCY
