@@ -90,8 +90,8 @@ class Mpu6500Spi(wiring.Component):
         #: ``external`` (``direct`` only): words whose registers live in the consumer: the
         #: master drives ``bit`` (the sampled MISO bit) and ``shift_<word>`` (one clock per kept
         #: bit, MSB first) with ``last_<word>`` on the last one, and leaves the word 0 in
-        #: ``o.payload``. The serial chip shifts ay and
-        #: az straight into its CORDIC's y and x registers.
+        #: ``o.payload``. The serial chip shifts ay and az straight into its CORDIC's y and x
+        #: registers and the rates into z.
         self.external = tuple(external)
         if self.external and not direct:
             raise ValueError("Mpu6500Spi: external words need direct=True")

@@ -22,9 +22,14 @@ that fails the WHO_AM_I check leaves the filter state unchanged and the packet r
 keeps streaming whatever the sensor does.
 
 ``variant``: ``"parallel"`` (default, the word-parallel iterative CORDIC) or ``"serial"``
-(:mod:`navgate.systems.tinykalman.serial`'s bit-serial CORDIC; the SPI master's word register
-is then the only copy of the burst and the packet bytes come from the filter state; registered
-as block ``tinykalman_serial_top``, :func:`TinyKalmanSerialTop`). Same pins and bytes.
+(:mod:`navgate.systems.tinykalman.serial`: the bit-serial CORDIC and filter; the SPI master
+shifts MISO bits straight into the registers that use them (ay, az into the CORDIC's x, y; the
+rates into z; ax into its own 15-bit register) and checks WHO_AM_I bit by bit; the packet goes
+out bit by bit from the filter state (:class:`~.uart.UartPacketTx`); the sample timer is an
+LFSR (:func:`lfsr_timer`); registered as block ``tinykalman_serial_top``,
+:func:`TinyKalmanSerialTop`). Same pins and bytes. In the serial chip the status pins change
+while a sample is computed (fault when the data path takes it, sat after the roll pass), before
+its packet; in the parallel chip when its packet starts.
 
 Elaboration parameters: ``spi_div`` (clocks per SCLK half period, default 5: 1 MHz),
 ``baud_div`` (clocks per UART bit, default 1042: 9596.9 baud), ``sample_period`` (clocks);
