@@ -42,8 +42,8 @@ rotate through the adder and are the packet's bytes.
 
 In the chip (``held_input=True, spi_fed=True``) the SPI master shifts az and ay straight into x
 and y and the rates into ``z[:10]`` while the block is idle (x, y, z are free between samples);
-each prediction runs as soon as its rate's last kept bit is in (16 clocks inside the 6 dropped
-bits of the word, 24 clocks at the shortest ``spi_div = 2``), before the next word arrives; ax
+each prediction runs as soon as its rate's last kept bit is in (16 clocks; the next word's
+first bit comes 7 SCLK periods later, 28 clocks at the shortest ``spi_div = 2``); ax
 and the WHO_AM_I flag are read from the master's held registers.
 """
 
