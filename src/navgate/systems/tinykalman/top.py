@@ -310,5 +310,6 @@ class TinyKalmanTop(wiring.Component):
 def TinyKalmanSerialTop(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
                         sample_period: int = DEFAULT_SAMPLE_PERIOD) -> TinyKalmanTop:
     """The serial chip (block ``tinykalman_serial_top``): :class:`TinyKalmanTop` with the
-    bit-serial CORDIC (:mod:`navgate.systems.tinykalman.serial`), same pins and packets."""
+    bit-serial CORDIC and filter (:mod:`navgate.systems.tinykalman.serial`), same pins and
+    packets."""
     return TinyKalmanTop(spi_div, baud_div, sample_period, variant="serial")
