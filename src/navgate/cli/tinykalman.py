@@ -67,8 +67,9 @@ def _write_roll_pitch(path: Path, angles, t=None) -> None:
               show_default=True,
               help="Chip for --engine rtl: parallel (word-parallel iterative CORDIC, 45 clocks "
                    "CS_N -> first start bit) or serial (bit-serial CORDIC and filter, 17.8k um2 "
-                   "instead of 45.4k in SG13G2, 737 clocks). Same arithmetic, byte-identical UART stream; "
-                   "the default keeps the chip earlier runs recorded and simulates faster.")
+                   "instead of 45.4k in SG13G2, 737 clocks). Same arithmetic, byte-identical "
+                   "UART stream; the default keeps the chip earlier runs recorded and simulates "
+                   "faster.")
 @click.option("--limit", type=int, default=None, help="Use only the first N samples.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False),
               default="navgate-out/tinykalman", show_default=True, help="Output directory.")
