@@ -6,13 +6,12 @@ import numpy as np
 import pytest
 
 from navgate.numerics import fp32 as F
+from navgate.numerics.fp32 import float_to_bits, floats_to_bits
 from navgate.opflow import ir
 from navgate.opflow.execute import (
     Machine,
     commit,
     execute,
-    float_to_bits,
-    floats_to_bits,
     run_bittrue,
 )
 

@@ -470,6 +470,27 @@ def warning_handler(prefix: str) -> Iterator[None]:
             root.setLevel(level)
 
 
+def engine_choice(default: str = "reference"):
+    """The ``--engine`` option's type: the PL engines registered in the package metadata
+    (:mod:`navgate.systems.ins_trn.ps.engine_registry`), the default first."""
+    from navgate.systems.ins_trn.ps.engine_registry import engine_names
+
+    names = engine_names()
+    return click.Choice([default] + [n for n in names if n != default])
+
+
+def load_engine_class(engine: str, what: str):
+    """The class of ``--engine ENGINE`` (imported now); a missing package is one line."""
+    from navgate.systems.ins_trn.ps.engine_registry import engine_class
+
+    try:
+        return engine_class(engine)
+    except ImportError as error:
+        missing = (error.name or "a package").split(".")[0]
+        raise CliError(f"{what} --engine {engine} needs the Python package {missing!r}, not "
+                       f'installed: pip install "navgate[gateware]"') from None
+
+
 def simulation_errors() -> tuple:
     """The gateware co-simulations' own failures (a Verilator build or run that failed)."""
     from navgate.gateware.native_axi import NativeAxiError

@@ -20,7 +20,9 @@ from navgate.cli.common import (
     check_out_dir,
     consoles,
     default_out_dir,
+    engine_choice,
     hardware_line,
+    load_engine_class,
     non_finite_keys,
     numba_note,
     out_option,
@@ -63,12 +65,13 @@ def _positive_float(ctx, param, value):
 @click.option("--trn", "trn_method", type=click.Choice(["pmf", "tercom"]), default="pmf",
               show_default=True,
               help="TRN method: point-mass filter or batch TERCOM (docs/trn.md compares them).")
-@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl", "fpga-sim"]),
-              default="reference", show_default=True,
+@click.option("--engine", type=engine_choice(), default="reference", show_default=True,
               help="PL engine: float64 reference, the float32 bit-true model, the "
                    "ins_engines gateware in Verilator, or the whole FPGA (ins_trn_top, IMU on "
                    "its SPI pins, the PS through AXI registers) in Verilator; rtl and "
-                   "fpga-sim equal fp32 bit for bit. With fp32/rtl/fpga-sim the reference "
+                   "fpga-sim equal fp32 bit for bit; fp32-plain is fp32 without its float32 "
+                   "remedies (an ablation, docs/seed000-navigator.md). With any engine but "
+                   "reference the reference "
                    "flies too, for the comparison in summary.json.")
 @click.option("--record", "record_path", type=click.Path(dir_okay=False), default=None,
               help="Also write the sensor record stream to this log file (navgate replay).")
@@ -105,8 +108,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         raise CliError(f"--speed must be between 5 and 400 m/s, got {speed:g}")
     if seed < 0:
         raise CliError(f"--seed must be non-negative, got {seed}")
-    if engine == "fpga-sim" and ideal_sensors:
-        raise CliError("--engine fpga-sim needs the IMU's int16 output words, which "
+    if ideal_sensors and load_engine_class(engine, "navgate fly").needs_imu_words:
+        raise CliError(f"--engine {engine} needs the IMU's int16 output words, which "
                        "--ideal-sensors does not produce")
     try:
         dem = load_terrain(dem_path, cache_mb=tile_cache_mb, priority=tile_priority)

@@ -14,7 +14,9 @@ import click
 
 from navgate.cli.common import (
     CliError,
+    engine_choice,
     hardware_line,
+    load_engine_class,
     prepare_out_dir,
     simulation_errors,
     write_summary,
@@ -23,8 +25,7 @@ from navgate.cli.common import (
 
 @click.command()
 @click.argument("log_path", type=click.Path(dir_okay=False))
-@click.option("--engine", type=click.Choice(["reference", "fp32", "rtl", "fpga-sim"]),
-              default="reference", show_default=True,
+@click.option("--engine", type=engine_choice(), default="reference", show_default=True,
               help="PL engine: float64 reference, float32 bit-true model, the ins_engines "
                    "gateware in Verilator, or the whole FPGA (ins_trn_top) in Verilator.")
 @click.option("--dem", "dem_path", type=click.Path(dir_okay=True), default=None,
@@ -61,8 +62,8 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
     except (KeyError, TypeError, ValueError) as error:
         raise CliError(f"{log_path}: header lacks a usable flight configuration ({error})"
                        ) from None
-    if engine == "fpga-sim" and header.get("ideal"):
-        raise CliError(f"{log_path}: --engine fpga-sim needs the IMU's int16 output words; "
+    if header.get("ideal") and load_engine_class(engine, "navgate replay").needs_imu_words:
+        raise CliError(f"{log_path}: --engine {engine} needs the IMU's int16 output words; "
                        "this log has the ideal sensors' float words")
     if no_trn:
         cfg = replace(cfg, trn=False)

@@ -49,36 +49,41 @@ from amaranth import Array, Const, Module, Mux, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from navgate.gateware.fixed import StreamPipeline, invalid_parameter
+from navgate.gateware.fixed import StreamPipeline
+from navgate.gateware.parameters import CheckedParameters
 from navgate.numerics.cordic import atan_table, cordic_gain
 
 __all__ = ["CordicAtan2", "CordicAtan2Iterative", "CordicSinCos"]
 
 
-def _check(component, width: int, iterations: int, angle_bits: int, guard_bits: int) -> None:
+def _check(width: int, iterations: int, angle_bits: int, guard_bits: int) -> None:
     # the ranges the bit-true model accepts (navgate.numerics.cordic)
     if not 2 <= width <= 40:
-        raise invalid_parameter(component, f"width must be in [2, 40], got {width}")
+        raise ValueError(f"width must be in [2, 40], got {width}")
     if not 1 <= iterations <= 40:
-        raise invalid_parameter(component, f"iterations must be in [1, 40], got {iterations}")
+        raise ValueError(f"iterations must be in [1, 40], got {iterations}")
     if not 4 <= angle_bits <= 48:
-        raise invalid_parameter(component, f"angle_bits must be in [4, 48], got {angle_bits}")
+        raise ValueError(f"angle_bits must be in [4, 48], got {angle_bits}")
     if not 0 <= guard_bits <= 16:
-        raise invalid_parameter(component, f"guard_bits must be in [0, 16], got {guard_bits}")
+        raise ValueError(f"guard_bits must be in [0, 16], got {guard_bits}")
 
 
-class _VectoringBase(wiring.Component):
+class _VectoringBase(CheckedParameters, wiring.Component):
+    @classmethod
+    def check_parameters(cls, width, iterations, angle_bits, guard_bits, compensate,
+                         gain_frac_bits):
+        _check(width, iterations, angle_bits, guard_bits)
+        if compensate and gain_frac_bits is not None and int(gain_frac_bits) < 1:
+            raise ValueError("gain_frac_bits must be >= 1")
+
     def __init__(self, width: int, iterations: int, angle_bits: int, guard_bits: int,
                  compensate: bool, gain_frac_bits: int | None):
-        _check(self, width, iterations, angle_bits, guard_bits)
         self.width = width
         self.iterations = iterations
         self.angle_bits = angle_bits
         self.guard_bits = guard_bits
         self.compensate = bool(compensate)
         self.gain_frac_bits = (width + 2) if gain_frac_bits is None else int(gain_frac_bits)
-        if self.compensate and self.gain_frac_bits < 1:
-            raise invalid_parameter(self, "gain_frac_bits must be >= 1")
         self.table = [int(t) for t in atan_table(iterations, angle_bits)]
         self.kinv = round(2.0**self.gain_frac_bits / cordic_gain(iterations))
         #: internal x/y register width
@@ -213,16 +218,19 @@ class CordicAtan2Iterative(_VectoringBase):
         return m
 
 
-class CordicSinCos(wiring.Component):
+class CordicSinCos(CheckedParameters, wiring.Component):
     """CORDIC rotation: cos and sin of a binary angle, unrolled: one result per cycle."""
 
     THROUGHPUT = 1
 
+    @classmethod
+    def check_parameters(cls, width, iterations, angle_bits, guard_bits):
+        _check(width, iterations, angle_bits, guard_bits)
+        if width < 4:
+            raise ValueError("rotation needs width >= 4")
+
     def __init__(self, width: int = 16, iterations: int = 16, angle_bits: int = 16,
                  guard_bits: int = 4):
-        _check(self, width, iterations, angle_bits, guard_bits)
-        if width < 4:
-            raise invalid_parameter(self, "rotation needs width >= 4")
         self.width = width
         self.iterations = iterations
         self.angle_bits = angle_bits

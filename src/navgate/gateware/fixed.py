@@ -31,14 +31,9 @@ from amaranth.hdl import Mux, Value
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-__all__ = ["FixedMul", "StreamPipeline", "saturate_value", "invalid_parameter"]
+from navgate.gateware.parameters import CheckedParameters
 
-
-def invalid_parameter(component: object, message: str) -> ValueError:
-    """A ``ValueError`` for a rejected constructor parameter; the half-built component is
-    marked so that Amaranth does not also warn that it was "created but never used"."""
-    component._MustUse__silence = True  # type: ignore[attr-defined]
-    return ValueError(message)
+__all__ = ["FixedMul", "StreamPipeline", "saturate_value"]
 
 
 class StreamPipeline:
@@ -78,18 +73,21 @@ def saturate_value(value: Value, width: int) -> tuple[Value, Value]:
     return result[:width].as_signed(), over_hi | over_lo
 
 
-class FixedMul(wiring.Component):
+class FixedMul(CheckedParameters, wiring.Component):
     """Signed Q(width, frac) multiplier: full product, truncated and saturated results,
     overflow flag (seed 004 fxp_mul)."""
 
     LATENCY = 3
     THROUGHPUT = 1
 
-    def __init__(self, width: int = 20, frac: int = 10):
+    @classmethod
+    def check_parameters(cls, width, frac):
         if not 2 <= width <= 64:
-            raise invalid_parameter(self, f"width must be in [2, 64], got {width}")
+            raise ValueError(f"width must be in [2, 64], got {width}")
         if not 0 <= frac <= 2 * width:
-            raise invalid_parameter(self, f"frac must be in [0, 2*width], got {frac}")
+            raise ValueError(f"frac must be in [0, 2*width], got {frac}")
+
+    def __init__(self, width: int = 20, frac: int = 10):
         self.width = width
         self.frac = frac
         super().__init__({

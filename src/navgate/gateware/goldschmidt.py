@@ -46,7 +46,8 @@ from amaranth import Array, Const, Module, Mux, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from navgate.gateware.fixed import StreamPipeline, invalid_parameter
+from navgate.gateware.fixed import StreamPipeline
+from navgate.gateware.parameters import CheckedParameters
 from navgate.numerics.goldschmidt import goldschmidt_seed_table
 
 __all__ = ["GoldschmidtDivider", "GoldschmidtReciprocal"]
@@ -64,33 +65,35 @@ def leading_one(m: Module, value, name: str) -> tuple[Signal, Signal]:
     return pos, zeros
 
 
-class _GoldschmidtBase(wiring.Component):
+class _GoldschmidtBase(CheckedParameters, wiring.Component):
     _reciprocal = False
+
+    @classmethod
+    def check_parameters(cls, width, frac, iterations, seed_bits, internal_frac, seed, rounding,
+                         split_iterations):
+        # the ranges the bit-true model accepts (navgate.numerics.goldschmidt)
+        if not 2 <= width <= 30:
+            raise ValueError(f"width must be in [2, 30], got {width}")
+        if not 0 <= frac <= width:
+            raise ValueError(f"frac must be in [0, width], got {frac}")
+        F = width if internal_frac is None else int(internal_frac)
+        if F < width:
+            raise ValueError("internal_frac must be >= width (exact normalisation)")
+        if 2 * F + 4 > 62 or F + 2 * width + 1 > 62:
+            raise ValueError("internal_frac too large for the bit-true model (2F+4 <= 62)")
+        if seed not in ("table", "linear"):
+            raise ValueError(f"seed must be 'table' or 'linear', got {seed!r}")
+        if seed == "table" and not 0 <= seed_bits <= min(16, F - 1):
+            raise ValueError(f"seed_bits must be in [0, min(16, F-1)], got {seed_bits}")
+        if rounding not in ("nearest", "truncate"):
+            raise ValueError(f"rounding must be 'nearest' or 'truncate', got {rounding!r}")
+        if iterations < 0:
+            raise ValueError("iterations must be >= 0")
 
     def __init__(self, width: int, frac: int, iterations: int, seed_bits: int,
                  internal_frac: int | None, seed: str, rounding: str,
                  split_iterations: bool):
-        # the ranges the bit-true model accepts (navgate.numerics.goldschmidt)
-        if not 2 <= width <= 30:
-            raise invalid_parameter(self, f"width must be in [2, 30], got {width}")
-        if not 0 <= frac <= width:
-            raise invalid_parameter(self, f"frac must be in [0, width], got {frac}")
         F = width if internal_frac is None else int(internal_frac)
-        if F < width:
-            raise invalid_parameter(self, "internal_frac must be >= width (exact normalisation)")
-        if 2 * F + 4 > 62 or F + 2 * width + 1 > 62:
-            raise invalid_parameter(
-                self, "internal_frac too large for the bit-true model (2F+4 <= 62)")
-        if seed not in ("table", "linear"):
-            raise invalid_parameter(self, f"seed must be 'table' or 'linear', got {seed!r}")
-        if seed == "table" and not 0 <= seed_bits <= min(16, F - 1):
-            raise invalid_parameter(
-                self, f"seed_bits must be in [0, min(16, F-1)], got {seed_bits}")
-        if rounding not in ("nearest", "truncate"):
-            raise invalid_parameter(
-                self, f"rounding must be 'nearest' or 'truncate', got {rounding!r}")
-        if iterations < 0:
-            raise invalid_parameter(self, "iterations must be >= 0")
         self.width = width
         self.frac = frac
         self.iterations = iterations

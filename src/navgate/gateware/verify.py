@@ -50,6 +50,8 @@ import numpy as np
 from amaranth.hdl import Shape
 from amaranth.lib import data
 
+from navgate.numerics.fp32 import bits_to_float
+
 __all__ = [
     "Field",
     "StreamFormat",
@@ -296,7 +298,7 @@ class VerifyResult:
 
 def f32_formatter(value: int) -> str:
     """Decode a float32 bit pattern for reports (``repr`` of the float value)."""
-    return repr(float(np.array([value & 0xFFFFFFFF], dtype=np.uint32).view(np.float32)[0]))
+    return repr(bits_to_float(value))
 
 
 # --------------------------------------------------------------------------- simulation

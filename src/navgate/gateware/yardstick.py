@@ -25,20 +25,23 @@ from amaranth import Module, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from navgate.gateware.fixed import invalid_parameter
+from navgate.gateware.parameters import CheckedParameters
 
 __all__ = ["RegisteredMul", "mul_20x20", "mul_24x17", "mul_24x24"]
 
 
-class RegisteredMul(wiring.Component):
+class RegisteredMul(CheckedParameters, wiring.Component):
     """Bare registered multiply: operand registers, one product, product register."""
 
     LATENCY = 2
     THROUGHPUT = 1
 
-    def __init__(self, a_width: int, b_width: int, is_signed: bool = False):
+    @classmethod
+    def check_parameters(cls, a_width, b_width, is_signed):
         if a_width < 1 or b_width < 1:
-            raise invalid_parameter(self, "operand widths must be at least 1 bit")
+            raise ValueError("operand widths must be at least 1 bit")
+
+    def __init__(self, a_width: int, b_width: int, is_signed: bool = False):
         self.a_width, self.b_width, self.is_signed = a_width, b_width, is_signed
         shape = signed if is_signed else unsigned
         self._a_shape, self._b_shape = shape(a_width), shape(b_width)

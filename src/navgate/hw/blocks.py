@@ -100,8 +100,12 @@ def _first_line(doc: str | None) -> str:
 def _lazy_factory(target: str) -> Callable[[], Any]:
     module_name, attribute = target.split(":")
 
-    def factory() -> Any:
-        return getattr(importlib.import_module(module_name), attribute)()
+    def factory(board: str | None = None) -> Any:
+        """The block; for a ``board``, its board variant where the block's class has one
+        (a class-level ``for_target(board)``), built instead of the generic block."""
+        made = getattr(importlib.import_module(module_name), attribute)
+        variant = getattr(made, "for_target", None) if board is not None else None
+        return variant(board) if variant is not None else made()
 
     factory.__qualname__ = factory.__name__ = attribute
     return factory

@@ -94,11 +94,9 @@ def build_block(
     block = get_block(name)
     out_dir = Path(out_dir)
     say(f"{name}: elaborating and emitting Verilog")
-    component = block.factory()
     board = TARGETS[target].board
-    for_target = getattr(component, "for_target", None)
-    if board is not None and for_target is not None:
-        component = for_target(board)  # the board variant (its clocking and pins)
+    # on a board, the board variant (its clocking and pins) where the block has one
+    component = block.factory(board) if board is not None else block.factory()
     text = emit_verilog(component, name)
     (out_dir / f"{name}.v").write_text(text)
     description = describe_block(component, name, block.description, text)

@@ -86,6 +86,9 @@ __all__ = [
     "fp32_to_int",
     "fp32_from_fixed",
     "fp32_to_fixed",
+    "float_to_bits",
+    "floats_to_bits",
+    "bits_to_float",
 ]
 
 QNAN = 0x7FC00000
@@ -135,6 +138,28 @@ def f32_to_bits(x) -> np.ndarray:
     scalar = _is_scalar(x)
     out = np.asarray(x, dtype=np.float32).view(np.uint32)
     return _out(np.array(out, copy=True), scalar)
+
+
+def float_to_bits(value) -> int:
+    """One value rounded to float32 (NumPy, RNE) as its bit pattern, NaN as the canonical
+    quiet NaN (:data:`QNAN`): what a PS driver writes into a float register."""
+    v = np.float32(value)
+    if v != v:
+        return QNAN
+    return int(v.view(np.uint32))
+
+
+def floats_to_bits(values) -> np.ndarray:
+    """:func:`float_to_bits` of every element (uint32 array, the input's shape)."""
+    v = np.asarray(values, np.float64).astype(np.float32)
+    out = v.view(np.uint32).copy()
+    out[np.isnan(v)] = QNAN
+    return out
+
+
+def bits_to_float(bits) -> float:
+    """A float32 bit pattern (an int in [0, 2**32)) as the Python float it represents."""
+    return float(np.uint32(int(bits) & 0xFFFFFFFF).view(np.float32))
 
 
 def bits_to_f32(b) -> np.ndarray:

@@ -31,8 +31,7 @@ from numba import njit
 from navgate.numerics import fp32 as F
 from navgate.opflow.ir import OPCODE, Program, const_value
 
-__all__ = ["round_fp32", "execute", "commit", "Compiled", "Machine", "to_f32", "float_to_bits",
-           "floats_to_bits", "run_bittrue"]
+__all__ = ["round_fp32", "execute", "commit", "Compiled", "Machine", "to_f32", "run_bittrue"]
 
 _MIN_NORMAL = 2.0**-126
 _ZERO_BELOW = 2.0**-126 - 2.0**-151  #: magnitudes that round (24 bits) to below 2^-126
@@ -143,7 +142,7 @@ class Machine:
 
     def bits(self) -> dict:
         """Every named register as a uint32 bit pattern (NaN canonical)."""
-        return {n: float_to_bits(self.regs[self.index[n]]) for n in self.registers}
+        return {n: F.float_to_bits(self.regs[self.index[n]]) for n in self.registers}
 
 
 def to_f32(value) -> float:
@@ -154,18 +153,6 @@ def to_f32(value) -> float:
     return v
 
 
-def float_to_bits(value) -> int:
-    v = np.float32(value)
-    if v != v:
-        return F.QNAN
-    return int(v.view(np.uint32))
-
-
-def floats_to_bits(values) -> np.ndarray:
-    v = np.asarray(values, np.float64).astype(np.float32)
-    out = v.view(np.uint32).copy()
-    out[np.isnan(v)] = F.QNAN
-    return out
 
 
 # ------------------------------------------------------------------ bit-true interpreter

@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from navgate.numerics.fp32 import bits_to_float
+
 __all__ = ["KINDS", "OPCODE", "UNIT", "const_name", "const_value", "Op", "Program", "Builder"]
 
 KINDS = ("add", "sub", "mul", "div", "sqrt", "neg", "cvt", "le", "lt")
@@ -22,14 +24,14 @@ UNIT = {"add": "add", "sub": "add", "mul": "mul", "div": "div", "sqrt": "sqrt", 
 
 
 def const_name(value: float) -> str:
-    bits = int(np.float32(value).view(np.uint32))
+    bits = int(np.float32(value).view(np.uint32))  # NaN keeps its payload: no canonical NaN
     if (bits & 0x7F800000) == 0:
         bits &= 0x80000000
     return f"c:{bits:08x}"
 
 
 def const_value(name: str) -> float:
-    return float(np.uint32(int(name[2:], 16)).view(np.float32))
+    return bits_to_float(int(name[2:], 16))
 
 
 @dataclass(frozen=True)

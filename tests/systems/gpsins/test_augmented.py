@@ -75,7 +75,7 @@ def test_update_is_the_textbook_joseph_form():
     ikh = np.eye(n) - K @ H
     want = ikh @ P @ ikh.T + K @ R @ K.T
     got = P.copy()
-    dx, z2, S2 = augmented.gps_update(got, x, gps, sigma)
+    dx, z2, S2 = kf.gps_update(got, x, gps, sigma)
     np.testing.assert_allclose(z2, z, rtol=1e-12)
     np.testing.assert_allclose(S2, S, rtol=1e-12)
     np.testing.assert_allclose(dx, K @ z, rtol=1e-9, atol=1e-18)

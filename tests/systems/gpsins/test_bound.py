@@ -13,6 +13,7 @@ import pytest
 from scipy.linalg import solve_discrete_are
 
 from navgate.systems.gpsins import bound, scenario
+from navgate.systems.gpsins import filter as kf
 
 
 def test_van_loan_matches_the_double_integrator_closed_form():
@@ -170,7 +171,6 @@ def test_trajectory_bound_matches_a_monte_carlo_of_the_matched_filter():
     run's time-mean is one sample; the test allows 4 standard errors of their mean, and 4
     standard errors of a variance estimate (sqrt(2 / runs)) at the end of the outage."""
     from navgate.systems.gpsins import augmented
-    from navgate.systems.gpsins import filter as kf
     from navgate.systems.gpsins.ins import dcm_from_quat
 
     cfg = scenario.GpsInsConfig(duration_s=120.0, outage_start_s=80.0, outage_s=30.0)
@@ -208,7 +208,7 @@ def test_trajectory_bound_matches_a_monte_carlo_of_the_matched_filter():
             K = P @ H.T @ np.linalg.inv(H @ P @ H.T + np.diag(sigma ** 2))
             z = e @ H.T + rng.standard_normal((runs, 3)) * sigma
             e = e - z @ K.T
-            augmented.gps_update(P, states[k + 1], states[k + 1, :3].copy(), sigma)
+            kf.gps_update(P, states[k + 1], states[k + 1, :3].copy(), sigma)
         h2 = (e[:, 0] * hd[0]) ** 2 + (e[:, 1] * hd[1]) ** 2
         ms += h2
         if k + 1 == end_outage:

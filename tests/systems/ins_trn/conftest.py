@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from navgate.systems.ins_trn.pl.fp32_exec import float_to_bits
+from navgate.numerics.fp32 import float_to_bits
 from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS
 from navgate.systems.ins_trn.ps import flight
 from navgate.systems.ins_trn.ps.engine import make_engine

@@ -41,12 +41,14 @@ from fractions import Fraction
 
 from amaranth.hdl import Module, Signal
 
+from navgate.gateware.parameters import CheckedParameters
+
 from ._common import StreamOp, round_pack, select_special
 
 __all__ = ["IterativeRecurrence"]
 
 
-class IterativeRecurrence(StreamOp):
+class IterativeRecurrence(CheckedParameters, StreamOp):
     """Base class: the counter, handshake and rounding tail of an iterative core.
 
     Subclasses set ``WORK_CYCLES`` (for one step per cycle) and ``SETUP_CYCLES`` (work
@@ -74,10 +76,12 @@ class IterativeRecurrence(StreamOp):
             raise TypeError(f"{cls.__name__}: LATENCY/INTERVAL/THROUGHPUT disagree with "
                             f"WORK_CYCLES = {cls.WORK_CYCLES}")
 
-    def __init__(self, steps_per_cycle: int = 1):
-        if type(steps_per_cycle) is not int or steps_per_cycle not in self.STEPS_PER_CYCLE:
-            self._MustUse__silence = True
+    @classmethod
+    def check_parameters(cls, steps_per_cycle):
+        if type(steps_per_cycle) is not int or steps_per_cycle not in cls.STEPS_PER_CYCLE:
             raise ValueError(f"steps_per_cycle must be 1 or 2, got {steps_per_cycle!r}")
+
+    def __init__(self, steps_per_cycle: int = 1):
         self.steps_per_cycle = steps_per_cycle
         #: result bits computed (25 rounded up to a multiple of steps_per_cycle)
         self.bits = steps_per_cycle * math.ceil(self.RESULT_BITS / steps_per_cycle)

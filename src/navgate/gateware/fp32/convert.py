@@ -17,27 +17,21 @@ from amaranth.hdl import C, Cat, Module, Mux, Signal, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware.parameters import CheckedParameters
+
 from ._common import Pipe, leading_zeros, round_pack, unpack
 
 __all__ = ["Fp32FromFixed", "Fp32FromInt", "Fp32ToFixed", "Fp32ToInt"]
 
 
-def _check(obj, width, frac_bits):
-    try:
-        _check_values(width, frac_bits)
-    except ValueError:
-        obj._MustUse__silence = True  # a rejected component is not an unused one
-        raise
-
-
-def _check_values(width, frac_bits):
+def _check_values(width, frac_bits=0):
     if not isinstance(width, int) or not 2 <= width <= 64:
         raise ValueError(f"width must be an integer in [2, 64], got {width!r}")
     if not isinstance(frac_bits, int) or not -256 <= frac_bits <= 256:
         raise ValueError(f"frac_bits must be an integer in [-256, 256], got {frac_bits!r}")
 
 
-class Fp32FromFixed(wiring.Component):
+class Fp32FromFixed(CheckedParameters, wiring.Component):
     """Signed Q value ``x`` (``width`` bits, ``frac_bits`` fraction bits) -> float32.
 
     Input ``{x}``, output ``{r}``.  Stages: magnitude, leading-zero count,
@@ -47,8 +41,11 @@ class Fp32FromFixed(wiring.Component):
     LATENCY = 4
     THROUGHPUT = 1.0
 
+    @classmethod
+    def check_parameters(cls, width, frac_bits=0):
+        _check_values(width, frac_bits)
+
     def __init__(self, width: int = 32, frac_bits: int = 16):
-        _check(self, width, frac_bits)
         self.width = width
         self.frac_bits = frac_bits
         super().__init__({
@@ -107,7 +104,7 @@ class Fp32FromInt(Fp32FromFixed):
         super().__init__(width=width, frac_bits=0)
 
 
-class Fp32ToFixed(wiring.Component):
+class Fp32ToFixed(CheckedParameters, wiring.Component):
     """Float32 -> signed Q value (``width`` bits, ``frac_bits`` fraction bits).
 
     Input ``{a}``, output ``{r, overflow}``.  Stages: unpack and shift amount,
@@ -118,8 +115,11 @@ class Fp32ToFixed(wiring.Component):
     LATENCY = 6
     THROUGHPUT = 1.0
 
+    @classmethod
+    def check_parameters(cls, width, frac_bits=0):
+        _check_values(width, frac_bits)
+
     def __init__(self, width: int = 32, frac_bits: int = 16):
-        _check(self, width, frac_bits)
         self.width = width
         self.frac_bits = frac_bits
         super().__init__({

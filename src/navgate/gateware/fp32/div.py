@@ -23,12 +23,14 @@ import math
 from amaranth.hdl import Cat, Module, Signal, signed, unsigned
 from amaranth.lib import data
 
+from navgate.gateware.parameters import CheckedParameters
+
 from ._common import Pipe, StreamOp, _wire, finish_recurrence, unpack
 
 __all__ = ["Fp32Div"]
 
 
-class Fp32Div(StreamOp):
+class Fp32Div(CheckedParameters, StreamOp):
     """Float32 divide ``r = a / b``; input ``{a, b}``, output ``{r}``."""
 
     QUOTIENT_BITS = 25
@@ -37,13 +39,19 @@ class Fp32Div(StreamOp):
     IN_LAYOUT = data.StructLayout({"a": unsigned(32), "b": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
 
-    def __init__(self, steps_per_stage: int = 1):
+    @classmethod
+    def check_parameters(cls, steps_per_stage):
         if not isinstance(steps_per_stage, int) or not 1 <= steps_per_stage <= 25:
-            self._MustUse__silence = True
             raise ValueError(f"steps_per_stage must be in [1, 25], got {steps_per_stage!r}")
+
+    @classmethod
+    def latency_for(cls, steps_per_stage: int) -> int:
+        """``LATENCY`` of a unit built with ``steps_per_stage`` (equal to the class's for 1)."""
+        return 5 + math.ceil(cls.QUOTIENT_BITS / steps_per_stage)
+
+    def __init__(self, steps_per_stage: int = 1):
         self.steps_per_stage = steps_per_stage
-        if steps_per_stage != 1:
-            self.LATENCY = 5 + math.ceil(self.QUOTIENT_BITS / steps_per_stage)
+        self.LATENCY = self.latency_for(steps_per_stage)
         super().__init__()
 
     def elaborate(self, platform):

@@ -24,12 +24,14 @@ import math
 from amaranth.hdl import C, Cat, Module, Signal, signed, unsigned
 from amaranth.lib import data
 
+from navgate.gateware.parameters import CheckedParameters
+
 from ._common import Pipe, StreamOp, _wire, finish_recurrence, unpack
 
 __all__ = ["Fp32Sqrt"]
 
 
-class Fp32Sqrt(StreamOp):
+class Fp32Sqrt(CheckedParameters, StreamOp):
     """Float32 square root ``r = sqrt(a)``; input ``{a}``, output ``{r}``."""
 
     ROOT_BITS = 25
@@ -38,13 +40,19 @@ class Fp32Sqrt(StreamOp):
     IN_LAYOUT = data.StructLayout({"a": unsigned(32)})
     OUT_LAYOUT = data.StructLayout({"r": unsigned(32)})
 
-    def __init__(self, steps_per_stage: int = 1):
+    @classmethod
+    def check_parameters(cls, steps_per_stage):
         if not isinstance(steps_per_stage, int) or not 1 <= steps_per_stage <= 25:
-            self._MustUse__silence = True
             raise ValueError(f"steps_per_stage must be in [1, 25], got {steps_per_stage!r}")
+
+    @classmethod
+    def latency_for(cls, steps_per_stage: int) -> int:
+        """``LATENCY`` of a unit built with ``steps_per_stage`` (equal to the class's for 1)."""
+        return 4 + math.ceil(cls.ROOT_BITS / steps_per_stage)
+
+    def __init__(self, steps_per_stage: int = 1):
         self.steps_per_stage = steps_per_stage
-        if steps_per_stage != 1:
-            self.LATENCY = 4 + math.ceil(self.ROOT_BITS / steps_per_stage)
+        self.LATENCY = self.latency_for(steps_per_stage)
         super().__init__()
 
     def elaborate(self, platform):

@@ -21,8 +21,8 @@ import math
 import numpy as np
 from numba import njit
 
-from navgate.numerics.fp32 import bits_to_f32, f32_to_bits, flush_subnormal
-from navgate.opflow.execute import floats_to_bits, round_fp32
+from navgate.numerics.fp32 import bits_to_f32, f32_to_bits, floats_to_bits, flush_subnormal
+from navgate.opflow.execute import round_fp32
 from navgate.systems.attitude import atan16
 from navgate.systems.attitude.mahony import SEED003, MahonyParams
 from navgate.systems.attitude.program import CONSTANTS, OUTPUTS, SENSORS, STATE, solve_program

@@ -153,65 +153,6 @@ def propagate(P, x, f_c, w_c, dt, qa, qg, off, kind):
 
 
 @njit(cache=True)
-def gps_update(P, x, gps, sigma):
-    """Kalman update with a GPS fix; returns (dx, z, S). Joseph form, P in place."""
-    n = P.shape[0]
-    hd = kf.measurement_scale(x)
-    z = np.empty(3)
-    z[0] = hd[0] * (x[0] - gps[0])
-    z[1] = hd[1] * (x[1] - gps[1])
-    z[2] = x[2] - gps[2]
-    PHt = np.empty((n, 3))
-    for i in range(n):
-        for j in range(3):
-            PHt[i, j] = P[i, j] * hd[j]
-    S = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            S[i, j] = hd[i] * PHt[i, j]
-        S[i, i] += sigma[i] * sigma[i]
-    # S^-1 by cofactors (3 x 3, symmetric positive definite)
-    c00 = S[1, 1] * S[2, 2] - S[1, 2] * S[2, 1]
-    c01 = S[0, 2] * S[2, 1] - S[0, 1] * S[2, 2]
-    c02 = S[0, 1] * S[1, 2] - S[0, 2] * S[1, 1]
-    c11 = S[0, 0] * S[2, 2] - S[0, 2] * S[2, 0]
-    c12 = S[0, 2] * S[1, 0] - S[0, 0] * S[1, 2]
-    c22 = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
-    det = S[0, 0] * c00 + S[0, 1] * (S[1, 2] * S[2, 0] - S[1, 0] * S[2, 2]) + S[0, 2] * (
-        S[1, 0] * S[2, 1] - S[1, 1] * S[2, 0])
-    Si = np.empty((3, 3))
-    Si[0, 0], Si[0, 1], Si[0, 2] = c00 / det, c01 / det, c02 / det
-    Si[1, 0], Si[1, 1], Si[1, 2] = c01 / det, c11 / det, c12 / det
-    Si[2, 0], Si[2, 1], Si[2, 2] = c02 / det, c12 / det, c22 / det
-    K = np.empty((n, 3))
-    dx = np.empty(n)
-    for i in range(n):
-        for j in range(3):
-            K[i, j] = PHt[i, 0] * Si[0, j] + PHt[i, 1] * Si[1, j] + PHt[i, 2] * Si[2, j]
-        dx[i] = K[i, 0] * z[0] + K[i, 1] * z[1] + K[i, 2] * z[2]
-    # X = (I - K H) P = P - K (H P), (H P)[m, j] = PHt[j, m];
-    # P' = X (I - K H)' + K R K' = X - (X H') K' + K R K' (upper triangle, mirrored)
-    X = np.empty((n, n))
-    for i in range(n):
-        k0, k1, k2 = K[i, 0], K[i, 1], K[i, 2]
-        for j in range(n):
-            X[i, j] = P[i, j] - k0 * PHt[j, 0] - k1 * PHt[j, 1] - k2 * PHt[j, 2]
-    r0, r1, r2 = sigma[0] * sigma[0], sigma[1] * sigma[1], sigma[2] * sigma[2]
-    for i in range(n):
-        a0 = X[i, 0] * hd[0]
-        a1 = X[i, 1] * hd[1]
-        a2 = X[i, 2] * hd[2]
-        b0, b1, b2 = K[i, 0] * r0, K[i, 1] * r1, K[i, 2] * r2
-        for j in range(i, n):
-            P[i, j] = (X[i, j] + (b0 - a0) * K[j, 0] + (b1 - a1) * K[j, 1]
-                       + (b2 - a2) * K[j, 2])
-    for i in range(n):
-        for j in range(i):
-            P[i, j] = P[j, i]
-    return dx, z, S
-
-
-@njit(cache=True)
 def apply_correction(x, comp, dx, off):
     """Closed loop: the navigation block corrects the INS (the seed filter's correction), the
     sensor blocks move into the compensation ``comp`` = (B_a, B_g, S_a, S_g) (12,)."""
@@ -304,7 +245,7 @@ def run(x0, P0, gyro, accel, dt, ep_idx, gps_lla, gps_valid, sigma, qa0, qg0, sf
                 rejected[e - 1] = True  # a fix with a NaN/inf coordinate: flagged, not used
                 usable = False
             if usable:
-                dx, z, S = gps_update(P, x, fix, sigma)
+                dx, z, S = kf.gps_update(P, x, fix, sigma)
                 apply_correction(x, comp, dx, off)
                 dxs[e] = dx
                 for m in range(3):
@@ -348,7 +289,7 @@ def covariance_run(states, f, w, qa, qg, dt, ep_idx, valid, P0, sigma, off):
         if e <= M and ep_idx[e] == k + 1:
             p_prior[e] = P
             if valid[e - 1]:
-                gps_update(P, states[k + 1], states[k + 1, :3] + zero, sigma)
+                kf.gps_update(P, states[k + 1], states[k + 1, :3] + zero, sigma)
             p_post[e] = P
             e += 1
         hd = kf.measurement_scale(states[k + 1])
@@ -399,5 +340,5 @@ def position_scale(states: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["BLOCKS", "layout", "run", "covariance_run", "interval_covariances",
-           "error_dynamics", "propagate", "gps_update", "apply_correction", "compensate",
+           "error_dynamics", "propagate", "apply_correction", "compensate",
            "state_names", "position_scale"]

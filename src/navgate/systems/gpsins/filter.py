@@ -178,21 +178,22 @@ def measurement_scale(x):
 @njit(cache=True)
 def gps_update(P, x, gps, sigma):
     """Kalman update with a GPS fix ``gps = (lat, lon, h)``; returns (dx, innovation z,
-    innovation covariance S). Joseph form; P updated in place. A non-finite fix or a
-    negative sigma raises ValueError (caught where it would enter the filter)."""
+    innovation covariance S). Joseph form; P (n x n, the navigation block first: this filter's
+    9 states or the augmented filter's) updated in place. A non-finite fix or a negative sigma
+    raises ValueError (caught where it would enter the filter)."""
     for i in range(3):
         if not math.isfinite(gps[i]):
             raise ValueError("gps: the fix has a non-finite component")
         if not sigma[i] >= 0.0:
             raise ValueError("sigma: GPS sigmas must be non-negative")
+    n = P.shape[0]
     hd = measurement_scale(x)
     z = np.empty(3)
     z[0] = hd[0] * (x[0] - gps[0])
     z[1] = hd[1] * (x[1] - gps[1])
     z[2] = x[2] - gps[2]
-    # S = H P H' + R, PHt = P H'
-    PHt = np.empty((NX, 3))
-    for i in range(NX):
+    PHt = np.empty((n, 3))
+    for i in range(n):
         for j in range(3):
             PHt[i, j] = P[i, j] * hd[j]
     S = np.empty((3, 3))
@@ -200,21 +201,44 @@ def gps_update(P, x, gps, sigma):
         for j in range(3):
             S[i, j] = hd[i] * PHt[i, j]
         S[i, i] += sigma[i] * sigma[i]
-    Sinv = np.linalg.inv(S)
-    K = PHt @ Sinv
-    dx = K @ z
-    # Joseph: P = (I - K H) P (I - K H)' + K R K'
-    IKH = np.eye(NX)
-    for i in range(NX):
+    # S^-1 by cofactors (3 x 3, symmetric positive definite)
+    c00 = S[1, 1] * S[2, 2] - S[1, 2] * S[2, 1]
+    c01 = S[0, 2] * S[2, 1] - S[0, 1] * S[2, 2]
+    c02 = S[0, 1] * S[1, 2] - S[0, 2] * S[1, 1]
+    c11 = S[0, 0] * S[2, 2] - S[0, 2] * S[2, 0]
+    c12 = S[0, 2] * S[1, 0] - S[0, 0] * S[1, 2]
+    c22 = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+    det = S[0, 0] * c00 + S[0, 1] * (S[1, 2] * S[2, 0] - S[1, 0] * S[2, 2]) + S[0, 2] * (
+        S[1, 0] * S[2, 1] - S[1, 1] * S[2, 0])
+    Si = np.empty((3, 3))
+    Si[0, 0], Si[0, 1], Si[0, 2] = c00 / det, c01 / det, c02 / det
+    Si[1, 0], Si[1, 1], Si[1, 2] = c01 / det, c11 / det, c12 / det
+    Si[2, 0], Si[2, 1], Si[2, 2] = c02 / det, c12 / det, c22 / det
+    K = np.empty((n, 3))
+    dx = np.empty(n)
+    for i in range(n):
         for j in range(3):
-            IKH[i, j] -= K[i, j] * hd[j]
-    P2 = IKH @ P @ IKH.T
-    for i in range(NX):
-        for j in range(NX):
-            acc = 0.0
-            for m in range(3):
-                acc += K[i, m] * sigma[m] * sigma[m] * K[j, m]
-            P[i, j] = 0.5 * (P2[i, j] + P2[j, i]) + acc
+            K[i, j] = PHt[i, 0] * Si[0, j] + PHt[i, 1] * Si[1, j] + PHt[i, 2] * Si[2, j]
+        dx[i] = K[i, 0] * z[0] + K[i, 1] * z[1] + K[i, 2] * z[2]
+    # X = (I - K H) P = P - K (H P), (H P)[m, j] = PHt[j, m];
+    # P' = X (I - K H)' + K R K' = X - (X H') K' + K R K' (upper triangle, mirrored)
+    X = np.empty((n, n))
+    for i in range(n):
+        k0, k1, k2 = K[i, 0], K[i, 1], K[i, 2]
+        for j in range(n):
+            X[i, j] = P[i, j] - k0 * PHt[j, 0] - k1 * PHt[j, 1] - k2 * PHt[j, 2]
+    r0, r1, r2 = sigma[0] * sigma[0], sigma[1] * sigma[1], sigma[2] * sigma[2]
+    for i in range(n):
+        a0 = X[i, 0] * hd[0]
+        a1 = X[i, 1] * hd[1]
+        a2 = X[i, 2] * hd[2]
+        b0, b1, b2 = K[i, 0] * r0, K[i, 1] * r1, K[i, 2] * r2
+        for j in range(i, n):
+            P[i, j] = (X[i, j] + (b0 - a0) * K[j, 0] + (b1 - a1) * K[j, 1]
+                       + (b2 - a2) * K[j, 2])
+    for i in range(n):
+        for j in range(i):
+            P[i, j] = P[j, i]
     return dx, z, S
 
 

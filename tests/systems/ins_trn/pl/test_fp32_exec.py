@@ -13,12 +13,11 @@ from navgate.nav.calibration import (
     calibration_to_fp32,
 )
 from navgate.numerics import fp32 as F
+from navgate.numerics.fp32 import float_to_bits, floats_to_bits
 from navgate.opflow import ir
 from navgate.opflow.execute import (
     Machine,
     execute,
-    float_to_bits,
-    floats_to_bits,
     run_bittrue,
 )
 from navgate.systems.ins_trn.pl import fp32_program as fp

@@ -14,7 +14,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In
 from amaranth.sim import Simulator
 
-from navgate.systems.ins_trn.pl.fp32_exec import float_to_bits
+from navgate.numerics.fp32 import float_to_bits
 from navgate.systems.ins_trn.pl.fp32_program import CAL_REGS, STATE_REGS
 from navgate.systems.ins_trn.pl.sequencer import SHADOW_WORDS, NavSequencer, job_cycles
 from navgate.systems.ins_trn.ps import flight

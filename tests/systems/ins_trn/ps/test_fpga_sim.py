@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from navgate.hw.regmap import Registers
-from navgate.numerics.fp32 import fp32_add, fp32_sqrt
-from navgate.systems.ins_trn.pl.fp32_exec import float_to_bits
+from navgate.numerics.fp32 import float_to_bits, fp32_add, fp32_sqrt
 from navgate.systems.ins_trn.pl.fp32_program import N_STATES, p_reg
 from navgate.systems.ins_trn.pl.output_formatter import (
     OUT_WORDS,

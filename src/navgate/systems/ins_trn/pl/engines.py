@@ -21,6 +21,7 @@ from functools import lru_cache
 import numpy as np
 from amaranth.sim import Simulator
 
+from navgate.numerics.fp32 import float_to_bits
 from navgate.opflow.ir import Program
 from navgate.opflow.machine import BankedImage, ScheduledMachineStream
 from navgate.opflow.schedule import BankedUnits
@@ -218,9 +219,8 @@ def random_registers(rng: np.random.Generator, names) -> dict:
         if n in IMU_WORDS:
             out[n] = int(rng.integers(-32768, 32768)) & 0xFFFFFFFF
             continue
-        v = np.float32(rng.uniform(1.0, 2.0) * 2.0 ** rng.integers(-8, 9)
-                       * (1 if rng.random() < 0.5 else -1))
-        out[n] = int(v.view(np.uint32))
+        out[n] = float_to_bits(rng.uniform(1.0, 2.0) * 2.0 ** rng.integers(-8, 9)
+                               * (1 if rng.random() < 0.5 else -1))
     return out
 
 

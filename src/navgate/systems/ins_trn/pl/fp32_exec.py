@@ -21,14 +21,11 @@ from navgate.opflow.execute import (
     Compiled,
     commit,
     execute,
-    float_to_bits,
-    floats_to_bits,
     run_bittrue,
     to_f32,
 )
 
-__all__ = ["Machine", "run_samples", "Compiled", "commit", "execute", "float_to_bits",
-           "floats_to_bits", "run_bittrue", "to_f32"]
+__all__ = ["Machine", "run_samples", "Compiled", "commit", "execute", "run_bittrue", "to_f32"]
 
 @njit(cache=True)
 def _cholesky_ok(regs, p_idx, work):

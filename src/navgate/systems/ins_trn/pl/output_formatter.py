@@ -90,6 +90,7 @@ from navgate.gateware.fp32.sqrt_iter import Fp32SqrtIter
 from navgate.numerics.cordic import cordic_error_bound, cordic_gain, cordic_vectoring
 from navgate.numerics.fp32 import (
     QNAN,
+    bits_to_float,
     fp32_add,
     fp32_from_fixed,
     fp32_mul,
@@ -142,7 +143,7 @@ QUARTER = 1 << (ANGLE_BITS - 2)
 SAT = (1 << (WIDTH - 1)) - 1  #: third vectoring's inputs are clamped to this
 PI_BITS = 0x40490FDB  #: float32(pi)
 TWO_PI_BITS = PI_BITS + (1 << 23)  #: float32(pi) * 2 (exponent + 1), exact
-PI_F32 = float(np.array([PI_BITS], dtype=np.uint32).view(np.float32)[0])
+PI_F32 = bits_to_float(PI_BITS)
 #: the gateware converts the binary angle as an integer (``fp32_from_int``, exactly
 #: 2^31 times ``fp32_from_fixed(angle, 31, 32)``: the same 24-bit rounding, the exponent 31
 #: higher) and multiplies by pi * 2^-31 (exponent 31 lower, exact): the same real product,

@@ -135,11 +135,12 @@ class InsTrnTop(wiring.Component):
         self.IMU_CYCLES = seq_cycles
         self.THROUGHPUT = 1 / seq_cycles
 
-    def for_target(self, board: str):
-        """The board variant (``navgate build ins_trn_top --target zybo-z7-20``)."""
+    @classmethod
+    def for_target(cls, board: str):
+        """The board variant (``navgate build ins_trn_top --target zybo-z7-20``), built in
+        place of the generic top."""
         if board != "zybo-z7-20":
             raise KeyError(f"ins_trn_top has no variant for board {board!r}")
-        self._MustUse__silence = True  # replaced by the board variant, never elaborated
         return ZyboInsTrnTop()
 
     def write_artifacts(self, out_dir, name: str, target: str | None = None):

@@ -68,6 +68,9 @@ class PlEngine(ABC):
     """The PL side of seed 000 as the PS sees it (see the module docstring)."""
 
     name: str = "?"
+    #: True where the engine takes the IMU's int16 output words only (its SPI pins), so a
+    #: flight with the ideal sensors' float words cannot drive it
+    needs_imu_words: bool = False
 
     def __init__(self, setup: EngineSetup):
         self.setup = setup
@@ -244,27 +247,9 @@ def nav_from_ned(reference: LocalTangent, pn, pe, h, v, q) -> np.ndarray:
     return nav
 
 
-#: engine name -> (module:attribute, one-line description); the navigator builds by name
-ENGINES: dict[str, tuple[str, str]] = {
-    "reference": ("navgate.systems.ins_trn.ps.engine:ReferenceEngine",
-                  "float64 reference model (nav.eskf, nav.strapdown)"),
-    "fp32": ("navgate.systems.ins_trn.ps.fp32_engine:Fp32Engine",
-             "float32 bit-true model of the PL engines (op programs, compiled)"),
-    "fp32-plain": ("navgate.systems.ins_trn.ps.fp32_engine:Fp32EngineUncompensated",
-                   "fp32 without the Kahan position compensation (measurement only)"),
-    "rtl": ("navgate.systems.ins_trn.ps.rtl_engine:RtlEngine",
-            "the ins_engines gateware in Verilator (equals fp32 bit for bit; slow)"),
-    "fpga-sim": ("navgate.systems.ins_trn.ps.fpga_sim:FpgaSimEngine",
-                 "the whole ins_trn_top in Verilator, IMU on its SPI pins, PS through AXI "
-                 "registers (equals fp32 bit for bit)"),
-}
-
-
 def make_engine(name: str, setup: EngineSetup) -> PlEngine:
-    import importlib
+    """The engine registered as ``name`` (:mod:`.engine_registry`), set up with ``setup``."""
+    from navgate.systems.ins_trn.ps.engine_registry import engine_class
 
-    if name not in ENGINES:
-        raise ValueError(f"unknown engine {name!r}; choose from {', '.join(ENGINES)}")
-    module, attr = ENGINES[name][0].split(":")
-    return getattr(importlib.import_module(module), attr)(setup)
+    return engine_class(name)(setup)
 

@@ -27,8 +27,9 @@ import numpy as np
 from navgate.nav import eskf
 from navgate.nav.calibration import calibration_to_fp32
 from navgate.nav.earth import radii
+from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.systems.ins_trn.pl import fp32_program as fp
-from navgate.systems.ins_trn.pl.fp32_exec import Machine, float_to_bits, run_samples
+from navgate.systems.ins_trn.pl.fp32_exec import Machine, run_samples
 from navgate.systems.ins_trn.pl.fp32_program import programs
 from navgate.systems.ins_trn.ps.engine import EngineSetup, PlEngine, UpdateOutcome, nav_from_ned
 from navgate.systems.ins_trn.ps.pl_profile import PlProfileBuffer, ProfileFifoModel
@@ -60,13 +61,11 @@ class Fp32Engine(PlEngine):
         cal = calibration_to_fp32(s.calibration)
         for sensor, lsb, bias, mat in (("g", cal.gyro_lsb, cal.gyro_bias, cal.gyro_matrix),
                                        ("a", cal.accel_lsb, cal.accel_bias, cal.accel_matrix)):
-            m.regs[m.index[f"cal_{sensor}_lsb"]] = float(np.uint32(lsb).view(np.float32))
+            m.regs[m.index[f"cal_{sensor}_lsb"]] = bits_to_float(lsb)
             for j in range(3):
-                m.regs[m.index[f"cal_{sensor}_b{j}"]] = float(
-                    np.uint32(bias[j]).view(np.float32))
+                m.regs[m.index[f"cal_{sensor}_b{j}"]] = bits_to_float(bias[j])
                 for i in range(3):
-                    m.regs[m.index[f"cal_{sensor}_m{i}{j}"]] = float(
-                        np.uint32(mat[i, j]).view(np.float32))
+                    m.regs[m.index[f"cal_{sensor}_m{i}{j}"]] = bits_to_float(mat[i, j])
         dt = 1.0 / s.rate_hz
         c = s.filter
         decay_a = math.exp(-dt / c.accel_bias_tau)

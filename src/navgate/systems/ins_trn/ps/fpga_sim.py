@@ -56,8 +56,9 @@ from navgate.gateware import verify as V
 from navgate.gateware.axi4 import axi4_write_signature
 from navgate.gateware.axi_lite import axi_lite_signature
 from navgate.gateware.native_axi import NativeAxiError, NativeAxiSim
+from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.systems.ins_trn.pl.engines import engine_image
-from navgate.systems.ins_trn.pl.fp32_exec import float_to_bits, to_f32
+from navgate.systems.ins_trn.pl.fp32_exec import to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CAL_REGS, N_STATES, NAV_REGS, p_reg
 from navgate.systems.ins_trn.pl.registers import register_map
 from navgate.systems.ins_trn.pl.sensors.adis16500_emulator import SAMPLE_LAYOUT as IMU_SAMPLE
@@ -244,7 +245,7 @@ class _WindowMachine:
             names = [n for n in HOT_WORDS if n not in self.cache] if name in HOT_WORDS \
                 else [name]
             for n, bits in zip(names, self.e.window_read(names), strict=True):
-                self.cache[n] = float(np.uint32(bits).view(np.float32))
+                self.cache[n] = bits_to_float(bits)
         return self.cache[name]
 
     def set(self, name: str, value: float) -> None:
@@ -298,6 +299,7 @@ class FpgaSimEngine(Fp32Engine):
     """The whole PL in Verilator behind the PlEngine interface (module docstring)."""
 
     name = "fpga-sim"
+    needs_imu_words = True
 
     def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
         if check_pd:
@@ -419,7 +421,7 @@ class FpgaSimEngine(Fp32Engine):
             raise FpgaSimError(f"{ctrl}: no update interrupt or not done "
                                f"(IRQ_STATUS {irq_status:#x}, {status} {st:#x})")
         self.interrupts += 1
-        nis = float(np.uint32(nis_bits).view(np.float32))
+        nis = bits_to_float(nis_bits)
         outs = self.image.output_addr(gate_key)
         if st & 0b100:
             positive = self.window_read([outs["positive"]])[0]
@@ -432,7 +434,7 @@ class FpgaSimEngine(Fp32Engine):
         dx = self.window_read([dx_addr[f"dx{i}"] for i in range(15)])
         self._count(self.accepted, kind)
         return UpdateOutcome(True, nis,
-                             np.array([float(np.uint32(b).view(np.float32)) for b in dx]))
+                             np.array([bits_to_float(b) for b in dx]))
 
     def _profile_fifo(self):
         return _DmaProfileFifo(weakref.proxy(self))
@@ -451,7 +453,7 @@ class FpgaSimEngine(Fp32Engine):
                            f"P {self.off['BARO_SAMPLES']:x} ffffffff "
                            f"{self.baro_samples & 0xFFFFFFFF:x} 100000",
                            f"R {self.off['BARO_PRESS']:x}"])
-        return float(np.uint32(int(out[-1], 16)).view(np.float32))
+        return bits_to_float(int(out[-1], 16))
 
     def read_ranger(self, dist: int, strength: int) -> tuple[int, int]:
         """The frame through the TF-Luna emulator, the UART pin and ``uart_rx_lidar``: push

@@ -35,6 +35,7 @@ from collections import deque
 
 import numpy as np
 
+from navgate.numerics.fp32 import float_to_bits
 from navgate.trn.profile import ACCEPTED, ProfileBuffer, ProfileSnapshot
 
 #: the time stamp's range (24 bits of IMU samples: 11.6 h at 400 Hz)
@@ -46,7 +47,7 @@ def entry_words(h_terrain: float, sample: tuple) -> tuple:
     """The four 32-bit words of a valid entry (profile_manager.PROFILE_ENTRY): the float32
     bit pattern of h_terrain (round to nearest) and the correlator's ``sample`` (pos_n and
     pos_e words, IMU sample count k) as ``k | valid << 24``."""
-    h = int(np.array([h_terrain], np.float64).astype(np.float32).view(np.uint32)[0])
+    h = float_to_bits(h_terrain)
     pos_n, pos_e, k = sample
     return h, int(pos_n), int(pos_e), (int(k) % TIME_WRAP) | VALID_BIT
 

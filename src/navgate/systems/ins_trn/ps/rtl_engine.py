@@ -19,9 +19,10 @@ import weakref
 
 import numpy as np
 
+from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.opflow.machine import CMD_READ, CMD_START, CMD_WRITE, ScheduledMachineStream
 from navgate.systems.ins_trn.pl.engines import IMU_WORDS, engine_image
-from navgate.systems.ins_trn.pl.fp32_exec import float_to_bits, to_f32
+from navgate.systems.ins_trn.pl.fp32_exec import to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CONFIG_REGS, STATE_REGS
 from navgate.systems.ins_trn.ps.engine import EngineSetup
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
@@ -31,10 +32,6 @@ __all__ = ["RtlEngine", "NativeLink", "RtlError"]
 
 class RtlError(RuntimeError):
     """The Verilator co-simulation failed or answered unexpectedly."""
-
-
-def _f(bits: int) -> float:
-    return float(np.uint32(bits).view(np.float32))
 
 
 class NativeLink:
@@ -116,7 +113,7 @@ class _RtlMachine:
             self.link.cycles_run += int(cyc[row])
         data = out["data"]
         for k, n in enumerate(back):
-            self._m.regs[self._m.index[n]] = _f(int(data[start + k]))
+            self._m.regs[self._m.index[n]] = bits_to_float(int(data[start + k]))
         return [int(v) for v in data[start + len(back):]]
 
     def set(self, name, value):
@@ -145,7 +142,7 @@ class _RtlMachine:
         rows.append(self._run_rows(key))
         outs = self.image.output_addr(key)
         words = self._finish(rows, runs, list(outs.values()))
-        return {n: _f(w) for n, w in zip(outs, words, strict=True)}
+        return {n: bits_to_float(w) for n, w in zip(outs, words, strict=True)}
 
 
 class RtlEngine(Fp32Engine):

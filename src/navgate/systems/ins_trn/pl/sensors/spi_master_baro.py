@@ -42,7 +42,7 @@ from amaranth.lib.wiring import In, Out
 from navgate.devices import bmp390
 
 from .baro_compensation import IN_LAYOUT
-from .spi_phy import MIN_HALF, SpiPhy, ready_edge
+from .spi_phy import MIN_HALF, SpiPhy, ready_edge, sample_timer
 
 DEFAULT_DIV = 5
 DEFAULT_RATE = 40000
@@ -82,20 +82,10 @@ class SpiMasterBaro(wiring.Component):
         m.d.comb += [phy.miso.eq(miso), phy.half.eq(self.cfg_spi_div + 1),
                      self.sclk.eq(phy.sclk), self.mosi.eq(phy.mosi)]
 
-        pre = Signal(range(self.tick_cycles))
-        ticks = Signal(16)
         fire = Signal()
-        tick = Signal()
-        m.d.comb += tick.eq(pre == self.tick_cycles - 1)
-        m.d.sync += pre.eq(0 if self.tick_cycles == 1 else pre + 1)
-        with m.If(tick):
-            m.d.sync += pre.eq(0)
-            with m.If(ticks + 1 >= self.cfg_rate):
-                # INT mode: the timer only paces start-up retries (see the module docstring)
-                m.d.sync += [ticks.eq(0), fire.eq(self.cfg_enable
-                                                  & (~self.cfg_int_sync | ~self.nvm_valid))]
-            with m.Else():
-                m.d.sync += ticks.eq(ticks + 1)
+        with m.If(sample_timer(m, self.tick_cycles, self.cfg_rate)):
+            # INT mode: the timer only paces start-up retries (see the module docstring)
+            m.d.sync += fire.eq(self.cfg_enable & (~self.cfg_int_sync | ~self.nvm_valid))
 
         nvm = Signal(8 * bmp390.NVM_LEN)
         data_sr = Signal(48)

@@ -41,7 +41,7 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.devices import adis16500
 
-from .spi_phy import MIN_HALF, SpiPhy, ready_edge
+from .spi_phy import MIN_HALF, SpiPhy, ready_edge, sample_timer
 
 SAMPLE_LAYOUT = data.StructLayout({
     "diag": unsigned(16), "gx": signed(16), "gy": signed(16), "gz": signed(16),
@@ -97,18 +97,9 @@ class SpiMasterImu(wiring.Component):
                      fifo.r_en.eq(self.o.ready)]
 
         # sample timer: ticks of tick_cycles cycles, a burst every cfg_rate ticks
-        pre = Signal(range(self.tick_cycles))
-        ticks = Signal(16)
         fire = Signal()
-        tick = Signal()
-        m.d.comb += tick.eq(pre == self.tick_cycles - 1)
-        m.d.sync += pre.eq(0 if self.tick_cycles == 1 else pre + 1)
-        with m.If(tick):
-            m.d.sync += pre.eq(0)
-            with m.If(ticks + 1 >= self.cfg_rate):
-                m.d.sync += [ticks.eq(0), fire.eq(self.cfg_enable & ~self.cfg_dr_sync)]
-            with m.Else():
-                m.d.sync += ticks.eq(ticks + 1)
+        with m.If(sample_timer(m, self.tick_cycles, self.cfg_rate)):
+            m.d.sync += fire.eq(self.cfg_enable & ~self.cfg_dr_sync)
 
         nwords = adis16500.BURST_WORDS
         word = Signal(range(nwords + 2))

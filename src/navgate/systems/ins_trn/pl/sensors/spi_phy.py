@@ -40,6 +40,22 @@ def ready_edge(m: Module, pin, *enables, name: str = "ready"):
     return armed & ~armed_d
 
 
+def sample_timer(m: Module, tick_cycles: int, rate) -> Signal:
+    """The sensor masters' sample timer (seed 000 ``UPDATE_RATE``, ``BARO_RATE``): a prescaler
+    of ``tick_cycles`` clock cycles makes ticks, and every ``rate``-th tick (``rate``, a 16-bit
+    register, read at each tick; 0 and 1 both mean every tick) gives a one-cycle strobe, which
+    is returned. The caller decides what the strobe starts."""
+    pre = Signal(range(tick_cycles), name="timer_pre")
+    ticks = Signal(16, name="timer_ticks")
+    tick = Signal(name="timer_tick")
+    due = Signal(name="timer_due")
+    m.d.comb += [tick.eq(pre == tick_cycles - 1), due.eq(tick & (ticks + 1 >= rate))]
+    m.d.sync += pre.eq(0 if tick_cycles == 1 else pre + 1)
+    with m.If(tick):
+        m.d.sync += [pre.eq(0), ticks.eq(Mux(due, 0, ticks + 1))]
+    return due
+
+
 def slave_pins(m: Module, sclk_pin, mosi_pin, cs_n_pin):
     """An SPI slave's view of the master's pins (asynchronous to ``sync``): each pin through a
     two-flip-flop synchroniser, edges detected on the synchronised levels (every pin event is
