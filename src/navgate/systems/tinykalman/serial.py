@@ -55,6 +55,7 @@ from amaranth import Array, Cat, Const, Module, Mux, Signal, signed, unsigned
 from amaranth.lib import data, enum, stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware.parameters import CheckedParameters
 from navgate.numerics.cordic import atan_table
 from navgate.systems.tinykalman.datapath import DATAPATH_IN
 from navgate.systems.tinykalman.model import ANGLE_BITS, ITERATIONS, WIDTH
@@ -99,12 +100,17 @@ def _serial_add(a, b, sub, carry):
     return s, c
 
 
-class TinyKalmanSerialCordic(wiring.Component):
+class TinyKalmanSerialCordic(CheckedParameters, wiring.Component):
     """Roll and pitch from accelerometer words through one bit-serial CORDIC used twice."""
 
     LATENCY = SERIAL_CORDIC_LATENCY
     THROUGHPUT = Fraction(1, SERIAL_CORDIC_LATENCY + 1)
     _FILTER = False
+
+    @classmethod
+    def check_parameters(cls, held_input, spi_fed):
+        if spi_fed and not held_input:
+            raise ValueError(f"{cls.__name__}: spi_fed needs held_input")
 
     def __init__(self, held_input: bool = False, spi_fed: bool = False):
         #: ``held_input``: the producer holds ``i.payload`` from the handshake until the output
@@ -117,8 +123,6 @@ class TinyKalmanSerialCordic(wiring.Component):
         #: ``shift_ay``: :class:`~navgate.systems.tinykalman.spi.Mpu6500Spi` with
         #: ``external=("ay", "az")``); x and y are free then, so the words need no register.
         self.spi_fed = spi_fed
-        if spi_fed and not held_input:
-            raise ValueError("TinyKalmanSerialCordic: spi_fed needs held_input")
         if self._FILTER and not spi_fed:
             self.LATENCY = SERIAL_DATAPATH_LATENCY_STREAM
             self.THROUGHPUT = Fraction(1, self.LATENCY + 1)

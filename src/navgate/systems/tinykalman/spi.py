@@ -35,6 +35,7 @@ from amaranth.lib import data, enum, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.devices.mpu6500 import BURST_LEN, REG, SPI_READ, WHO_AM_I_VALUE
+from navgate.gateware.parameters import CheckedParameters
 
 __all__ = ["Mpu6500Spi", "SPI_WORDS", "DIRECT_KEEP", "DIRECT_PAYLOAD", "spi_cycles"]
 
@@ -74,13 +75,21 @@ DIRECT_PAYLOAD = data.StructLayout({
 DIRECT_KEEP = {"ax": 1, "ay": 1, "az": 1, "gx": 6, "gy": 6}
 
 
-class Mpu6500Spi(wiring.Component):
+class Mpu6500Spi(CheckedParameters, wiring.Component):
     """MPU-6500 SPI master: WHO_AM_I read and 14-byte burst per ``start``."""
 
-    def __init__(self, spi_div: int = 5, direct: bool = False, external: tuple = ()):
+    @classmethod
+    def check_parameters(cls, spi_div, direct, external):
         if not isinstance(spi_div, int) or not 2 <= spi_div <= 1 << 16:
             raise ValueError(f"Mpu6500Spi: spi_div must be an integer >= 2 (clocks per SCLK half "
                              f"period), got {spi_div!r}")
+        if external and not direct:
+            raise ValueError("Mpu6500Spi: external words need direct=True")
+        for name in external:
+            if name not in DIRECT_KEEP:
+                raise ValueError(f"Mpu6500Spi: unknown word {name!r} in external")
+
+    def __init__(self, spi_div: int = 5, direct: bool = False, external: tuple = ()):
         self.spi_div = spi_div
         #: ``direct``: MISO bits are shifted straight into the registers that keep them (only
         #: the bits the chip uses, :data:`DIRECT_KEEP`; no 16-bit assembly register) and
@@ -93,11 +102,6 @@ class Mpu6500Spi(wiring.Component):
         #: ``o.payload``. The serial chip shifts ay and az straight into its CORDIC's y and x
         #: registers and the rates into z.
         self.external = tuple(external)
-        if self.external and not direct:
-            raise ValueError("Mpu6500Spi: external words need direct=True")
-        for name in self.external:
-            if name not in DIRECT_KEEP:
-                raise ValueError(f"Mpu6500Spi: unknown word {name!r} in external")
         self.LATENCY = spi_cycles(spi_div)
         self.THROUGHPUT = Fraction(1, self.LATENCY)
         ports = {f"{kind}_{name}": Out(1) for name in self.external

@@ -18,6 +18,8 @@ from amaranth import Array, Cat, Module, Mux, Signal
 from amaranth.lib import stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware.parameters import CheckedParameters
+
 __all__ = ["UartTx", "UartPacketTx", "BAUD_DIV_9600_AT_10MHZ"]
 
 BAUD_DIV_9600_AT_10MHZ = 1042  #: round(10e6 / 9600)
@@ -61,7 +63,7 @@ class UartTx(wiring.Component):
         return m
 
 
-class UartPacketTx(wiring.Component):
+class UartPacketTx(CheckedParameters, wiring.Component):
     """8N1 transmitter of a whole ``n_bytes`` packet read in place (the serial chip's UART).
 
     ``start`` (while not ``busy``) sends the bytes of ``packet`` (byte 0 in bits 7..0, first
@@ -74,12 +76,15 @@ class UartPacketTx(wiring.Component):
 
     LATENCY = 1
 
-    def __init__(self, n_bytes: int, baud_div: int = BAUD_DIV_9600_AT_10MHZ):
+    @classmethod
+    def check_parameters(cls, n_bytes, baud_div):
         if not isinstance(baud_div, int) or not 1 <= baud_div <= 1 << 20:
             raise ValueError(f"UartPacketTx: baud_div must be a positive integer, "
                              f"got {baud_div!r}")
         if not isinstance(n_bytes, int) or n_bytes < 1:
             raise ValueError(f"UartPacketTx: n_bytes must be a positive integer, got {n_bytes!r}")
+
+    def __init__(self, n_bytes: int, baud_div: int = BAUD_DIV_9600_AT_10MHZ):
         self.baud_div, self.n_bytes = baud_div, n_bytes
         self.THROUGHPUT = Fraction(1, 10 * baud_div * n_bytes)
         super().__init__({
