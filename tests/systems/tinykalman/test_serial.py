@@ -154,6 +154,10 @@ def test_serial_datapath_amaranth_extreme_rates():
     (lambda: Mpu6500Spi(5, direct=True, external=("temp",)), "unknown word"),
     (lambda: UartPacketTx(0), "n_bytes"),
     (lambda: UartPacketTx(6, 0), "baud_div"),
+    (lambda: TinyKalmanTop(2, 4, min_sample_period(2, 4, "serial") - 1, variant="serial"),
+     "sample_period"),
+    (lambda: TinyKalmanTop(1, 4, 100_000, variant="serial"), "spi_div"),
+    (lambda: TinyKalmanTop(variant="bitwise"), "variant"),
 ])
 def test_serial_parameters_checked(make, match):
     """A ValueError naming the parameter, raised before the component exists (no Amaranth

@@ -45,6 +45,7 @@ from amaranth import Array, Cat, ClockDomain, ClockSignal, Const, Module, Mux, R
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware.parameters import CheckedParameters
 from navgate.systems.tinykalman.datapath import CORDIC_LATENCY, TinyKalmanDatapath
 from navgate.systems.tinykalman.model import HEADER, PACKET_LEN, WHO_AM_I_VALUE
 from navgate.systems.tinykalman.serial import (
@@ -149,16 +150,28 @@ def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MH
     }
 
 
-class TinyKalmanCore(wiring.Component):
+def _check_chip(spi_div, baud_div, sample_period, variant) -> None:
+    """The chip's parameters (``ValueError`` naming the one that is wrong), checked before the
+    chip or any of its blocks exists (:class:`~navgate.gateware.parameters.CheckedParameters`)."""
+    cordic_latency(variant)
+    Mpu6500Spi.check_parameters(spi_div, False, ())
+    UartPacketTx.check_parameters(PACKET_LEN, baud_div)
+    need = min_sample_period(spi_div, baud_div, variant)
+    if not isinstance(sample_period, int) or sample_period < need:
+        raise ValueError(f"TinyKalman: sample_period must be an integer >= {need} clocks "
+                         f"for spi_div={spi_div}, baud_div={baud_div}; got {sample_period!r}")
+
+
+class TinyKalmanCore(CheckedParameters, wiring.Component):
     """The chip's logic on plain pins, in the ``sync`` domain (reset active high)."""
+
+    @classmethod
+    def check_parameters(cls, spi_div, baud_div, sample_period, variant):
+        _check_chip(spi_div, baud_div, sample_period, variant)
 
     def __init__(self, spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
                  sample_period: int = DEFAULT_SAMPLE_PERIOD, variant: str = "parallel"):
-        need = min_sample_period(spi_div, baud_div, variant)
         self.variant = variant
-        if not isinstance(sample_period, int) or sample_period < need:
-            raise ValueError(f"TinyKalman: sample_period must be an integer >= {need} clocks "
-                             f"for spi_div={spi_div}, baud_div={baud_div}; got {sample_period!r}")
         if variant == "serial":
             self.spi = Mpu6500Spi(spi_div, direct=True, external=("ay", "az", "gx", "gy"))
         else:
@@ -269,8 +282,12 @@ class TinyKalmanCore(wiring.Component):
         return m
 
 
-class TinyKalmanTop(wiring.Component):
+class TinyKalmanTop(CheckedParameters, wiring.Component):
     """TinyKalman as a TinyTapeout user module (seed 001 pinout), 10 MHz."""
+
+    @classmethod
+    def check_parameters(cls, spi_div, baud_div, sample_period, variant):
+        _check_chip(spi_div, baud_div, sample_period, variant)
 
     def __init__(self, spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
                  sample_period: int = DEFAULT_SAMPLE_PERIOD, variant: str = "parallel"):

@@ -25,14 +25,17 @@ __all__ = ["UartTx", "UartPacketTx", "BAUD_DIV_9600_AT_10MHZ"]
 BAUD_DIV_9600_AT_10MHZ = 1042  #: round(10e6 / 9600)
 
 
-class UartTx(wiring.Component):
+class UartTx(CheckedParameters, wiring.Component):
     """8N1 UART transmitter, ``baud_div`` clocks per bit."""
 
     LATENCY = 1
 
-    def __init__(self, baud_div: int = BAUD_DIV_9600_AT_10MHZ):
+    @classmethod
+    def check_parameters(cls, baud_div):
         if not isinstance(baud_div, int) or not 1 <= baud_div <= 1 << 20:
             raise ValueError(f"UartTx: baud_div must be a positive integer, got {baud_div!r}")
+
+    def __init__(self, baud_div: int = BAUD_DIV_9600_AT_10MHZ):
         self.baud_div = baud_div
         self.THROUGHPUT = Fraction(1, 10 * baud_div)
         super().__init__({
