@@ -1,5 +1,7 @@
 """Seed 000's PS <-> Pi link (docs/seed000-link.md): round-trip latency of a profile request
--> fix over TCP on 127.0.0.1 and over a pseudo-terminal, and the bytes each request costs.
+-> fix over TCP on 127.0.0.1, over a pseudo-terminal, and over a pseudo-terminal opened by
+pyserial at 921,600 baud (with the time the same bytes take on a real 921,600-baud UART added),
+and the bytes each request costs.
 
 The service (:class:`navgate.systems.ins_trn.pi.service.TrnService`) runs in a thread on the
 same machine, so the figures are the protocol's and the correlator's own cost, not a real
@@ -51,7 +53,10 @@ def requests_of_a_flight(n: int) -> list[dict]:
     return captured[:n]
 
 
-def measure(link_factory, bodies, service) -> dict:
+BAUD = 921600
+
+
+def measure(link_factory, bodies, service, keep=False) -> dict:
     link = link_factory()
     times, sent, received = [], [], []
     for body in bodies:
@@ -68,9 +73,13 @@ def measure(link_factory, bodies, service) -> dict:
         received.append(link.received_bytes - r0)
     link.close()
     t = np.array(times) * 1e3
-    return {"median_ms": float(np.median(t)), "p99_ms": float(np.percentile(t, 99)),
-            "max_ms": float(t.max()), "request_bytes": float(np.mean(sent)),
-            "fix_bytes": float(np.mean(received)), "requests": len(times)}
+    out = {"median_ms": float(np.median(t)), "p99_ms": float(np.percentile(t, 99)),
+           "max_ms": float(t.max()), "request_bytes": float(np.mean(sent)),
+           "fix_bytes": float(np.mean(received)), "requests": len(times)}
+    if keep:  # each round trip's time and bytes (both ways)
+        out["times_ms"] = t.tolist()
+        out["bytes"] = (np.array(sent) + np.array(received)).tolist()
+    return out
 
 
 def main():
@@ -118,6 +127,40 @@ def main():
     rows["pseudo-terminal"] = measure(lambda: ps_end, bodies, svc2)
     svc2.stop.set()
     th.join(5)
+
+    # the service's end opened by pyserial at 921,600 baud (as trn-serve --serial does); a
+    # pseudo-terminal carries bytes at memory speed whatever the baud, so the row after it
+    # adds the time the same bytes take on a real 921,600-baud UART (10 bits a byte, 8N1)
+    try:
+        import serial  # noqa: F401
+    except ImportError:
+        print('(no pyserial: the serial rows need pip install "navgate[serial]")')
+    else:
+        import os
+        import tty
+
+        from navgate.systems.ins_trn.link.transport import Transport, open_serial
+
+        controller, terminal = os.openpty()
+        tty.setraw(terminal)
+        pi_serial = open_serial(os.ttyname(terminal), BAUD)
+        svc3 = TrnService(dem, log=lambda line: None)
+        th = threading.Thread(target=svc3.serve, args=(pi_serial,), daemon=True)
+        th.start()
+        row = measure(lambda: Transport(controller), bodies, svc3, keep=True)
+        svc3.stop.set()
+        th.join(5)
+        pi_serial.close()
+        os.close(terminal)
+        os.close(controller)
+        rows[f"pyserial pty {BAUD} Bd"] = {k: v for k, v in row.items() if k != "times_ms"}
+        wire = (np.array(row["bytes"]) * 10 / BAUD * 1e3)
+        t = np.array(row["times_ms"]) + wire
+        rows[f"+ {BAUD} Bd UART wire"] = {
+            "median_ms": float(np.median(t)), "p99_ms": float(np.percentile(t, 99)),
+            "request_bytes": row["request_bytes"], "fix_bytes": row["fix_bytes"]}
+        for r in rows.values():
+            r.pop("bytes", None)
 
     print(f"{'path':<26}{'median ms':>11}{'p99 ms':>9}{'req B':>8}{'fix B':>8}")
     for name, r in rows.items():

@@ -9,6 +9,7 @@ inside functions), so a lazy import counts as much as a top-level one.
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -34,15 +35,40 @@ def _resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str:
     return ".".join(base + ([node.module] if node.module else []))
 
 
+#: a string naming a navgate module, alone or as "module:attribute" (an import by name)
+IMPORT_STRING = re.compile(r"^(navgate(?:\.\w+)+)(?::[\w.]+)?$")
+
+
+def _launched_modules(tree: ast.AST) -> set[int]:
+    """The string nodes that follow ``"-m"`` in a list or tuple: a module run as a child
+    process (``python -m navgate.cli ...``), in its own interpreter, not imported here."""
+    launched = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.List, ast.Tuple)):
+            for before, item in zip(node.elts, node.elts[1:], strict=False):
+                if isinstance(before, ast.Constant) and before.value == "-m":
+                    launched.add(id(item))
+    return launched
+
+
 def import_graph() -> dict[str, set[str]]:
-    """module -> the navgate modules it imports (package imports resolved to modules)."""
+    """module -> the navgate modules it imports (package imports resolved to modules),
+    including those it names in strings for ``importlib`` ("navgate.x.y" or
+    "navgate.x.y:attr", as the block registries do)."""
     files = {_module_name(p): p for p in PACKAGE_ROOT.rglob("*.py")}
     graph: dict[str, set[str]] = {}
     for module, path in files.items():
         targets: set[str] = set()
         is_package = path.name == "__init__.py"
-        for node in ast.walk(ast.parse(path.read_text(), str(path))):
-            if isinstance(node, ast.Import):
+        tree = ast.parse(path.read_text(), str(path))
+        launched = _launched_modules(tree)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Constant) and isinstance(node.value, str):
+                if id(node) in launched:
+                    continue
+                match = IMPORT_STRING.match(node.value)
+                names = [match.group(1)] if match and match.group(1) in files else []
+            elif isinstance(node, ast.Import):
                 names = [alias.name for alias in node.names]
             elif isinstance(node, ast.ImportFrom):
                 base = _resolve(module, is_package, node)
@@ -68,6 +94,8 @@ def test_the_graph_is_read():
     assert "navgate.nav.eskf" in graph["navgate.systems.ins_trn.ps.engine"]
     assert "navgate.devices.adis16500" in graph["navgate.nav.calibration"]
     assert "navgate.devices.adis16500" in graph["navgate.sim.sensors"]
+    # an import by name (a block registry's "module:attribute" string) is an edge too
+    assert "navgate.systems.ins_trn.pl.top" in graph["navgate.systems"]
     assert len(graph) > 60
 
 

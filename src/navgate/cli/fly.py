@@ -1,6 +1,7 @@
 """``navgate fly``: a GPS-denied flight over real terrain, INS-only and INS+TRN side by side.
 
-Runs navgate.sim.flight.fly and writes summary.json, trajectory.csv, trn_fixes.csv,
+Runs :func:`navgate.systems.ins_trn.ps.flight.fly` (the scenario of :mod:`navgate.sim.flight`
+flown by seed 000's navigator) and writes summary.json, trajectory.csv, trn_fixes.csv,
 track.png and errors.png into ``--out``. Bad input (missing/unreadable/non-DEM files, a DEM
 too small for the route, bad option values) ends with one line on stderr and exit 2.
 """
@@ -82,16 +83,26 @@ def _positive_float(ctx, param, value):
 @click.option("--trn-timeout", type=float, default=5.0, show_default=True,
               callback=_positive_float,
               help="With --trn-service: seconds to wait for each fix before a retry.")
+@click.option("--trn-heartbeat", type=float, default=1.0, show_default=True,
+              help="With --trn-service: send a heartbeat after this many seconds without "
+                   "traffic; a missed reply marks the link down and reconnecting starts at "
+                   "once. 0: no heartbeats.")
 @click.option("--trn-latency", type=float, default=0.0, show_default=True,
               help="Apply each TRN fix this many seconds after its request (simulated link "
                    "and Pi time; deterministic). 0: at the request's time.")
 @click.option("--link-flip-rate", type=float, default=0.0, show_default=True,
               help="With --trn-service: flip bits in the PS's outgoing bytes at this rate per "
                    "byte (fault injection; every bad frame is counted).")
+@click.option("--realtime", type=float, is_flag=False, flag_value=1.0, default=None,
+              metavar="[SPEED]",
+              help="Pace the INS+TRN run to the wall clock (SPEED times real time, default 1): "
+                   "TRN requests go out on a worker thread and each fix is applied when it "
+                   "arrives, at its own time tag. NOT deterministic (thread and link timing); "
+                   "the default, simulated time, is.")
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")
 def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_sensors, no_trn,
         imu_rate, ranger, speed, trn_method, engine, record_path, trn_service, trn_timeout,
-        trn_latency, link_flip_rate, quiet):
+        trn_heartbeat, trn_latency, link_flip_rate, realtime, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -132,6 +143,16 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         raise CliError(f"--trn-latency must lie in [0, 60] s, got {trn_latency:g}")
     if not (math.isfinite(link_flip_rate) and 0.0 <= link_flip_rate <= 1.0):
         raise CliError(f"--link-flip-rate must lie in [0, 1], got {link_flip_rate:g}")
+    if not (math.isfinite(trn_heartbeat) and 0.0 <= trn_heartbeat <= 3600.0):
+        raise CliError(f"--trn-heartbeat must lie in [0, 3600] s, got {trn_heartbeat:g}")
+    if realtime is not None:
+        if not (math.isfinite(realtime) and 0.0 < realtime <= 1000.0):
+            raise CliError(f"--realtime SPEED must lie in (0, 1000], got {realtime:g}")
+        if no_trn:
+            raise CliError("--realtime paces the INS+TRN run; it cannot go with --no-trn")
+        if trn_latency:
+            raise CliError("--trn-latency sets a simulated latency; --realtime measures "
+                           "the real one: give one of them")
     if trn_service is None and link_flip_rate:
         raise CliError("--link-flip-rate needs --trn-service")
     trn_link = None
@@ -142,7 +163,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         faults = FaultInjector(seed=seed, flip_rate=link_flip_rate) if link_flip_rate else None
         try:
             trn_link = TrnLink(trn_service, terrain_path=dem_path, cache_mb=tile_cache_mb,
-                               timeout_s=trn_timeout, faults=faults)
+                               timeout_s=trn_timeout, faults=faults,
+                               heartbeat_s=trn_heartbeat)
         except LinkError as error:
             raise CliError(str(error)) from None
     # the link (if any) stays open for the flight and is closed whatever happens
@@ -163,7 +185,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
             try:
                 result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
                                     stage=lambda s: bar.update(task, description=s), route=route,
-                                    engine=engine, trn_link=trn_link, trn_latency_s=trn_latency)
+                                    engine=engine, trn_link=trn_link, trn_latency_s=trn_latency,
+                                    realtime=realtime)
             except simulation_errors() as error:
                 raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
             except DemError as error:

@@ -39,6 +39,7 @@ from amaranth.hdl import Cat, Module, ResetInserter, Signal
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware.start_run import start_run_respond
 from navgate.numerics.fp32 import f32_to_bits
 from navgate.systems.attitude.datapath import ScheduledDatapath, make_schedule
 from navgate.systems.attitude.mahony import SEED003
@@ -196,42 +197,9 @@ class AttitudeStream(wiring.Component):
         core = self.core
         core_rst = Signal()
         m.submodules.core = ResetInserter(core_rst)(core)
-        held = Signal(self.i.payload.shape())
-        count = Signal(10)
-        cycles = Signal(10)
-        with m.FSM():
-            with m.State("IDLE"):
-                m.d.comb += self.i.ready.eq(1)
-                with m.If(self.i.valid):
-                    m.d.sync += held.eq(self.i.payload)
-                    with m.If(self.i.payload.reset):
-                        m.next = "RESET"
-                    with m.Elif(self.i.payload.load):
-                        m.next = "LOAD"
-                    with m.Else():
-                        m.next = "START"
-            with m.State("RESET"):
-                m.d.comb += core_rst.eq(1)
-                with m.If(held.load):
-                    m.next = "LOAD"
-                with m.Else():
-                    m.next = "START"
-            with m.State("LOAD"):
-                m.d.comb += core.in_param_en.eq(1)
-                m.next = "START"
-            with m.State("START"):
-                m.d.comb += core.in_data_en.eq(1)
-                m.d.sync += count.eq(1)
-                m.next = "RUN"
-            with m.State("RUN"):
-                m.d.sync += count.eq(count + 1)
-                with m.If(core.out_INS_finish):
-                    m.d.sync += cycles.eq(count)
-                    m.next = "OUT"
-            with m.State("OUT"):
-                m.d.comb += self.o.valid.eq(1)
-                with m.If(self.o.ready):
-                    m.next = "IDLE"
+        held, cycles = start_run_respond(
+            m, self.i, self.o, start=core.in_data_en, done=core.out_INS_finish, width=10,
+            steps=(("reset", core_rst), ("load", core.in_param_en)))
         for v in SENSORS:
             n = f"in_{PORT_NAME[v]}"
             m.d.comb += getattr(core, n).eq(getattr(held, n))
@@ -352,30 +320,9 @@ class ModuleStream(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         m.submodules.core = core = self.core
-        held = Signal(self.i.payload.shape())
-        count = Signal(10)
-        cycles = Signal(10)
-        en = getattr(core, f"in_{self.module}_en")
-        fin = getattr(core, f"out_{self.module}_finish")
-        with m.FSM():
-            with m.State("IDLE"):
-                m.d.comb += self.i.ready.eq(1)
-                with m.If(self.i.valid):
-                    m.d.sync += held.eq(self.i.payload)
-                    m.next = "START"
-            with m.State("START"):
-                m.d.comb += en.eq(1)
-                m.d.sync += count.eq(1)
-                m.next = "RUN"
-            with m.State("RUN"):
-                m.d.sync += count.eq(count + 1)
-                with m.If(fin):
-                    m.d.sync += cycles.eq(count)
-                    m.next = "OUT"
-            with m.State("OUT"):
-                m.d.comb += self.o.valid.eq(1)
-                with m.If(self.o.ready):
-                    m.next = "IDLE"
+        held, cycles = start_run_respond(
+            m, self.i, self.o, start=getattr(core, f"in_{self.module}_en"),
+            done=getattr(core, f"out_{self.module}_finish"), width=10)
         for v in core.ins:
             n = f"in_{_port(v)}"
             m.d.comb += getattr(core, n).eq(getattr(held, n))

@@ -22,7 +22,7 @@ flight is twice the mean of the position variance over the grid (the errors are 
 The GPS-only mean square is 2 gps_sigma^2, so the expected ratio is
 sqrt(mean var_p) / gps_sigma.
 
-:func:`trajectory_bound` is the trajectory-exact version (issue 14): a linear covariance
+:func:`trajectory_bound` is the trajectory-exact version: a linear covariance
 analysis along the scenario's actual trajectory (climb, turns, speed change: F evaluated on
 the truth and the error-free readings at every IMU sample) carrying every error state the
 sensor model has (position, velocity, attitude and, where the model has them, the

@@ -10,7 +10,7 @@ filter :mod:`navgate.systems.gpsins.augmented` (``filter="full"``, the default: 
 navigation error states plus the sensor model's biases and scale factors, noise from the
 sensor model), smoothable by :mod:`navgate.systems.gpsins.smoother`, or the seed's 9-state
 :mod:`navgate.systems.gpsins.filter` (``filter="seed"``, with the pessimistic Q below).
-Scoring (issue 14): the whole-flight ratio (GPS/INS RMS over every sample, outage included,
+Scoring: the whole-flight ratio (GPS/INS RMS over every sample, outage included,
 over GPS-only RMS over its valid fixes) and the outage-excluded ratio, each beside the
 trajectory-exact bound (:func:`trajectory_bound`).
 

@@ -3,7 +3,8 @@ modules as views of it.
 
 Reference: seed 004's module table (prior state, prior covariance, estimated output, Kalman
 gain with the serial 2x2 inverse, posterior state, posterior covariance, Q update, R update)
-and its Gantt chart; the re-timing of issue 15 (docs/seed004-kf2x2.md, "Timing").
+and its Gantt chart, re-timed so that every unit works from registers (docs/seed004-kf2x2.md,
+"Timing").
 
 :func:`build_datapath` turns scheduled operations (:mod:`navgate.systems.kf2x2.schedule`)
 into hardware in which every arithmetic unit works from registers only:
@@ -22,8 +23,9 @@ into hardware in which every arithmetic unit works from registers only:
 * **pipelined, sticky overflow flag**: each unit's saturation flag is registered (gated by
   the cycles in which the unit delivers a scheduled result), and the frame's sticky flag
   ORs those registers one cycle later.
-* **adders without an op code** (issue 15, Nexus): an adder/subtractor adds and subtracts
-  on one carry chain ``a + b + cin`` (a subtraction loads the complemented subtrahend, and
+* **adders without an op code** (so the Nexus carry chains map one-to-one): an
+  adder/subtractor adds and subtracts on one carry chain ``a + b + cin`` (a subtraction
+  loads the complemented subtrahend, and
   ``cin`` is a registered control word), ``|a - b|`` has its own chains; the operand
   multiplexers merge the terms that are the same bits (one producing unit's result, one
   register) under one select.

@@ -6,7 +6,8 @@ Reference: seed 004, "34 周期时序甘特图" (the Gantt chart C0-C33) and its
 :func:`navgate.systems.kf2x2.model.frame_program`; this module assigns every operation an
 issue cycle and a unit with a resource-constrained list scheduler.
 
-Timing model (issue 15 re-timing; the gateware is :mod:`navgate.systems.kf2x2.modules`).
+Timing model (registered operands and products, docs/seed004-kf2x2.md "Timing"; the gateware
+is :mod:`navgate.systems.kf2x2.modules`).
 An operation *issued* in cycle c has its operands loaded into its unit's operand registers
 at the end of c (from value registers, or forwarded from the unit that produces them in
 that very cycle); the unit works from registers only:

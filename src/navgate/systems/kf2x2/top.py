@@ -31,6 +31,7 @@ from amaranth import Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware.start_run import start_run_respond
 from navgate.systems.kf2x2.model import COMMIT, FRAME_INPUTS, STATE_NAMES, KfParams
 from navgate.systems.kf2x2.modules import ModulePlan, build_datapath
 from navgate.systems.kf2x2.schedule import FRAME_CYCLES, build_schedule
@@ -150,36 +151,11 @@ class Kf2x2Stream(wiring.Component):
         m = Module()
         core = self.core
         m.submodules.core = core
-        held = Signal(self.i.payload.shape())
-        cycles = Signal(8)
-        counting = Signal(8)
-        with m.FSM():
-            with m.State("IDLE"):
-                m.d.comb += self.i.ready.eq(1)
-                with m.If(self.i.valid):
-                    m.d.sync += held.eq(self.i.payload)
-                    with m.If(self.i.payload.init):
-                        m.next = "INIT"
-                    with m.Else():
-                        m.next = "START"
-            with m.State("INIT"):
-                m.d.comb += core.init.eq(1)
-                m.next = "START"
-            with m.State("START"):
-                m.d.comb += core.start.eq(1)
-                m.d.sync += counting.eq(1)
-                m.next = "RUN"
-            with m.State("RUN"):
-                m.d.sync += counting.eq(counting + 1)
-                with m.If(core.done):
-                    m.d.sync += cycles.eq(counting + 1)
-                    m.next = "FLAGS"
-            with m.State("FLAGS"):  # the pipelined overflow flag settles in C34
-                m.next = "OUT"
-            with m.State("OUT"):
-                m.d.comb += self.o.valid.eq(1)
-                with m.If(self.o.ready):
-                    m.next = "IDLE"
+        # cycles from start to done inclusive; one settle cycle: the pipelined overflow flag
+        # settles in C34
+        held, cycles = start_run_respond(
+            m, self.i, self.o, start=core.start, done=core.done, width=8,
+            steps=(("init", core.init),), inclusive=True, settle=1)
         for name in FRAME_INPUTS:
             m.d.comb += getattr(core, name).eq(getattr(held, name))
         for name in INIT_NAMES:

@@ -3,7 +3,8 @@
 Reference: seed 004 (``fxp_mul.v``, ``fxp_add.v``, ``fxp_sub.v``, ``fxp_abs.v``,
 ``goldschmidt_struct.v``). :func:`q_mul` and :func:`q_alu` are the combinational result
 logic; :mod:`navgate.systems.kf2x2.modules` puts them between operand registers and (for the
-multiplier) a raw product register (issue 15 re-timing).
+multiplier) a raw product register, so no path crosses a multiplier and an adder in one
+cycle (the re-timing of docs/seed004-kf2x2.md, "Timing").
 
 * :func:`q_mul`: ``sat((a * b) >> FRAC)`` and its overflow flag, bit-true to
   ``fixed_mul_trunc(a, b, fmt, mode="saturate")`` (:mod:`navgate.numerics.fixed`).

@@ -16,6 +16,8 @@ the one before it, and a flight over the link equals the flight in one process.
 Clients: one at a time (the seed draws one PS); a second client waits in the listen backlog
 until the first disconnects. Every request logs one line on stderr; SIGTERM and SIGINT stop
 the service cleanly after the request in hand; a status request returns the counters.
+Heartbeats are answered at once and counted (``heartbeats``); the first of each client is
+logged, and the count when the client goes.
 """
 
 from __future__ import annotations
@@ -34,6 +36,8 @@ from navgate.systems.ins_trn.link.transport import LinkClosed, Transport, from_s
 
 #: how often a blocked read wakes up to look at the stop flag (s)
 POLL_S = 0.2
+#: PS sessions whose kept fragments and fixes the service remembers
+SESSIONS_KEPT = 4
 
 
 def _config(cls, values: dict):
@@ -47,8 +51,10 @@ def _config(cls, values: dict):
 class TrnService:
     """Answers link messages; :meth:`serve` runs it over one transport."""
 
-    def __init__(self, terrain, *, log=None):
+    def __init__(self, terrain, *, log=None, latency_s: float = 0.0):
         self.terrain = terrain
+        #: fault injection: a slow Pi answers each profile request this much later (s)
+        self.latency_s = float(latency_s)
         self.log = log if log is not None else (lambda line: print(line, file=sys.stderr,
                                                                    flush=True))
         self.stop = threading.Event()
@@ -58,6 +64,8 @@ class TrnService:
                          "heartbeats": 0, "status_requests": 0}
         self._correlators: dict = {}
         self._reassembly = messages.Reassembly()
+        self._sessions: dict[str, messages.Reassembly] = {}
+        self._client_heartbeats = 0
 
     # -- requests ---------------------------------------------------------------------------
     def _correlator(self, method: str, config: dict, tangent):
@@ -113,11 +121,25 @@ class TrnService:
         """The answer to one frame (kind, body), or None for none."""
         kind = frame.kind
         if kind == messages.HELLO:
-            self.log(f"trn-serve: hello from {frame.body.get('client', '?')}"
-                     if isinstance(frame.body, dict) else "trn-serve: hello")
+            # a PS session (its request ids start at 1) keeps its own fragments and fixes: a
+            # PS that reconnects names its session again and finds them; another session (a
+            # new PS, or one restarted on a serial line that keeps one serve()) starts afresh
+            body = frame.body if isinstance(frame.body, dict) else {}
+            session = body.get("session")
+            if isinstance(session, str) and session:
+                self._reassembly = self._sessions.pop(session, None) or messages.Reassembly()
+                self._sessions[session] = self._reassembly
+                while len(self._sessions) > SESSIONS_KEPT:
+                    self._sessions.pop(next(iter(self._sessions)))
+            else:
+                self._reassembly = messages.Reassembly()
+            self.log(f"trn-serve: hello from {body.get('client', '?')}")
             return messages.CAPABILITIES, self.capabilities()
         if kind == messages.HEARTBEAT:
             self.counters["heartbeats"] += 1
+            self._client_heartbeats += 1
+            if self._client_heartbeats == 1:  # one line, not one a second for hours
+                self.log("trn-serve: heartbeats from the client (answered; counted in status)")
             return messages.HEARTBEAT, {"time": time.time()}
         if kind == messages.STATUS_REQUEST:
             self.counters["status_requests"] += 1
@@ -140,6 +162,8 @@ class TrnService:
             return answer
         if kind == messages.PROFILE_REQUEST:
             self.counters["requests"] += 1
+            if self.latency_s > 0:
+                time.sleep(self.latency_s)
             try:
                 body = self.correlate(frame.body)
             except (messages.MessageError, ValueError) as error:
@@ -161,6 +185,8 @@ class TrnService:
         """Answer frames on ``link`` until the peer closes it, the stop flag is set, or
         ``max_requests`` profile requests have been answered."""
         self.counters["clients"] += 1
+        self._client_heartbeats = 0
+        self._reassembly = messages.Reassembly()  # until the client's hello names its session
         bad_base = self.counters["bad_frames"] - sum(link.decoder.bad.values())
         try:
             while not self.stop.is_set():
@@ -182,7 +208,8 @@ class TrnService:
                 if max_requests is not None and self.counters["requests"] >= max_requests:
                     return
         except (LinkClosed, BrokenPipeError, ConnectionResetError):
-            self.log("trn-serve: client closed the link")
+            self.log(f"trn-serve: client closed the link "
+                     f"({self._client_heartbeats} heartbeats answered)")
         finally:
             self.counters["bad_frames"] = bad_base + sum(link.decoder.bad.values())
 

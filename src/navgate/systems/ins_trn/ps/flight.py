@@ -96,6 +96,8 @@ class FlightResult:
                 s["profile_sample_counts"] = run.profile_counts
                 nis = [f["nis"] for f in applied]
                 s["nis_trn_mean"] = float(np.mean(nis)) if nis else None
+                if run.realtime is not None:
+                    s["realtime"] = run.realtime
             out[name] = s
         if self.reference_runs:
             diffs, ref_wall = [], 0.0
@@ -133,7 +135,8 @@ def record_stream(dem: Dem, cfg: FlightConfig, route: Route | None = None):
 
 
 def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None,
-        engine: str = "reference", trn_link=None, trn_latency_s: float = 0.0) -> FlightResult:
+        engine: str = "reference", trn_link=None, trn_latency_s: float = 0.0,
+        realtime: float | None = None) -> FlightResult:
     """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done.
 
     ``engine``: the PL engine (``reference`` or ``fp32``); with a non-reference engine the
@@ -150,7 +153,7 @@ def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | N
     init = initial_estimate(data, cfg)
     stream = flight_stream(data, dem, cfg, init)
     runs = fly_stream(stream, dem, cfg, engine=engine, progress=progress, stage=stage,
-                      trn_link=trn_link, trn_latency_s=trn_latency_s)
+                      trn_link=trn_link, trn_latency_s=trn_latency_s, realtime=realtime)
     reference_runs = None
     if engine != "reference":
         reference_runs = fly_stream(stream, dem, cfg, engine="reference", stage=stage)
@@ -161,8 +164,11 @@ def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | N
 
 
 def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progress=None,
-               stage=None, trn_link=None, trn_latency_s: float = 0.0) -> dict:
-    """The INS-only and (cfg.trn) INS+TRN runs over one record stream."""
+               stage=None, trn_link=None, trn_latency_s: float = 0.0,
+               realtime: float | None = None) -> dict:
+    """The INS-only and (cfg.trn) INS+TRN runs over one record stream; ``realtime`` (a
+    speed factor) paces the INS+TRN run to the wall clock (the INS-only run, which does not
+    talk to the Pi, runs as fast as it can)."""
     runs = {}
     if stage:
         stage(f"navigating: INS only ({engine})")
@@ -173,7 +179,7 @@ def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progr
             stage(f"navigating: INS + TRN ({engine})")
         runs["trn_aided"] = navigate(stream, cfg, engine=engine, dem=dem, use_trn=True,
                                      name="trn_aided", progress=progress, trn_link=trn_link,
-                                     trn_latency_s=trn_latency_s)
+                                     trn_latency_s=trn_latency_s, realtime=realtime)
     return runs
 
 

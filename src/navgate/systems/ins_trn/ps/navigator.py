@@ -19,7 +19,10 @@ in one call with the same result) and talks to the PL only through
   correlator is in this process or, through a ``trn_link``
   (:mod:`navgate.systems.ins_trn.ps.trn_link`), on the Pi's TRN service; with
   ``trn_latency_s`` a fix is applied that long after its request (one request in flight),
-  and dropped past ``trn_deadline_s``.
+  and dropped past ``trn_deadline_s``. In real-time mode (``realtime`` = speed factor,
+  :mod:`navgate.systems.ins_trn.ps.realtime`) the stream is paced to the wall clock, the
+  request goes to a worker thread, and its fix is applied through the same path at the first
+  record after it arrives, its age added to the lag (not deterministic).
 - logging: the state, the square roots of P's diagonal and P_NE are logged every
   ``imu_rate / log_rate`` IMU samples, after every record stamped at that time.
 """
@@ -61,6 +64,7 @@ class NavRun:
     wall_time_s: float
     engine: str = "reference"
     hardware: dict | None = None  #: the simulated PL's counts (PlEngine.hardware_stats)
+    realtime: dict | None = None  #: real-time mode's figures (ps.realtime.Realtime.summary)
 
 
 def make_correlator(cfg, dem, tangent):
@@ -95,7 +99,8 @@ class Navigator:
 
     def __init__(self, engine: PlEngine, cfg, *, t0: float, dem=None, use_trn: bool = True,
                  name: str = "nav", progress=None, trn_link=None,
-                 trn_latency_s: float = 0.0, trn_deadline_s: float = 30.0):
+                 trn_latency_s: float = 0.0, trn_deadline_s: float = 30.0,
+                 realtime: float | None = None):
         self.engine = engine
         self.cfg = cfg
         self.use_trn = bool(use_trn) and dem is not None
@@ -122,6 +127,18 @@ class Navigator:
         self.trn_latency_s = float(trn_latency_s)
         self.trn_deadline_s = float(trn_deadline_s)
         self._pending = None  #: (apply time, request time, result, sigma_max)
+        #: real-time mode (``realtime`` = speed factor): paced to the wall clock, requests
+        #: on a worker thread (ps.realtime); the request in flight: (future, time, sigma_max)
+        self.realtime = None
+        self._inflight = None
+        if realtime is not None:
+            from navgate.systems.ins_trn.ps.realtime import Realtime
+
+            if self.trn_latency_s:
+                raise ValueError("trn_latency_s is for simulated time; real-time mode "
+                                 "measures the real latency")
+            self.realtime = Realtime(realtime, self.t0, 1.0 / cfg.baro_rate_hz,
+                                     cfg.fix_interval_s)
         self.fixes: list = []
         self.last_fix_t = -math.inf
         self.h_baro = math.nan
@@ -189,7 +206,7 @@ class Navigator:
                                 range_valid=bool(valid), roll=roll, pitch=pitch,
                                 pos_n=float(pn), pos_e=float(pe))
         if (status == ACCEPTED and t - self.last_fix_t >= self.cfg.fix_interval_s
-                and self._pending is None):  # one request in flight at a time
+                and self._pending is None and self._inflight is None):  # one at a time
             self.last_fix_t = t
             self._fix(t)
 
@@ -197,6 +214,11 @@ class Navigator:
         e = self.engine
         p2 = e.read_p_horizontal()
         sigma_max = math.sqrt(max(np.linalg.eigvalsh(p2).max(), 0.0))
+        if self.realtime is not None:  # the worker asks the Pi; the loop goes on
+            future = self.realtime.submit(self.correlator.correlate, e.profile_read(),
+                                          sigma_max, prior_cov=p2)
+            self._inflight = (future, t, sigma_max)
+            return
         result = self.correlator.correlate(e.profile_read(), sigma_max, prior_cov=p2)
         if self.trn_latency_s > 0:
             self._pending = (t + self.trn_latency_s, t, result, sigma_max)
@@ -204,7 +226,19 @@ class Navigator:
             self._apply(result, t, t, sigma_max)
 
     def _due(self, t):
-        """Apply the fix in flight once its time has come (simulated link latency)."""
+        """Apply the fix in flight once its time has come (simulated link latency) or, in
+        real time, once it has arrived (never waiting for it)."""
+        if self._inflight is not None and self.realtime.done(self._inflight[0]):
+            future, t_request, sigma_max = self._inflight
+            self._inflight = None
+            try:
+                result = future.result()
+            except Exception:  # noqa: BLE001 - counted; the flight goes on INS-only
+                self.realtime.counts["worker_errors"] += 1
+                return
+            self.realtime.arrived(t - t_request, bool(result.accepted)
+                                  and t - t_request > self.trn_deadline_s)
+            self._apply(result, t_request, t, sigma_max)
         if self._pending is not None and t >= self._pending[0]:
             _, t_request, result, sigma_max = self._pending
             self._pending = None
@@ -261,7 +295,11 @@ class Navigator:
                                                   stream.baro_altitude, np.nan))
             self.engine.prepare_baro(baro[0][baro[2]], baro[1][baro[2]])
         pos = 0
+        if self.realtime is not None:
+            self.realtime.start()
         for m in list(other) + [len(stream)]:
+            if self.realtime is not None:  # this block's records are due on the wall clock
+                self.realtime.pace(float(stream.t[min(m, len(stream) - 1)]))
             if m > pos:
                 a, b = stream.index[pos], stream.index[m - 1] + 1
                 self.feed_imu(stream.gyro_words[a:b], stream.accel_words[a:b])
@@ -279,6 +317,17 @@ class Navigator:
 
     def finish(self) -> NavRun:
         e = self.engine
+        if self.realtime is not None:
+            self.realtime.close()  # waits for the request in hand, if any
+            if self._inflight is not None:
+                future, t_request, sigma_max = self._inflight
+                self._inflight = None
+                self.realtime.counts["in_flight_at_end"] += 1
+                if future.exception() is None:
+                    self._apply(dataclasses.replace(
+                        future.result(), accepted=False,
+                        reason="no fix: the flight ended before it arrived"),
+                        t_request, t_request, sigma_max)
         if self._pending is not None:  # the flight ended before the fix arrived
             _, t_request, result, sigma_max = self._pending
             self._pending = None
@@ -299,18 +348,20 @@ class Navigator:
         return NavRun(self.name, t_log, np.array(self._nav), np.array(self._sigma),
                       np.array(self._p_ne), self.fixes, dict(e.accepted), rejected,
                       dict(e.profile.counts), e.imu_samples_rejected,
-                      _time.perf_counter() - self._start, e.name, e.hardware_stats())
+                      _time.perf_counter() - self._start, e.name, e.hardware_stats(),
+                      None if self.realtime is None else self.realtime.summary())
 
 
 def navigate(stream: RecordStream, cfg, *, engine: str = "reference", dem=None,
              use_trn: bool = True, name: str = "nav", progress=None, trn_link=None,
-             trn_latency_s: float = 0.0) -> NavRun:
+             trn_latency_s: float = 0.0, realtime: float | None = None) -> NavRun:
     """Build the engine from the stream header and run the navigator over the stream
     (``trn_link``: a :class:`~navgate.systems.ins_trn.ps.trn_link.TrnLink` to correlate on
     the Pi's service instead of in this process)."""
     eng = make_engine(engine, engine_setup(stream.header, cfg))
     nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=use_trn, name=name,
-                    progress=progress, trn_link=trn_link, trn_latency_s=trn_latency_s)
+                    progress=progress, trn_link=trn_link, trn_latency_s=trn_latency_s,
+                    realtime=realtime)
     return nav.run(stream)
 
 

@@ -12,15 +12,21 @@ When the service does not answer (absent at start, link dropped, Pi rebooting, c
 frames), a request ends after its retries with "no fix: TRN service unavailable": the flight
 goes on INS-only with the barometer, nothing waits forever, and every such case is counted.
 A reply for another request (late, duplicated, reordered) is counted and never applied.
+
+Heartbeats (``heartbeat_s`` > 0): a thread sends one when nothing has been sent for that long;
+a reply missed within ``timeout_s`` marks the link down (counted) and reconnecting starts
+at once, not at the next fix. A lock gives the link to one user at a time.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import re
 import socket
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import asdict
 
@@ -41,6 +47,8 @@ UNAVAILABLE = "no fix: TRN service unavailable"
 INVALID = "no fix: invalid fix from TRN service"
 #: the child's start-up (imports, terrain, compiled kernels) may take this long (s)
 SPAWN_HELLO_TIMEOUT_S = 120.0
+#: hello is sent again this often until the service answers (s)
+HELLO_RESEND_S = 1.0
 
 
 class LinkError(Exception):
@@ -68,9 +76,11 @@ class TrnLink:
 
     def __init__(self, spec: str, *, terrain_path=None, cache_mb: float | None = None,
                  timeout_s: float = 5.0, retries: int = 2, faults: FaultInjector | None = None,
-                 fragment_bytes: int = messages.FRAGMENT_BYTES):
+                 fragment_bytes: int = messages.FRAGMENT_BYTES, heartbeat_s: float = 0.0):
         if not (math.isfinite(timeout_s) and timeout_s > 0):
             raise ValueError(f"timeout_s must be positive, got {timeout_s!r}")
+        if not (math.isfinite(heartbeat_s) and heartbeat_s >= 0):
+            raise ValueError(f"heartbeat_s must be >= 0, got {heartbeat_s!r}")
         self.spec = spec
         self.kind = parse_spec(spec)
         self.terrain_path = terrain_path
@@ -84,12 +94,27 @@ class TrnLink:
         self.seq = 0
         self.next_id = 1
         self.capabilities: dict = {}
+        #: names this PS session in each hello (request ids start at 1 in each session): the
+        #: service keeps a session's fragments and fixes across reconnects, not across sessions
+        self.session = f"{socket.gethostname()}-{os.getpid()}-{time.time_ns()}"
         self.counters = {"absent_at_start": 0, "requests": 0, "replies": 0, "timeouts": 0,
                          "retries": 0,
                          "unavailable": 0, "stale_replies": 0, "service_errors": 0,
                          "reconnects": 0, "invalid_fixes": 0, "bad_frames": 0, "bytes_sent": 0,
-                         "bytes_received": 0}
+                         "bytes_received": 0, "heartbeats_sent": 0, "heartbeat_replies": 0,
+                         "heartbeats_missed": 0, "link_down": 0}
+        #: one user of the link at a time: the flight's requests (the caller's thread or the
+        #: realtime worker) and the heartbeat thread
+        self._lock = threading.RLock()
+        self._closing = threading.Event()
+        self._last_sent = time.monotonic()
+        self.heartbeat_s = float(heartbeat_s)
+        self._heartbeat_thread = None
         self._open(first=True)
+        if self.heartbeat_s > 0:
+            self._heartbeat_thread = threading.Thread(target=self._heartbeats, daemon=True,
+                                                      name="trn-link-heartbeat")
+            self._heartbeat_thread.start()
 
     # -- opening ----------------------------------------------------------------------------
     def _open(self, first: bool = False) -> None:
@@ -104,6 +129,9 @@ class TrnLink:
                 self._spawn()
         except socket.gaierror as error:
             raise LinkError(f"cannot resolve {self.spec}: {error.strerror or error}") from None
+        except ImportError:
+            raise LinkError(f'--trn-service {self.spec} needs pyserial: pip install '
+                            f'"navgate[serial]"') from None
         except (ConnectionRefusedError, TimeoutError):
             # absent (not started yet, rebooting): fly on INS-only, try again at the next fix
             if first:
@@ -128,9 +156,15 @@ class TrnLink:
         self.link = ps_end
 
     def _hello(self, timeout: float, first: bool) -> None:
-        self._send(messages.HELLO, {"client": "navgate ps", "version": frames.VERSION})
         deadline = time.monotonic() + timeout
+        resend = 0.0
         while time.monotonic() < deadline:
+            if time.monotonic() >= resend:
+                # again each second: a serial port opened after the hello was sent (the Pi
+                # still booting) flushes what was waiting in its input
+                self._send(messages.HELLO, {"client": "navgate ps", "version": frames.VERSION,
+                                            "session": self.session})
+                resend = time.monotonic() + HELLO_RESEND_S
             try:
                 frame = self.link.recv(min(0.5, max(deadline - time.monotonic(), 0.01)))
             except frames.VersionMismatch as error:
@@ -167,12 +201,72 @@ class TrnLink:
 
     def _send(self, kind: int, body) -> int:
         self.seq = (self.seq + 1) & 0xFFFF
+        self._last_sent = time.monotonic()
         self.link.send(kind, self.seq, body)
         return self.seq
+
+    # -- heartbeats -------------------------------------------------------------------------
+    def _heartbeats(self) -> None:
+        """The heartbeat thread: after ``heartbeat_s`` with nothing sent, a heartbeat; a
+        missed reply marks the link down and reconnecting starts at once, so the link is up
+        again (if the service is) before the next fix is due."""
+        while not self._closing.wait(self.heartbeat_s / 4):
+            if time.monotonic() - self._last_sent < self.heartbeat_s:
+                continue
+            if not self._lock.acquire(blocking=False):  # a request is in hand
+                continue
+            try:
+                if self._closing.is_set():
+                    return
+                if self.link is None:
+                    self._reconnect()
+                elif not self._heartbeat():
+                    self.counters["heartbeats_missed"] += 1
+                    self.counters["link_down"] += 1
+                    self._drop()
+                    self._reconnect()
+            except Exception:  # noqa: BLE001 - the thread must not die; the flight goes on
+                self._drop()
+            finally:
+                self._lock.release()
+
+    def _heartbeat(self) -> bool:
+        """One heartbeat; True when the service answered within ``timeout_s``."""
+        self.counters["heartbeats_sent"] += 1
+        try:
+            self._send(messages.HEARTBEAT, {"time": time.time()})
+            deadline = time.monotonic() + self.timeout_s
+            while (left := deadline - time.monotonic()) > 0:
+                frame = self.link.recv(left)
+                if frame is None:
+                    continue
+                if frame.kind == messages.HEARTBEAT:
+                    self.counters["heartbeat_replies"] += 1
+                    return True
+                if frame.kind in (messages.FIX, messages.ERROR):
+                    self.counters["stale_replies"] += 1
+        except (LinkClosed, frames.VersionMismatch, OSError):
+            pass
+        return False
+
+    def _reconnect(self) -> None:
+        """Open the link again (a spawned service: start a new one once the old has gone)."""
+        self._last_sent = time.monotonic()  # one attempt per heartbeat period
+        if self.kind[0] == "spawn" and self.child is not None and self.child.poll() is None:
+            return
+        self.counters["reconnects"] += 1
+        try:
+            self._open()
+        except LinkError:
+            self.link = None
 
     # -- requests ---------------------------------------------------------------------------
     def request(self, body: dict) -> dict | None:
         """Send a profile request; the fix body, or None when the service gave none."""
+        with self._lock:
+            return self._request(body)
+
+    def _request(self, body: dict) -> dict | None:
         rid = body["id"]
         self.counters["requests"] += 1
         for attempt in range(self.retries + 1):
@@ -223,15 +317,19 @@ class TrnLink:
 
     def status(self) -> dict | None:
         """The service's counters (a status request), or None without an answer."""
-        if self.link is None:
+        with self._lock:
+            if self.link is None:
+                return None
+            try:
+                self._send(messages.STATUS_REQUEST, {})
+                deadline = time.monotonic() + self.timeout_s
+                while time.monotonic() < deadline:
+                    frame = self.link.recv(deadline - time.monotonic())
+                    if frame is not None and frame.kind == messages.STATUS:
+                        return frame.body
+            except (LinkClosed, OSError):
+                self._drop()
             return None
-        self._send(messages.STATUS_REQUEST, {})
-        deadline = time.monotonic() + self.timeout_s
-        while time.monotonic() < deadline:
-            frame = self.link.recv(deadline - time.monotonic())
-            if frame is not None and frame.kind == messages.STATUS:
-                return frame.body
-        return None
 
     def correlator(self, cfg, tangent) -> RemoteCorrelator:
         return RemoteCorrelator(self, cfg.trn_method,
@@ -244,15 +342,21 @@ class TrnLink:
         return rid
 
     def stats(self) -> dict:
-        if self.link is not None:
-            self._account()
-        out = dict(self.counters)
+        with self._lock:
+            if self.link is not None:
+                self._account()
+            out = dict(self.counters)
+        out["heartbeat_s"] = self.heartbeat_s
         out["service"] = self.spec
         if self.faults is not None:
             out["injected_faults"] = dict(self.faults.counts)
         return out
 
     def close(self) -> None:
+        self._closing.set()
+        if self._heartbeat_thread is not None:
+            self._heartbeat_thread.join()
+            self._heartbeat_thread = None
         if self.link is not None:
             self._drop()
         if self.child is not None:
@@ -305,7 +409,8 @@ class RemoteCorrelator:
         except messages.MessageError:
             self.link.counters["service_errors"] += 1
             return self.result_type(False, UNAVAILABLE, now)
-        if rid != body["id"]:
+        if rid != body["id"] or not _same_time(result.time, now):
+            # another request's fix (or, with the same id, another session's): never applied
             self.link.counters["stale_replies"] += 1
             return self.result_type(False, UNAVAILABLE, now)
         self.used_until, self.widen = used_until, widen
@@ -313,6 +418,15 @@ class RemoteCorrelator:
             self.link.counters["invalid_fixes"] += 1
             return self.result_type(False, INVALID, now)
         return result
+
+
+def _same_time(a, b) -> bool:
+    """The fix is stamped with its profile's last time tag (both NaN for an empty profile)."""
+    try:
+        a, b = float(a), float(b)
+    except (TypeError, ValueError):
+        return False
+    return a == b or (math.isnan(a) and math.isnan(b))
 
 
 def _usable(result) -> bool:

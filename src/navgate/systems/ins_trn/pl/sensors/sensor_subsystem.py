@@ -12,8 +12,9 @@ clk_dsp domain of the seed (navigation pipelines) is not part of this block: the
 ``baro`` and ``lidar`` streams are where a clock-domain crossing (an asynchronous FIFO) would
 go if the consumer runs there.
 
-Options (navgate extensions for the FPGA top, issue 12): ``imu_dr`` is the ADIS16500's data-
-ready pin and ``imu_cfg`` bit 9 (IMU_CFG.dr_sync) makes spi_master_imu burst on its rising
+Options (navgate extensions the FPGA top needs; the seed has only the timers): ``imu_dr``
+is the ADIS16500's data-ready pin and ``imu_cfg`` bit 9 (IMU_CFG.dr_sync) makes
+spi_master_imu burst on its rising
 edge instead of the UPDATE_RATE timer (:class:`~.spi_master_imu.SpiMasterImu`). Likewise
 ``baro_int`` is the BMP390's INT pin (data ready) and ``baro_cfg`` bit 9 (BARO_CFG.int_sync)
 makes spi_master_baro read a sample on its rising edge instead of the BARO_RATE timer
