@@ -1,4 +1,4 @@
-"""Seed 001 TinyKalman in the IHP SG13G2 standard cells (issue 30): pre-layout area, cells,
+"""Seed 001 TinyKalman in the IHP SG13G2 standard cells: pre-layout area, cells,
 flip-flops, the smallest TinyTapeout IHP tile at 65 % density and the longest path against the
 10 MHz clock, for the chip and its blocks, with :func:`navgate.hw.asic.synthesize_asic` (the
 flow of ``navgate build BLOCK --asic sg13g2``). Prints a table and writes

@@ -1,4 +1,4 @@
-"""Seed 001 TinyKalman, parallel and serial chips (issue 30): settled roll/pitch error against
+"""Seed 001 TinyKalman, parallel and serial chips: settled roll/pitch error against
 the atan2 truth over held attitudes in all four roll quadrants and both pitch signs.
 
 Each attitude is held for 700 samples (11 time constants of the ``>>> 6`` filter) with the

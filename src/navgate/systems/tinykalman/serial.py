@@ -1,7 +1,7 @@
 """Seed 001 TinyKalman, the SERIAL chip (``tinykalman_serial_top``): one bit-serial CORDIC
 vectoring unit time-shared between roll and pitch, and the steady-state filter run bit-serially
-on the same adders, bit-exact to :mod:`navgate.systems.tinykalman.model` (issue 30: fit one
-TinyTapeout IHP SG13G2 tile).
+on the same adders, bit-exact to :mod:`navgate.systems.tinykalman.model`, small enough for one
+TinyTapeout IHP SG13G2 1x1 tile.
 
 Reference: seed 001 ("Angle Estimation (CORDIC)", "Sensor Fusion"); :mod:`navgate.numerics.cordic`
 (the vectoring datapath step for step: pre-rotation by +-90 deg, ``x' = x + d (y >>> i)``,
