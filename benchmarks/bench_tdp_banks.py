@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import tempfile
 from dataclasses import replace
 from pathlib import Path
 
@@ -56,27 +55,19 @@ def main():
                                     "rom_rows": rows, "rom_width": width,
                                     "bank_depth": img.layout.bank_depth}
     if args.synth:
-        from navgate.hw.synth import synthesize, timing_xc7
+        from navgate.hw.synth import XC7_ROW_HEADER, print_xc7_row, xc7_summary
         from navgate.hw.verilog import emit_verilog
         from navgate.opflow.machine import ScheduledMachineStream
 
-        print(f"\n{'shared banks':12s} {'LUT':>6s} {'FF':>6s} {'DSP':>4s} {'BRAM36':>7s} "
-              f"{'path ns':>8s}  memory cells")
+        print("\nshared banks" + XC7_ROW_HEADER[12:])
         for name in args.synth:
             img = engine_image("ins_engines",
                                replace(ENGINE_UNITS, split_ports=False,
                                        shared_write_port=cfg[name]))
-            text = emit_verilog(ScheduledMachineStream(img), "ins_engines")
-            with tempfile.TemporaryDirectory(prefix="navgate-tdp-") as work:
-                u = synthesize(text, "ins_engines", "xc7z020", Path(work))
-                t = timing_xc7("ins_engines", Path(work))
-            mem = {k: v for k, v in u["cells"].items() if "RAM" in k}
-            print(f"{name:12s} {u['lut']:6d} {u['ff']:6d} {u['dsp']:4d} {u['bram36']:7} "
-                  f"{t['path_ns']:8.3f}  {mem}")
-            summary["configs"][name]["synth"] = {
-                **{k: u[k] for k in ("lut", "ff", "dsp", "carry4", "bram36")},
-                "memory_cells": mem, "xc7_logic_path_ns": t["path_ns"],
-                "path_start": t["start"], "path_end": t["end"]}
+            row = xc7_summary(emit_verilog(ScheduledMachineStream(img), "ins_engines"),
+                              "ins_engines")
+            print_xc7_row(name, row)
+            summary["configs"][name]["synth"] = row
     Path(args.json).write_text(json.dumps(summary, indent=2, default=list) + "\n")
     print(f"\nwrote {args.json}")
 

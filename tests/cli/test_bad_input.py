@@ -36,6 +36,17 @@ from navgate.cli import COMMANDS, main
 G0 = 9.80665
 
 
+@pytest.fixture(autouse=True)
+def own_build_cache(tmp_path_factory, monkeypatch):
+    """Each test has its own build cache root (navgate.cache): a stubbed synthesis must
+    neither be stored in the user's cache nor be skipped because the user's cache holds the
+    block; the Verilator models stay in the user's cache."""
+    from navgate.gateware.verify import verilator_cache_dir
+
+    monkeypatch.setenv("NAVGATE_VERILATOR_CACHE", str(verilator_cache_dir()))
+    monkeypatch.setenv("NAVGATE_CACHE_DIR", str(tmp_path_factory.mktemp("cache")))
+
+
 def run(args, capsys):
     """(exit code, stdout, stderr) of ``navgate ARGS`` run in-process."""
     code = 0
@@ -670,12 +681,15 @@ def test_report_parallel_blocks_progress_and_order(tmp_path, capsys, monkeypatch
         "block": name, "latency_cycles": 1, "throughput": "1"})
     tables = {}
     for jobs in (1, 3):
+        monkeypatch.setenv("NAVGATE_CACHE_DIR", str(tmp_path / f"cache{jobs}"))  # both cold
         code, out, err = run(["report", "-j", jobs, "--out", tmp_path / f"r{jobs}.md"], capsys)
         assert code == 0, err
         names = list(all_blocks())
         assert sum(" done (" in ln for ln in err.splitlines()) == len(names)
-        rows = [ln.split("|")[1].strip() for ln in out.splitlines()[2:]]
+        rows = [ln.split("|")[1].strip() for ln in out.splitlines()[2:] if ln.startswith("|")]
         assert rows == names
+        # under the table: which blocks came from the synth cache (none: a fresh cache root)
+        assert f"Synthesised in this run: {len(names)} of {len(names)} blocks" in out
         assert (tmp_path / f"r{jobs}.md").read_text() == out
         tables[jobs] = out
     assert tables[1] == tables[3]

@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
 import pytest
 
 
-def navgate(*args: str, cwd=None) -> subprocess.CompletedProcess:
+def navgate(*args: str, cwd=None, env=None) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "navgate.cli", *args], capture_output=True,
-                          text=True, cwd=cwd, timeout=300)
+                          text=True, cwd=cwd, timeout=300, env=env)
 
 
 def assert_one_line_error(proc: subprocess.CompletedProcess, fragment: str) -> None:
@@ -106,10 +107,14 @@ def test_build_writes_three_files(built_fixed_mul):
 
 def test_build_is_deterministic(built_fixed_mul, tmp_path):
     out, _ = built_fixed_mul
-    proc = navgate("build", "fixed_mul", "--out", str(tmp_path))
+    # a fresh build cache: elaborated and synthesised again, not read back (navgate.cache)
+    env = dict(os.environ, NAVGATE_CACHE_DIR=str(tmp_path / "cache"))
+    proc = navgate("build", "fixed_mul", "--out", str(tmp_path / "again"), env=env)
     assert proc.returncode == 0, proc.stderr
+    for kind in ("verilog", "synth"):  # built into the fresh cache, so not a hit
+        assert len(list((tmp_path / "cache" / kind).glob("fixed_mul-*.json"))) == 1
     for name in ("fixed_mul.v", "fixed_mul.json", "fixed_mul.utilization.json"):
-        assert (tmp_path / name).read_bytes() == (out / name).read_bytes()
+        assert (tmp_path / "again" / name).read_bytes() == (out / name).read_bytes()
 
 
 def test_board_target_builds_a_block_without_a_board_variant(tmp_path):

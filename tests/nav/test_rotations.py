@@ -79,3 +79,15 @@ def test_vectorised_forms_match_scalar_forms():
     c = r.euler_to_dcm_array(*ang)
     assert np.allclose(c, np.array([r.euler_to_dcm(*a) for a in ang.T]))
     assert np.allclose(np.array(r.dcm_to_euler_array(c)), ang)
+
+
+def test_dcm_to_quat_array_equals_the_scalar_form_in_every_branch():
+    """The vectorised Shepperd method takes the scalar one's branch and arithmetic per row:
+    equal bit for bit, including the three trace-negative branches (180-degree turns)."""
+    c = r.quat_to_dcm_array(random_quats(2000))
+    c = np.concatenate([c, [np.eye(3), np.diag([1.0, -1, -1]), np.diag([-1.0, 1, -1]),
+                            np.diag([-1.0, -1, 1])]])
+    got = r.dcm_to_quat_array(c)
+    want = np.array([r.dcm_to_quat(m) for m in c])
+    assert np.array_equal(got, want)
+    assert np.all(got[:, 0] >= 0.0)

@@ -129,3 +129,18 @@ def test_sensor_records_through_the_device_encoders():
     ok = r.valid
     assert np.all(np.abs(d["distance_m"][ok] - r.slant_range[ok]) <= 0.05 + 1e-9)
     assert np.all(d["reliable"] == ok) and np.all(d["checksum_ok"])
+
+
+def test_gauss_markov_recursion_equals_scipy_lfilter():
+    """The compiled first-order recursion is scipy.signal.lfilter's arithmetic (bit for bit)
+    with the initial state phi * x, so seeded flights are unchanged by dropping the import."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(7)
+    w = rng.standard_normal((5000, 3))
+    x0 = rng.standard_normal(3)
+    phi = math.exp(-0.0025 / 3600.0)
+    got = s._first_order(w, phi, x0)
+    for axis in range(3):
+        want = lfilter([1.0], [1.0, -phi], w[:, axis], zi=[phi * x0[axis]])[0]
+        assert np.array_equal(got[:, axis], want)

@@ -40,6 +40,7 @@ COMMANDS: dict[str, str] = {
     "tinykalman": "navgate.cli.tinykalman:tinykalman",
     "tiles": "navgate.cli.tiles:tiles",
     "trn-serve": "navgate.cli.trn_serve:trn_serve",
+    "cache": "navgate.cli.cache:cache",
 }
 
 

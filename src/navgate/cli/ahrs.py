@@ -41,7 +41,8 @@ def _nonneg(ctx, param, value):
 @click.option("--kp", type=float, default=1.0, show_default=True, callback=_nonneg,
               help="Mahony proportional gain (rad/s per unit error); kp * dt must be < 1.")
 @click.option("--ki", type=float, default=0.1, show_default=True, callback=_nonneg,
-              help="Mahony integral gain.")
+              help="Mahony integral gain; ki * dt^2 < 2 (1 - kp dt) keeps the loop stable "
+                   "(checked, all engines).")
 @click.option("--gain", type=float, default=0.02, show_default=True, callback=_nonneg,
               help="Complementary filter correction gain per sample (0..1).")
 @click.option("--axes", type=click.Choice(["auto", "frd", "flu"]), default="auto",
@@ -164,6 +165,10 @@ def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no
 
     if method != "mahony":
         raise CliError(f"--engine {engine} runs seed 003's Mahony circuit; use --filter mahony")
+    if engine == "rtl":
+        from navgate.cli.extras import SIMULATION, require_gateware
+
+        require_gateware("navgate ahrs --engine rtl", SIMULATION)
     if no_mag:
         raise CliError(f"--engine {engine}: the circuit always uses the magnetometer "
                        f"(drop --no-mag)")
@@ -174,6 +179,12 @@ def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no
         raise CliError(str(error)) from None
     if len(log) < 2:
         raise CliError(f"{input_csv}: need at least two samples")
+    from navgate.systems.attitude.circuit_engine import circuit_inputs
+
+    try:  # the checks every engine shares (estimate.check_run), before any message or build
+        circuit_inputs(log, axes, kp, ki)
+    except ValueError as error:
+        raise CliError(str(error)) from None
     if engine == "fp32":
         console.print(f"running the float32 model over {len(log)} samples "
                       f"(about 50 ms a sample)")
@@ -223,11 +234,17 @@ def _make_stream(cls, reader, block, method, axes, kp, ki, gain, no_mag, init, g
                  resolve_axes):
     """The filter for this log: axes resolved, gap threshold and the kp*dt check from the
     log's nominal period."""
+    from navgate.systems.attitude.estimate import check_run
+
     dt = reader.nominal_dt
     if not (math.isfinite(dt) and dt > 0):
         dt = 0.01
     if method == "mahony" and kp * dt >= 1.0:
         raise CliError(f"--kp {kp:g} with a {dt:g} s sample period gives kp * dt = {kp * dt:.3g};"
                        f" the discrete filter needs kp * dt < 1 (here kp < {1 / dt:.4g})")
+    # the checks every engine shares (the circuit engines run the same in circuit_inputs)
+    check_run(method=method, dt=dt, kp=kp, ki=ki, gain=gain,
+              acc0=block.acc[0] if init == "accel" and len(block.acc) else None,
+              use_mag=not no_mag and block.mag is not None)
     return cls(method, axes=resolve_axes(block, axes), kp=kp, ki=ki, gain=gain,
                use_mag=not no_mag, init=init, gap_s=gap_periods * dt)

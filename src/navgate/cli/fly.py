@@ -119,7 +119,10 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         raise CliError(f"--speed must be between 5 and 400 m/s, got {speed:g}")
     if seed < 0:
         raise CliError(f"--seed must be non-negative, got {seed}")
-    if ideal_sensors and load_engine_class(engine, "navgate fly").needs_imu_words:
+    # imported now, before any work: on a slim install (the boards) an engine that needs the
+    # gateware extra is one line naming it
+    engine_cls = load_engine_class(engine, "navgate fly")
+    if ideal_sensors and engine_cls.needs_imu_words:
         raise CliError(f"--engine {engine} needs the IMU's int16 output words, which "
                        "--ideal-sensors does not produce")
     try:

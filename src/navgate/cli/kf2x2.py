@@ -92,6 +92,11 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out, accept_overflow, quiet):
     )
 
     table_console, console = consoles(quiet)
+    if engine != "model":
+        from navgate.cli.extras import SIMULATION, require_gateware
+
+        require_gateware(f"navgate kf2x2 --engine {engine}",
+                         SIMULATION if engine == "verilator" else ("amaranth",))
     if not 10 <= frames <= 100_000:
         raise CliError(f"--frames must be between 10 and 100000, got {frames}")
     if seed < 0:

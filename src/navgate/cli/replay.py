@@ -62,6 +62,14 @@ def replay(log_path, engine, dem_path, no_trn, out_dir, quiet):
     except (KeyError, TypeError, ValueError) as error:
         raise CliError(f"{log_path}: header lacks a usable flight configuration ({error})"
                        ) from None
+    try:  # the engines' own checks of the initial state (p0, nav0, rate, ...), up front
+        from navgate.systems.ins_trn.ps.engine import check_setup
+        from navgate.systems.ins_trn.ps.navigator import engine_setup
+
+        check_setup(engine_setup(header, cfg))
+    except (KeyError, TypeError, IndexError, ValueError) as error:
+        raise CliError(f"{log_path}: the header's initial state is not usable ({error})"
+                       ) from None
     if header.get("ideal") and load_engine_class(engine, "navgate replay").needs_imu_words:
         raise CliError(f"{log_path}: --engine {engine} needs the IMU's int16 output words; "
                        "this log has the ideal sensors' float words")

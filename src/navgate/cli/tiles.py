@@ -51,6 +51,9 @@ def _grid(ctx, param, value):
 @click.option("--quiet", is_flag=True, help="No table.")
 def split(dem_path, grid, out, quiet):
     """Cut DEM (a file, or 'default' for the embedded DEM) into tiles sharing edge posts."""
+    from navgate.cli.extras import require
+
+    require("rasterio", "navgate tiles split")  # it writes GeoTIFF tiles
     from navgate.trn.dem import Dem, DemError
     from navgate.trn.tiles import TileStore, split_dem
 

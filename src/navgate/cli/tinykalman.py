@@ -76,6 +76,11 @@ def _write_roll_pitch(path: Path, angles, t=None) -> None:
 @click.option("--quiet", is_flag=True, help="No table.")
 def run(log_csv, engine, sim, variant, axes, limit, out_dir, quiet):
     """Run an IMU log (CSV) through TinyKalman; write words, uart.bin, roll/pitch, summary."""
+    from navgate.cli.extras import SIMULATION, require_gateware
+
+    # the chip's timing comes from its gateware module (Amaranth) even for --engine model
+    require_gateware(f"navgate tinykalman --engine {engine}",
+                     SIMULATION if engine == "rtl" and sim == "verilator" else ("amaranth",))
     from rich.console import Console
     from rich.table import Table
 

@@ -173,13 +173,19 @@ class NativeStreamServer:
     """A running native model of a stream ``component``: :meth:`batch` sends packed input
     payloads and returns the packed outputs (one per input)."""
 
-    def __init__(self, component, top: str = "dut", idle_limit: int = 100_000):
+    def __init__(self, component, top: str = "dut", idle_limit: int = 100_000, *,
+                 design: str | None = None, params: dict | None = None):
         self.in_fmt = V.stream_format(V._port_shape(component.i))
         self.out_fmt = V.stream_format(V._port_shape(component.o))
         t0 = time.perf_counter()
-        self.exe = build_native(V.emit_verilog(component, top), top, self.in_fmt.width,
-                                self.out_fmt.width)
+        # with ``design``, the Verilog may come from navgate's cache (V.emit_verilog)
+        text = V.emit_verilog(component, top, design=design, params=params)
+        #: seconds spent getting the Verilog (elaborating, or reading the cache) and building
+        #: (or finding) the compiled model
+        self.verilog_seconds = time.perf_counter() - t0
+        self.exe = build_native(text, top, self.in_fmt.width, self.out_fmt.width)
         self.build_seconds = time.perf_counter() - t0
+        self.model_seconds = self.build_seconds - self.verilog_seconds
         self.proc = subprocess.Popen([str(self.exe), str(idle_limit)], stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                      text=True, bufsize=1)

@@ -436,20 +436,58 @@ def verilator_opt() -> str:
 
 
 def verilator_cache_dir() -> Path:
-    """Root of the compiled-model cache: ``$NAVGATE_VERILATOR_CACHE`` or
-    ``$XDG_CACHE_HOME/navgate/verilator`` (default ``~/.cache/navgate/verilator``)."""
-    env = os.environ.get("NAVGATE_VERILATOR_CACHE")
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "navgate" / "verilator"
+    """Root of the compiled-model cache: ``$NAVGATE_VERILATOR_CACHE``, else ``verilator/`` under
+    navgate's cache root (:func:`navgate.cache.kind_dir`; ``~/.cache/navgate/verilator`` on
+    Linux, ``$NAVGATE_CACHE_DIR/verilator`` when that is set)."""
+    from navgate.cache import kind_dir
+
+    return kind_dir("verilator")
 
 
-def emit_verilog(component, name: str) -> str:
-    """Deterministic Verilog for ``component`` with top module ``name``."""
+def emit_verilog(component, name: str, *, design: str | None = None,
+                 params: Mapping | None = None) -> str:
+    """Deterministic Verilog for ``component`` with top module ``name``.
+
+    With ``design`` (a name for what ``component`` is, e.g. ``"ins_engines"``) the text comes
+    from navgate's Verilog cache when it holds ``design`` built with ``params`` (the
+    parameters the component was constructed with, plain data) at this version of the
+    sources (:func:`navgate.cache.cached_verilog`); ``component`` is then not elaborated. The
+    caller vouches that ``design`` and ``params`` determine the component.
+    """
     from amaranth.back import verilog
 
-    return verilog.convert(component, name=name, emit_src=False)
+    def emit() -> str:
+        return verilog.convert(component, name=name, emit_src=False)
+
+    if design is None:
+        return emit()
+    from navgate.cache import cached_verilog
+
+    text, hit = cached_verilog(design, {"top": name, **dict(params or {})}, emit)
+    if hit:
+        not_elaborated(component)
+    return text
+
+
+def not_elaborated(component) -> None:
+    """Silence Amaranth's "created but never used" warning for ``component`` and every
+    elaboratable it holds (its Verilog came from the cache, so it is never elaborated)."""
+    from amaranth.hdl import Elaboratable
+
+    seen: set[int] = set()
+    todo = [component]
+    while todo:
+        item = todo.pop()
+        if id(item) in seen:
+            continue
+        seen.add(id(item))
+        if isinstance(item, Elaboratable):
+            item._MustUse__silence = True
+            todo.extend(vars(item).values())
+        elif isinstance(item, list | tuple | set | frozenset):
+            todo.extend(item)
+        elif isinstance(item, dict):
+            todo.extend(item.values())
 
 
 def _build_model(verilog_text: str, top: str, extra_args: tuple[str, ...] = ()) -> Path:

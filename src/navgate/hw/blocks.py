@@ -88,6 +88,9 @@ class Block:
     name: str
     factory: Callable[[], Any]
     description: str
+    #: where the factory lives, ``"module:attribute"`` (the build cache keys a block by it and
+    #: caches only blocks whose module is part of navgate, whose sources it fingerprints)
+    source: str = ""
 
 
 def _first_line(doc: str | None) -> str:
@@ -121,7 +124,8 @@ def _fp32_blocks() -> dict[str, Block]:
             return {}
         raise
     return {
-        name: Block(name, cls, _first_line(getattr(cls, "__doc__", None)))
+        name: Block(name, cls, _first_line(getattr(cls, "__doc__", None)),
+                    f"{cls.__module__}:{cls.__qualname__}")
         for name, cls in getattr(module, "BLOCKS", {}).items()
     }
 
@@ -147,7 +151,7 @@ def all_blocks() -> dict[str, Block]:
             if name in found:
                 raise ValueError(f"block {name!r} is registered by both {owners[name]} "
                                  f"and {owner}")
-            found[name] = Block(name, _lazy_factory(target), description)
+            found[name] = Block(name, _lazy_factory(target), description, target)
             owners[name] = owner
     return {name: found[name] for name in sorted(found)}
 

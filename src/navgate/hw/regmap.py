@@ -25,10 +25,13 @@ knows no particular map (seed 000's is ``navgate/systems/ins_trn/pl/registers.rd
 from __future__ import annotations
 
 import math
+import numbers
 import struct
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
+
+import numpy as np
 
 OKAY, SLVERR = 0, 2
 
@@ -310,6 +313,22 @@ def bits_f32(bits: int) -> float:
     return struct.unpack("<f", struct.pack("<I", bits & 0xFFFFFFFF))[0]
 
 
+#: the largest finite float32 (values beyond round to inf)
+F32_MAX = float(np.finfo(np.float32).max)
+
+
+def _register_int(name: str, value) -> int:
+    """An integer register or field value: bool/int/np.integer, or a float with an integer
+    value (2.0); 1.5, NaN, 1e300 or a string is a ValueError naming the register."""
+    if isinstance(value, (bool, int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        if math.isfinite(value) and float(value).is_integer():
+            return int(value)
+        raise ValueError(f"{name}: expected an integer register value, got {value!r}")
+    raise ValueError(f"{name}: expected an integer register value, got {value!r}")
+
+
 class Registers:
     """Driver for a register map over a bus (``read(offset)``, ``write(offset, value)``).
 
@@ -347,12 +366,15 @@ class Registers:
                 f = known.get(field_name)
                 if f is None:
                     raise KeyError(f"register {name} has no field {field_name!r}")
+                field_value = _register_int(f"{name}.{field_name}", field_value)
                 if not 0 <= field_value < (1 << f.width):
                     raise ValueError(f"{name}.{field_name} = {field_value} does not fit "
                                      f"{f.width} bits")
                 value = (value & ~f.mask) | (field_value << f.lsb)
         elif fields:
             raise TypeError("give either a value or fields, not both")
+        else:
+            value = _register_int(name, value)
         if not 0 <= value <= 0xFFFFFFFF:
             raise ValueError(f"{name}: {value} is not a 32-bit value")
         self.bus.write(reg.offset, value)
@@ -361,4 +383,15 @@ class Registers:
         return bits_f32(self.read(name))
 
     def write_f32(self, name: str, value: float) -> None:
-        self.write(name, f32_bits(value))
+        """Write ``value`` rounded to float32. NaN, inf and finite values beyond float32's
+        range (which would round to inf) are refused: a register the PL computes with must
+        not start from a non-finite word."""
+        if not isinstance(value, numbers.Real):
+            raise ValueError(f"{name}: expected a number, got {value!r}")
+        v = float(value)
+        if not math.isfinite(v):
+            raise ValueError(f"{name}: refusing to write the non-finite value {v} into a "
+                             "float32 register")
+        if abs(v) > F32_MAX:
+            raise ValueError(f"{name}: {v:g} is beyond float32's range (+-{F32_MAX:.7g})")
+        self.write(name, f32_bits(v))

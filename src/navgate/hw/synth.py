@@ -395,6 +395,29 @@ def timing_xc7(top: str, workdir: Path) -> dict[str, Any]:
     return {**path, "model": XC7_STA_LABEL}
 
 
+def xc7_summary(verilog_text: str, top: str, target: str = "xc7z020") -> dict[str, Any]:
+    """One benchmark row: :func:`synthesize` then :func:`timing_xc7` in a scratch folder;
+    LUT, FF, DSP, CARRY4, BRAM36, the memory cells and the xc7 logic-only path."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix=f"navgate-{top}-") as work:
+        u = synthesize(verilog_text, top, target, Path(work))
+        t = timing_xc7(top, Path(work))
+    return {**{k: u[k] for k in ("lut", "ff", "dsp", "carry4", "bram36")},
+            "memory_cells": {k: v for k, v in u["cells"].items() if "RAM" in k},
+            "xc7_logic_path_ns": t["path_ns"], "path_start": t["start"], "path_end": t["end"]}
+
+
+def print_xc7_row(name: str, row: dict) -> None:
+    """The row of :func:`xc7_summary` under :data:`XC7_ROW_HEADER`."""
+    print(f"{name:16s} {row['lut']:6d} {row['ff']:6d} {row['dsp']:4d} {row['bram36']:7} "
+          f"{row['xc7_logic_path_ns']:8.3f}  {row['memory_cells']}")
+
+
+XC7_ROW_HEADER = (f"{'':16s} {'LUT':>6s} {'FF':>6s} {'DSP':>4s} {'BRAM36':>7s} {'path ns':>8s}"
+                  "  memory cells")
+
+
 # --- Nexus routed proxy -------------------------------------------------------------------------
 
 #: the Nexus device used as the second routed proxy (CrossLink-NX 40k, speed 9, 400-ball BGA)

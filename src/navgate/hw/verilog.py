@@ -1,5 +1,8 @@
 """Verilog emission and block descriptions for the synthesis flow.
 
+Amaranth is imported inside the functions that need it: :func:`verilog_ports` reads emitted
+Verilog as text, also on an install without the gateware extra.
+
 ``emit_verilog`` converts one Amaranth component to Verilog with
 ``amaranth.back.verilog.convert(..., emit_src=False)``; without source locations the text
 depends only on the design, so the same block gives a byte-identical file every time. The top
@@ -17,21 +20,25 @@ import inspect
 import math
 import re
 from fractions import Fraction
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from amaranth.back import verilog
-from amaranth.hdl import Shape, Value
-from amaranth.lib import data, wiring
+if TYPE_CHECKING:  # Amaranth is imported where it is used: verilog_ports is plain text
+    from amaranth.lib import data, wiring
 
 
 def emit_verilog(component: wiring.Component, name: str) -> str:
     """Verilog text of ``component`` with top module ``name`` (deterministic)."""
+    from amaranth.back import verilog
+
     if not name.isidentifier():
         raise ValueError(f"block name {name!r} is not a valid Verilog module name")
     return verilog.convert(component, name=name, emit_src=False)
 
 
 def _layout_fields(layout: data.Layout) -> dict[str, Any]:
+    from amaranth.hdl import Shape
+    from amaranth.lib import data
+
     fields: dict[str, Any] = {}
     for key, field in layout:
         entry: dict[str, Any] = {"offset": field.offset, "width": field.width}
@@ -72,6 +79,9 @@ def port_list(component: wiring.Component, text: str, name: str) -> list[dict[st
     exactly when the design has them); signedness and ``lib.data`` field layouts come from the
     component's signature.
     """
+    from amaranth.hdl import Value
+    from amaranth.lib import data
+
     extra: dict[str, dict[str, Any]] = {}
     for path, _member, value in component.signature.flatten(component):
         port = "__".join(str(part) for part in path)

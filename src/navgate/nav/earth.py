@@ -98,9 +98,10 @@ class LocalTangent:
     def __init__(self, lat0: float, lon0: float, h0: float = 0.0):
         from navgate.nav import validate
 
-        self.lat0 = validate.latitude_rad("lat0", lat0)
+        # at a pole the east scale (R_E + h0) cos(lat0) is 0 and to_geodetic divides by it
+        self.lat0 = validate.nav_latitude("lat0", lat0)
         self.lon0 = validate.finite_scalar("lon0", lon0)
-        self.h0 = validate.finite_scalar("h0", h0)
+        self.h0 = validate.height_m("h0", h0)
         rn, re = radii(self.lat0)
         self.m_per_rad_lat = rn + self.h0
         self.m_per_rad_lon = (re + self.h0) * math.cos(self.lat0)

@@ -250,9 +250,31 @@ def quat_to_dcm_array(q):
 
 
 def dcm_to_quat_array(c):
-    """Vectorised dcm_to_quat (N, 3, 3) -> (N, 4), q0 >= 0."""
+    """Vectorised dcm_to_quat (N, 3, 3) -> (N, 4), q0 >= 0: Shepperd's method with the same
+    branch choice and the same arithmetic per element as :func:`dcm_to_quat`."""
     c = np.asarray(c, float).reshape(-1, 3, 3)
+    c00, c01, c02 = c[:, 0, 0], c[:, 0, 1], c[:, 0, 2]
+    c10, c11, c12 = c[:, 1, 0], c[:, 1, 1], c[:, 1, 2]
+    c20, c21, c22 = c[:, 2, 0], c[:, 2, 1], c[:, 2, 2]
+    tr = c00 + c11 + c22
+    b0 = tr > np.maximum(np.maximum(c00, c11), c22)
+    b1 = ~b0 & (c00 >= c11) & (c00 >= c22)
+    b2 = ~b0 & ~b1 & (c11 >= c22)
+    b3 = ~(b0 | b1 | b2)
     out = np.empty((c.shape[0], 4))
-    for i in range(c.shape[0]):
-        out[i] = dcm_to_quat(c[i])
-    return out
+    with np.errstate(invalid="ignore", divide="ignore"):  # the branches not taken
+        for mask, diag, rows in (
+                (b0, 1.0 + tr, ((None, c21 - c12, c02 - c20, c10 - c01), 0)),
+                (b1, 1.0 + c00 - c11 - c22, ((c21 - c12, None, c01 + c10, c02 + c20), 1)),
+                (b2, 1.0 + c11 - c00 - c22, ((c02 - c20, c01 + c10, None, c12 + c21), 2)),
+                (b3, 1.0 + c22 - c00 - c11, ((c10 - c01, c02 + c20, c12 + c21, None), 3))):
+            if not mask.any():
+                continue
+            s = 2.0 * np.sqrt(diag[mask])
+            num, big = rows
+            for j in range(4):
+                out[mask, j] = 0.25 * s if j == big else num[j][mask] / s
+    out[out[:, 0] < 0.0] *= -1.0
+    norm = np.sqrt(out[:, 0] * out[:, 0] + out[:, 1] * out[:, 1] + out[:, 2] * out[:, 2]
+                   + out[:, 3] * out[:, 3])
+    return out / norm[:, None]

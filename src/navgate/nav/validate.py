@@ -92,8 +92,77 @@ def covariance(name: str, value, n: int | None = None) -> np.ndarray:
     asym = float(np.max(np.abs(p - p.T))) if p.size else 0.0
     if asym > tol:
         raise ValueError(f"{name}: covariance is not symmetric (|P - P^T| = {asym:.3g})")
-    lam = float(np.linalg.eigvalsh(0.5 * (p + p.T))[0]) if p.size else 0.0
+    if p.shape[0] == 1:
+        lam = float(p[0, 0])
+    elif p.shape[0] == 2:
+        # closed form (a measurement update's R is 1 x 1 or 2 x 2: no LAPACK call per update)
+        a, b, c = float(p[0, 0]), 0.5 * float(p[0, 1] + p[1, 0]), float(p[1, 1])
+        lam = 0.5 * (a + c) - math.hypot(0.5 * (a - c), b)
+    else:
+        lam = float(np.linalg.eigvalsh(0.5 * (p + p.T))[0]) if p.size else 0.0
     if lam < -tol:
         raise ValueError(f"{name}: covariance is not positive semi-definite (smallest "
                          f"eigenvalue {lam:.3g})")
     return p
+
+
+def probability(name: str, value, *, open_low: bool = True, open_high: bool = True) -> float:
+    """A probability in (0, 1) (ends included when ``open_low``/``open_high`` are False):
+    a chi-square gate at probability 1 is infinite, at 0 it rejects everything."""
+    p = finite_scalar(name, value)
+    low_ok = p > 0 if open_low else p >= 0
+    high_ok = p < 1 if open_high else p <= 1
+    if not (low_ok and high_ok):
+        lo = "(0" if open_low else "[0"
+        hi = "1)" if open_high else "1]"
+        raise ValueError(f"{name}: must be a probability in {lo}, {hi}, got {p:g}")
+    return p
+
+
+def positive_int(name: str, value, minimum: int = 1) -> int:
+    """An integer >= ``minimum`` (window lengths, sample counts); 2.0 is accepted, 2.5 not."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected an integer, got {value!r}") from None
+    if not math.isfinite(v) or v != int(v):
+        raise ValueError(f"{name}: expected an integer, got {value!r}")
+    if int(v) < minimum:
+        raise ValueError(f"{name}: must be at least {minimum}, got {int(v)}")
+    return int(v)
+
+
+def in_range(name: str, value, low: float, high: float, unit: str = "") -> float:
+    """A finite number in [low, high]."""
+    v = finite_scalar(name, value)
+    if not low <= v <= high:
+        raise ValueError(f"{name}: {v:g}{unit} is outside [{low:g}, {high:g}]{unit}")
+    return v
+
+
+#: The NED mechanization is singular at the poles (longitude rate v_E / ((R_E + h) cos lat),
+#: transport rate v_E tan(lat) / (R_E + h)): a navigation latitude must stay this far from
+#: them. At 89.9 deg, 300 m/s east turns the frame at 0.027 rad/s, 7e-5 rad per 400 Hz step,
+#: still a small-angle step; at the pole itself the terms divide by zero.
+POLE_MARGIN_DEG = 0.1
+
+#: Heights a navigation state may hold (m above the WGS84 ellipsoid): from below the deepest
+#: ocean trench (-11 km, with margin) to the top of the atmosphere (the normal-gravity series
+#: of navgate.nav.earth is a second-order expansion in h / a meant for flight, not orbit).
+HEIGHT_RANGE_M = (-20_000.0, 100_000.0)
+
+
+def nav_latitude(name: str, value) -> float:
+    """A latitude (rad) a local-level NED mechanization can use: |lat| <= 90 - 0.1 deg."""
+    lat = latitude_rad(name, value)
+    limit = math.radians(90.0 - POLE_MARGIN_DEG)
+    if np.any(np.abs(lat) > limit):
+        raise ValueError(f"{name}: latitude {math.degrees(float(np.max(np.abs(lat)))):.6g} deg "
+                         f"is within {POLE_MARGIN_DEG} deg of a pole, where the NED "
+                         "mechanization is singular")
+    return lat
+
+
+def height_m(name: str, value) -> float:
+    """A height above the ellipsoid (m) in :data:`HEIGHT_RANGE_M`."""
+    return in_range(name, value, *HEIGHT_RANGE_M, unit=" m")

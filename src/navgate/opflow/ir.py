@@ -2,8 +2,8 @@
 register <- temporary read at program start, outputs, and the program's own named persistent
 registers), and a builder that emits ops and names float32 constants ``c:<hex>`` (subnormals
 flushed to signed zero, as the float32 cores do). Kinds: ``add sub mul div sqrt neg cvt le
-lt``; ``neg`` is a sign flip on an operand path (unit ``wire``). A loop nest would enter as a
-program whose body is itself a program with a trip count; no scheduler takes one yet.
+lt``; ``neg`` is a sign flip on an operand path (unit ``wire``). Loop nests have their own
+IR in :mod:`navgate.opflow.loops` (bodies of these float32 kinds over array memories).
 """
 
 from __future__ import annotations

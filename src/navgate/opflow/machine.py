@@ -92,7 +92,12 @@ class BankedImage:
     fields: _BankedFields
 
     @classmethod
-    def build(cls, programs: dict, units: BankedUnits, fixed_names) -> BankedImage:
+    def build(cls, programs: dict, units: BankedUnits, fixed_names,
+              rank_skip: tuple = ()) -> BankedImage:
+        """Schedule ``programs`` and lay out the register file. Persistent registers are
+        ranked over the banks by their reads (:func:`assign_banks`), not counting the reads
+        of ops whose ``module`` is in ``rank_skip`` (ops a client knows to be off every
+        critical path, whose reads should not reshuffle the banks of every program)."""
         fixed_names = list(dict.fromkeys(fixed_names))
         consts = sorted({s for p in programs.values() for op in p.ops for s in op.srcs
                          if s.startswith("c:")})
@@ -100,6 +105,8 @@ class BankedImage:
         nreads: dict = {}
         for p in programs.values():
             for op in p.ops:
+                if op.module in rank_skip:
+                    continue
                 for s in op.srcs:
                     nreads[s] = nreads.get(s, 0) + 1
         bank_of = assign_banks(names, units, nreads)

@@ -44,6 +44,7 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numba import njit
 
 from navgate.devices import bmp390, tfluna
 from navgate.devices.adis16500 import (
@@ -104,6 +105,22 @@ class ImuRecord:
     calibration: object  #: the factory calibration (navgate.nav.calibration.ImuCalibration)
 
 
+@njit(cache=True)
+def _first_order(w, phi, y0):
+    """y[k] = w[k] + phi y[k-1] with y[-1] = y0 along axis 0 of the (n, 3) ``w``.
+
+    The same recursion, in the same arithmetic, as ``scipy.signal.lfilter([1], [1, -phi], w,
+    zi=[phi y0])`` (transposed direct form II: y = 1 w + z, z = 0 w + phi y), without
+    importing scipy.signal (2 s) for it (issue 32)."""
+    out = np.empty(w.shape)
+    for axis in range(w.shape[1]):
+        y = y0[axis]
+        for k in range(w.shape[0]):
+            y = w[k, axis] + phi * y
+            out[k, axis] = y
+    return out
+
+
 def _gauss_markov(rng, n, sigma, tau, dt):
     """(n, 3) first-order Gauss-Markov samples, stationary with std ``sigma``."""
     if sigma == 0.0:
@@ -111,14 +128,8 @@ def _gauss_markov(rng, n, sigma, tau, dt):
     phi = math.exp(-dt / tau)
     drive = sigma * math.sqrt(1.0 - phi * phi)
     w = rng.standard_normal((n, 3)) * drive
-    out = np.empty((n, 3))
     x = rng.standard_normal(3) * sigma
-    # a first-order recursion; scipy.signal.lfilter does it in C
-    from scipy.signal import lfilter
-
-    for axis in range(3):
-        out[:, axis] = lfilter([1.0], [1.0, -phi], w[:, axis], zi=[phi * x[axis]])[0]
-    return out
+    return _first_order(w, phi, x)
 
 
 class ImuModel:

@@ -56,12 +56,22 @@ class RasterHeader:
     edges_deg: tuple | None
 
 
-def _open_raster(path: Path):
+def _rasterio(path: Path):
+    """rasterio, or a one-line :class:`DemError` naming the extra that brings it (a slim
+    install, such as the Zybo's PS, flies the embedded DEM without it)."""
     try:
         import rasterio
-    except ImportError as error:  # pragma: no cover - rasterio is a dependency
-        raise DemError(f"rasterio is needed to read {path}: {error}") from None
-    return rasterio.open(path)
+        import rasterio.errors
+    except ImportError as error:
+        if (error.name or "rasterio").split(".")[0] != "rasterio":
+            raise
+        raise DemError(f"reading {path} needs the Python package 'rasterio', not installed: "
+                       'pip install "navgate[dem]" (on the Pi: "navgate[pi]")') from None
+    return rasterio
+
+
+def _open_raster(path: Path):
+    return _rasterio(path).open(path)
 
 
 def _header(src, path: Path) -> RasterHeader:
@@ -89,7 +99,7 @@ def _header(src, path: Path) -> RasterHeader:
 def read_header(path) -> RasterHeader:
     """The header of a geographic raster, without reading its heights (tile indexing)."""
     path = Path(path)
-    from rasterio.errors import RasterioIOError
+    RasterioIOError = _rasterio(path).errors.RasterioIOError  # noqa: N806
 
     try:
         with _open_raster(path) as src:
@@ -103,7 +113,7 @@ def read_header(path) -> RasterHeader:
 def read_raster(path) -> tuple[np.ndarray, RasterHeader]:
     """Heights (float64, north-up, NaN for nodata and the SRTM void) and header of a raster."""
     path = Path(path)
-    from rasterio.errors import RasterioIOError
+    RasterioIOError = _rasterio(path).errors.RasterioIOError  # noqa: N806
 
     try:
         with _open_raster(path) as src:

@@ -42,6 +42,17 @@ class IntegrityConfig:
     max_consecutive_inconsistent: int = 3
     widen: float = 3.0
 
+    def __post_init__(self):
+        from navgate.nav import validate
+
+        validate.positive_int("window", self.window)
+        validate.probability("probability", self.probability)
+        validate.positive_int("max_consecutive_gated", self.max_consecutive_gated)
+        validate.positive_int("max_consecutive_inconsistent", self.max_consecutive_inconsistent)
+        if not validate.finite_scalar("widen", self.widen) >= 1.0:
+            raise ValueError(f"widen: a reinitialisation widens the search (>= 1), got "
+                             f"{self.widen:g}")
+
 
 @dataclass
 class Review:
@@ -51,11 +62,13 @@ class Review:
 
 class IntegrityMonitor:
     def __init__(self, correlator, config: IntegrityConfig = IntegrityConfig()):
-        from scipy.stats import chi2
+        from navgate.nav.eskf import chi2_gate  # chi2.ppf, cached, without scipy.stats
 
+        if not isinstance(config, IntegrityConfig):
+            raise ValueError(f"config: expected an IntegrityConfig, got {type(config).__name__}")
         self.correlator = correlator
         self.config = config
-        self.threshold = float(chi2.ppf(config.probability, 2 * config.window))
+        self.threshold = chi2_gate(config.probability, 2 * config.window)
         self.counts: dict[str, int] = {}
         self.events: dict[str, int] = {}
         self._nis: list[float] = []
@@ -72,7 +85,18 @@ class IntegrityMonitor:
         ``update`` is the filter's UpdateResult (None when the correlator gave no fix),
         ``innovation`` the 2-vector offered to the filter.
         """
+        from navgate.nav import validate
+
         cfg = self.config
+        validate.non_negative("sigma_max_m", sigma_max_m)
+        if update is not None and result.accepted:
+            validate.finite_array("innovation", innovation, (2,))
+            # an applied update's NIS is >= 0 (NaN or negative: S was not positive definite);
+            # a refused one (the fp32 engine's "innovation covariance not positive") may carry
+            # any value and is counted as gated below
+            if update.accepted and not float(update.nis) >= 0:
+                raise ValueError(f"update.nis: an applied update's normalised innovation "
+                                 f"squared is >= 0, got {update.nis}")
         if not result.accepted:
             self._count(result.reason)
             if result.reason == INCONSISTENT:

@@ -156,6 +156,30 @@ class PmfConfig:
     min_valid_fraction: float = 0.5
     reuse_samples: bool = False  #: True: every attempt uses the whole snapshot (overlapping)
 
+    def __post_init__(self):
+        from navgate.nav import validate
+
+        # n - 3 degrees of freedom (offset and 2-D shift) need at least 4 samples
+        validate.positive_int("min_samples", self.min_samples, minimum=4)
+        for name in ("min_track_m", "margin_m", "dem_sigma_m", "velocity_sigma_mps",
+                     "min_roughness_m"):
+            validate.non_negative(name, getattr(self, name))
+        for name in ("k_sigma", "min_half_width_m", "max_half_width_m", "max_noise_scale",
+                     "max_info_ratio"):
+            validate.positive(name, getattr(self, name))
+        # the likelihood weighs every sample by 1 / (range_sigma^2 + dem_sigma^2 + ...)
+        validate.positive("range_sigma_m", self.range_sigma_m)
+        if self.grid_step_m is not None:
+            validate.positive("grid_step_m", self.grid_step_m)
+        validate.positive_int("max_cells", self.max_cells, minimum=3)
+        validate.positive_int("refine_cells", self.refine_cells, minimum=3)
+        validate.probability("consistency_probability", self.consistency_probability)
+        validate.probability("max_tail_mass", self.max_tail_mass, open_high=False)
+        validate.probability("min_valid_fraction", self.min_valid_fraction, open_low=False,
+                             open_high=False)
+        if self.max_half_width_m < self.min_half_width_m:
+            raise ValueError("max_half_width_m: must be at least min_half_width_m")
+
 
 @dataclass
 class PmfResult(TercomResult):
@@ -223,6 +247,20 @@ class PointMassCorrelator:
 
     def correlate(self, snapshot: ProfileSnapshot, sigma_max_m: float,
                   prior_cov=None) -> PmfResult:
+        """Fix from the fresh part of ``snapshot`` (finite times, positions and heights),
+        the window from ``sigma_max_m`` (finite, >= 0) or from ``prior_cov`` (its 2 x 2
+        position block must be a finite symmetric positive semi-definite covariance)."""
+        from navgate.nav import validate
+
+        for name in ("time", "pos_n", "pos_e", "h_terrain"):
+            validate.finite_array(f"snapshot.{name}", getattr(snapshot, name))
+        validate.non_negative("sigma_max_m", sigma_max_m)
+        if prior_cov is not None:
+            pc = np.asarray(prior_cov, float)
+            if pc.ndim != 2 or pc.shape[0] < 2 or pc.shape[1] < 2:
+                raise ValueError(f"prior_cov: expected a covariance of at least 2 x 2, got "
+                                 f"shape {pc.shape}")
+            validate.covariance("prior_cov", pc[:2, :2], 2)
         cfg = self.config
         now = float(snapshot.time[-1]) if len(snapshot) else math.nan
         profile = snapshot
@@ -289,9 +327,9 @@ class PointMassCorrelator:
         # consistency of the best shift (on the finest grid evaluated)
         chi2_min = float(np.nanmin(c2))
         result.chi2_per_dof = chi2_min / dof
-        from scipy.stats import chi2 as chi2_dist
+        from navgate.nav.eskf import chi2_gate  # chi2.ppf, cached, without scipy.stats
 
-        if chi2_min > cfg.max_noise_scale**2 * chi2_dist.ppf(cfg.consistency_probability, dof):
+        if chi2_min > cfg.max_noise_scale**2 * chi2_gate(cfg.consistency_probability, dof):
             result.reason = "profile inconsistent with DEM"
             return result
         temper = max(1.0, chi2_min / dof)

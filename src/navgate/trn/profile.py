@@ -71,8 +71,12 @@ class ProfileBuffer:
     counts: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        if self.depth < 2:
-            raise ValueError("profile depth must be at least 2")
+        from navgate.nav import validate
+
+        self.depth = validate.positive_int("depth", self.depth, minimum=2)
+        validate.non_negative("min_spacing_m", self.min_spacing_m)
+        validate.in_range("max_tilt_rad", self.max_tilt_rad, 0.0, math.pi / 2, " rad")
+        validate.positive("max_gap_s", self.max_gap_s)
         self.h_terrain = np.zeros(self.depth)
         self.pos_n = np.zeros(self.depth)
         self.pos_e = np.zeros(self.depth)
@@ -87,10 +91,26 @@ class ProfileBuffer:
         return reason
 
     def add(self, *, time, h_baro, slant_range, range_valid, roll, pitch, pos_n, pos_e) -> str:
-        """Offer one sample; returns ACCEPTED or the rejection reason."""
+        """Offer one sample; returns ACCEPTED or the rejection reason.
+
+        Sensor defects are counted rejections, never stored: a non-finite barometric
+        height, ``range_valid`` False, a non-finite or negative range (no ranger measures
+        one; a damaged log can hold one, and a replay must go on). What the navigation side
+        supplies must be sound, anything else is a ValueError naming the argument: a finite
+        ``time`` not before the previous accepted sample's, finite ``roll``/``pitch``/
+        ``pos_n``/``pos_e``."""
+        from navgate.nav import validate
+
+        time = validate.finite_scalar("time", time)
+        if self._last_time is not None and time < self._last_time:
+            raise ValueError(f"time: {time:.9g} s is before the previous sample's "
+                             f"{self._last_time:.9g} s (time goes backwards)")
+        for name, value in (("roll", roll), ("pitch", pitch), ("pos_n", pos_n),
+                            ("pos_e", pos_e)):
+            validate.finite_scalar(name, value)
         if not math.isfinite(h_baro):
             return self._count(REJECT_BARO)
-        if not range_valid or not math.isfinite(slant_range):
+        if not range_valid or not (math.isfinite(slant_range) and slant_range >= 0):
             return self._count(REJECT_RANGER)
         if abs(roll) > self.max_tilt_rad or abs(pitch) > self.max_tilt_rad:
             return self._count(REJECT_TILT)
@@ -120,6 +140,13 @@ class ProfileBuffer:
         (d_vnorth, d_veast); a position stored dt seconds ago moves by d - dt * d_v (the
         same first-order error model as the filter's lagged TRN measurement).
         """
+        from navgate.nav import validate
+
+        for name, value in (("d_north", d_north), ("d_east", d_east), ("d_vnorth", d_vnorth),
+                            ("d_veast", d_veast)):
+            validate.finite_scalar(name, value)
+        if now is not None:
+            validate.finite_scalar("now", now)
         valid = self.valid
         lag = (now - self.time[valid]) if now is not None else 0.0
         self.pos_n[valid] += d_north - d_vnorth * lag

@@ -107,6 +107,8 @@ class TercomConfig:
     def __post_init__(self):
         from navgate.nav import validate
 
+        # the MSD surface divides by the sample count; its ambiguity test needs two minima
+        validate.positive_int("min_samples", self.min_samples, minimum=2)
         for name in ("min_track_m", "k_sigma", "margin_m", "min_half_width_m",
                      "max_half_width_m", "min_roughness_m", "roughness_scale_m"):
             validate.non_negative(name, getattr(self, name))

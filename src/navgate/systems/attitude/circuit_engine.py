@@ -30,7 +30,12 @@ import numpy as np
 
 from navgate.numerics.fp32 import bits_to_f32, f32_to_bits
 from navgate.sim.imu_log import ImuLog
-from navgate.systems.attitude.estimate import FLU_TO_FRD, AttitudeResult, resolve_axes
+from navgate.systems.attitude.estimate import (
+    FLU_TO_FRD,
+    AttitudeResult,
+    check_run,
+    resolve_axes,
+)
 from navgate.systems.attitude.mahony import SEED003, MahonyParams
 
 __all__ = ["CircuitRun", "circuit_inputs", "run_circuit", "ENGINES"]
@@ -59,6 +64,8 @@ def circuit_inputs(log: ImuLog, axes: str, kp: float, ki: float):
     acc, mag = log.acc * s, log.mag * s
     dts = np.diff(log.t)
     dt = float(np.float32(np.median(dts))) if len(dts) else SEED003.dt
+    # the reference engine's checks (estimate.check_run), on the period the circuit uses
+    check_run(method="mahony", dt=dt, kp=kp, ki=ki, acc0=acc[0] if len(acc) else None)
     params = replace(SEED003, kp=kp, ki=ki, dt=dt, mag_sign=(1.0, 1.0, 1.0), accel_sign=-1.0)
     words = [f32_to_bits(np.asarray(x, dtype=np.float32)) for x in (acc, mag, gyro)]
     return words, params, axes
@@ -92,7 +99,9 @@ def run_circuit(log: ImuLog, engine: str, *, axes: str = "auto", kp: float = 1.0
     from navgate.systems.attitude.rtl_sim import sample_vectors
     from navgate.systems.attitude.top import AttitudeStream
     inputs = sample_vectors(acc, mag, gyro, params)
-    o, run = simulate_native(AttitudeStream(), inputs, top="attitude_stream")
+    # AttitudeStream takes no parameters: its Verilog is cached by the source version alone
+    o, run = simulate_native(AttitudeStream(), inputs, top="attitude_stream",
+                             design="AttitudeStream", params={})
     q = np.column_stack([_f(o[f"out_q{i}"]) for i in range(4)])
     res = _result(log, axes, q, _f(o["out_pitch"]), _f(o["out_roll"]), _f(o["out_yaw"]))
     return CircuitRun(res, params, int(np.sum(o["invalid"])), int(np.sum(o["saturated"])),

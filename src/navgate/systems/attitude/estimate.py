@@ -47,6 +47,68 @@ def resolve_axes(log: ImuLog, axes: str) -> str:
     return axes
 
 
+#: the shortest sample period a log may have (100 kHz, the fastest rate the log reader takes
+#: for an IMU, above the 32 kHz of the fastest MEMS output data rates): a picosecond step
+#: integrates nothing and leaves the filter at its first attitude
+MIN_SAMPLE_PERIOD_S = 1e-5
+
+#: the proportional gain's bound, kp * T < 1 (the CLI's rule): each step removes the fraction
+#: kp T of the attitude error; at kp T >= 1 the correction overshoots every sample
+KP_DT_MAX = 1.0
+
+
+def check_run(*, method: str, dt: float, kp: float, ki: float, gain: float = 0.02,
+              acc0=None, use_mag: bool = True) -> None:
+    """The one validation of a log and of the gains that every ``ahrs`` engine (the float64
+    reference, the float32 circuit model, its gateware) runs before filtering, so that the
+    circuit engines refuse what the reference refuses. ValueError naming the argument:
+
+    * ``dt`` (the log's nominal sample period, s): finite, >= :data:`MIN_SAMPLE_PERIOD_S`;
+    * ``kp``, ``ki``: finite and >= 0, and the discrete loop stable. Linearised, a small
+      attitude error theta gives the error vector e = M theta, M = sum over the reference
+      vectors used (accelerometer, magnetometer) of (I - v v'), whose eigenvalues c lie in
+      [0, 2] (in [0, 1] with the accelerometer alone). Per eigen-direction the Euler step
+      (i += ki T e; w = kp e + i; theta -= T w) is [theta, i]' <- [[1 - c kp T - c ki T^2,
+      -T], [c ki T, 1]] [theta, i]', stable iff (Jury) c kp T < 2 and
+      c ki T^2 < 4 - 2 c kp T; both tighten as c grows, so c = 2 (1 without a magnetometer)
+      is the bound: with a magnetometer kp T < 1 (the CLI's rule) and ki T^2 < 2 (1 - kp T)
+      (``--ki 1e5`` at 100 Hz: ki T^2 = 10, unstable); without one, kp T < 1 still
+      (:data:`KP_DT_MAX`) and ki T^2 < 4 - 2 kp T;
+    * ``gain`` (complementary): in [0, 1];
+    * ``acc0`` (the first sample's specific force): not zero; the filters level on it.
+    """
+    from navgate.nav import validate
+
+    dt = validate.finite_scalar("dt", dt)
+    if not dt >= MIN_SAMPLE_PERIOD_S:
+        raise ValueError(f"dt: the log's sample period is {dt:g} s, below "
+                         f"{MIN_SAMPLE_PERIOD_S:g} s ({1 / MIN_SAMPLE_PERIOD_S:.0f} Hz); "
+                         "timestamps must be in seconds")
+    if method == "mahony":
+        kp = validate.non_negative("kp", kp)
+        ki = validate.non_negative("ki", ki)
+        if not kp * dt < KP_DT_MAX:
+            raise ValueError(f"kp: {kp:g} with a {dt:g} s sample period gives kp * dt = "
+                             f"{kp * dt:.3g}; the discrete filter needs kp * dt < {KP_DT_MAX:g}"
+                             f" (here kp < {KP_DT_MAX / dt:.4g})")
+        c = 2.0 if use_mag else 1.0
+        ki_max = (4.0 - 2.0 * c * kp * dt) / (c * dt * dt)
+        if not ki < ki_max:
+            raise ValueError(f"ki: {ki:g} with kp {kp:g} and a {dt:g} s sample period makes "
+                             f"the integral loop unstable (here ki < {ki_max:.4g}; see "
+                             "navgate.systems.attitude.estimate.check_run)")
+    elif method == "complementary":
+        if not 0.0 <= validate.finite_scalar("gain", gain) <= 1.0:
+            raise ValueError(f"gain: complementary gain must be in [0, 1], got {gain}")
+    else:
+        raise ValueError(f"method: unknown filter {method!r} (mahony or complementary)")
+    if acc0 is not None:
+        a = validate.finite_array("acc", acc0, (3,))
+        if not float(a @ a) > 0.0:
+            raise ValueError("acc: the first sample's specific force is zero; cannot level "
+                             "on a zero specific force")
+
+
 #: a step longer than this many nominal sample periods is a gap: the filter restarts
 GAP_PERIODS = 5.0
 
@@ -98,9 +160,23 @@ class AttitudeStream:
             self.state[i] = q0[i] / nq
 
     def update(self, t, gyro, acc, mag=None) -> np.ndarray:
-        """Quaternions (N, 4) of C_b^n after each sample of the block."""
+        """Quaternions (N, 4) of C_b^n after each sample of the block.
+
+        ``t`` (N,) finite and strictly increasing (also across blocks), ``gyro``/``acc``/
+        ``mag`` finite (N, 3): checked once per block (ValueError naming the argument), as the
+        compiled steps index [k, 0..2] without bounds checks."""
+        from navgate.nav import validate
+
+        t = validate.finite_array("t", t, (-1,))
+        n = t.size
+        gyro = validate.finite_array("gyro", gyro, (n, 3))
+        acc = validate.finite_array("acc", acc, (n, 3))
+        if mag is not None:
+            mag = validate.finite_array("mag", mag, (n, 3))
+        if n and ((n > 1 and not np.all(np.diff(t) > 0))
+                  or (self.last_t is not None and not t[0] > self.last_t)):
+            raise ValueError("t: time must strictly increase")
         s = FLU_TO_FRD if self.axes == "flu" else np.ones(3)
-        t = np.asarray(t, dtype=np.float64)
         gyro = np.ascontiguousarray(gyro * s)
         acc = np.ascontiguousarray(acc * s)
         use_mag = self.use_mag and mag is not None
@@ -161,6 +237,10 @@ def estimate_attitude(log: ImuLog, method: str = "mahony", *, axes: str = "auto"
            else gap_periods * nominal_period(log.t))
     stream = AttitudeStream(method, axes=axes, kp=kp, ki=ki, gain=gain, use_mag=use_mag,
                             init=init, gap_s=gap if math.isfinite(gap) else math.inf)
+    if len(log.t) > 1:  # the checks every engine shares (check_run)
+        check_run(method=method, dt=nominal_period(log.t), kp=kp, ki=ki, gain=gain,
+                  acc0=log.acc[0] if init == "accel" else None,
+                  use_mag=use_mag and log.mag is not None)
     q = stream.update(log.t, log.gyro, log.acc, log.mag if use_mag else None)
     roll, pitch, yaw = euler_deg(q)
     res = AttitudeResult(log.t, q, roll, pitch, yaw, axes, stream.used_mag)

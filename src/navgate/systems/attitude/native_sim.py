@@ -118,14 +118,16 @@ def _build(verilog_text: str, top: str, in_w: int, out_w: int) -> tuple[Path, fl
 
 
 def simulate_native(component, inputs: dict, *, top: str = "dut",
-                    idle_limit: int = 10_000) -> tuple[dict, NativeRun]:
+                    idle_limit: int = 10_000, design: str | None = None,
+                    params: dict | None = None) -> tuple[dict, NativeRun]:
     """Stream ``inputs`` (per-field arrays) through ``component`` compiled by Verilator;
     returns the per-field outputs (as :func:`navgate.gateware.verify.simulate`) and a
-    :class:`NativeRun`."""
+    :class:`NativeRun`. With ``design`` (and the component's ``params``) the Verilog comes
+    from navgate's Verilog cache when it is there (:func:`navgate.gateware.verify.emit_verilog`)."""
     in_fmt = V.stream_format(V._port_shape(component.i))
     out_fmt = V.stream_format(V._port_shape(component.o))
     packed = V.pack(in_fmt, inputs)
-    text = V.emit_verilog(component, top)
+    text = V.emit_verilog(component, top, design=design, params=params)
     exe, build_s = _build(text, top, in_fmt.width, out_fmt.width)
     with tempfile.TemporaryDirectory(prefix="navgate-native-") as d:
         fin, fout = Path(d) / "in.hex", Path(d) / "out.hex"

@@ -176,6 +176,27 @@ def measurement_scale(x):
 
 
 @njit(cache=True)
+def check_update_covariance(P, S):
+    """A GPS update's covariances, checked once per fix (O(n), no factorisation): every
+    variance on P's diagonal finite and >= 0 (a negative-definite P fails here), and the
+    3 x 3 innovation covariance S = H P H' + R positive definite by its leading principal
+    minors (Sylvester's criterion; an indefinite P that passes the diagonal can fail here).
+    ValueError naming P otherwise: the update would divide by a meaningless S."""
+    for i in range(P.shape[0]):
+        if not P[i, i] >= 0.0:
+            raise ValueError("P: covariance has a negative or non-finite variance on its "
+                             "diagonal")
+    m1 = S[0, 0]
+    m2 = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+    m3 = (S[0, 0] * (S[1, 1] * S[2, 2] - S[1, 2] * S[2, 1])
+          - S[0, 1] * (S[1, 0] * S[2, 2] - S[1, 2] * S[2, 0])
+          + S[0, 2] * (S[1, 0] * S[2, 1] - S[1, 1] * S[2, 0]))
+    if not (m1 > 0.0 and m2 > 0.0 and m3 > 0.0):
+        raise ValueError("P: the innovation covariance H P H' + R is not positive definite "
+                         "(P is not a covariance)")
+
+
+@njit(cache=True)
 def gps_update(P, x, gps, sigma):
     """Kalman update with a GPS fix ``gps = (lat, lon, h)``; returns (dx, innovation z,
     innovation covariance S). Joseph form; P (n x n, the navigation block first: this filter's
@@ -201,6 +222,7 @@ def gps_update(P, x, gps, sigma):
         for j in range(3):
             S[i, j] = hd[i] * PHt[i, j]
         S[i, i] += sigma[i] * sigma[i]
+    check_update_covariance(P, S)
     # S^-1 by cofactors (3 x 3, symmetric positive definite)
     c00 = S[1, 1] * S[2, 2] - S[1, 2] * S[2, 1]
     c01 = S[0, 2] * S[2, 1] - S[0, 1] * S[2, 2]

@@ -158,9 +158,26 @@ def sweep(ep_idx, p_post, p_prior, dxs, interval, n_samples: int, dt: float,
     ``ep_idx`` (M+1,) the sample of each epoch (ep_idx[0] = 0, the start), ``p_post``,
     ``p_prior`` (M+1, n, n) and ``dxs`` (M+1, n) from the forward pass, ``interval(k0, k1,
     P_start) -> (Pj, Fs)`` the recomputation of the covariances between epochs,
-    ``n_samples`` = N + 1."""
+    ``n_samples`` = N + 1.
+
+    Checked once, before the sweep (ValueError naming the argument): ``dt`` > 0, ``ep_idx``
+    whole numbers starting at 0, strictly increasing, below ``n_samples``; ``p_post``,
+    ``p_prior`` finite (M+1, n, n) and ``dxs`` finite (M+1, n) (each prior covariance is
+    checked symmetric positive semi-definite where it is inverted, :func:`spd_inverse`)."""
+    validate.positive("dt", dt)
+    n_samples = validate.positive_int("n_samples", n_samples)
+    ep = validate.finite_array("ep_idx", ep_idx, (-1,))
+    if ep.size == 0 or ep[0] != 0 or np.any(ep != np.round(ep)) or np.any(np.diff(ep) <= 0) \
+            or ep[-1] >= n_samples:
+        raise ValueError(f"ep_idx: epoch samples must be whole numbers from 0, strictly "
+                         f"increasing and below n_samples = {n_samples}")
     M = len(ep_idx) - 1
+    p_post = validate.finite_array("p_post", p_post)
+    if p_post.ndim != 3 or p_post.shape[0] != M + 1 or p_post.shape[1] != p_post.shape[2]:
+        raise ValueError(f"p_post: expected ({M + 1}, n, n), got shape {p_post.shape}")
     n = p_post.shape[1]
+    validate.finite_array("p_prior", p_prior, (M + 1, n, n))
+    validate.finite_array("dxs", dxs, (M + 1, n))
     K = len(lags)
     for lag in lags:
         if lag is not None and (int(lag) != lag or lag < 0):

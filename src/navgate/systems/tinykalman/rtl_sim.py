@@ -247,9 +247,14 @@ endmodule
 def build_verilator(config: SimConfig = FAST) -> Path:
     """Compile (or reuse from the harness's cache) the Verilator model of ``config``'s chip
     inside the bench wrapper (:func:`tb_wrapper_verilog`)."""
+    from navgate.cache import cached_verilog
     from navgate.gateware.verify import _build_model, emit_verilog
 
-    text = emit_verilog(config.top(), TT_MODULE_NAME) + tb_wrapper_verilog()
+    # the chip's Verilog from navgate's cache when this configuration was emitted before at
+    # this version of the sources (the chip is then not even built)
+    chip, _ = cached_verilog("TinyKalmanTop", {"top": TT_MODULE_NAME, **config.params()},
+                             lambda: emit_verilog(config.top(), TT_MODULE_NAME))
+    text = chip + tb_wrapper_verilog()
     return _build_model(text, TB_TOP, _VERILATOR_ARGS)
 
 

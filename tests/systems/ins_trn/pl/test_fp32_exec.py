@@ -186,3 +186,29 @@ def test_schedule_bounds_on_a_small_program():
     assert got["critical_path"] == 5 + 8 + 29
     assert got["ops_per_unit"] == {"mul": 6, "add": 1, "sqrt": 1}
     assert got["resource"] == 3 and got["bound"] == 42
+
+
+@pytest.mark.parametrize("key", ["alt_apply", "trn_apply"])
+def test_updates_zero_the_compensation_words(key):
+    """An update's new P is the whole covariance: every cP word is +0 after it (from non-zero
+    words), and the new P is computed from the stored P (the same bits whatever cP was)."""
+    from navgate.systems.ins_trn.pl.fp32_program import CP_REGS, P_REGS, programs
+
+    prog = programs()[key]
+    rng = np.random.default_rng(5)
+    base = _engine_state(rng)
+    vals = {"h_meas": 1200.0, "r": 0.09, "y0": 12.5, "y1": -7.25, "r00": 100.0,
+            "r01": 10.0, "r11": 80.0, "lag": 3.0, "gate": 9.2}
+    inputs = {n: np.uint32(F.f32_to_bits(np.float64(vals[n]))) for n in prog.inputs}
+    got = []
+    for scale in (0.0, 1.0, -1.0):
+        state = dict(base)
+        for p, c in zip(P_REGS, CP_REGS, strict=True):
+            # a compensation word below half an ulp of its element, of either sign
+            v = float(np.uint32(base[p]).view(np.float32)) * 2.0**-26 * scale
+            state[c] = F.flush_subnormal(F.f32_to_bits(np.float64(v)))
+        new, _, _ = run_bittrue(prog, state, inputs)
+        assert all(int(new[c][0]) == 0 for c in CP_REGS)
+        got.append([int(new[p][0]) for p in P_REGS])
+    assert got[0] == got[1] == got[2]
+    assert got[0] != [int(base[p]) for p in P_REGS]  # the update changed P

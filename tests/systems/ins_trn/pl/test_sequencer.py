@@ -186,7 +186,7 @@ def test_sequencer_equals_fp32_engine(setup_and_words, through_registers):
                 for h, r in alt_cases]
     assert outcomes[0].accepted and not outcomes[1].accepted
     assert log["alt"][0][0] == 0b010 and log["alt"][1][0] == 0b110
-    assert [a[2] for a in log["alt"]] == [348, 67]
+    assert [a[2] for a in log["alt"]] == [345, 67]
     for (_status, nis, n), out, applied in zip(log["alt"], outcomes, (True, False), strict=True):
         assert nis == _bits(out.nis)
         assert n == job_cycles(img, "alt", applied)
@@ -194,7 +194,7 @@ def test_sequencer_equals_fp32_engine(setup_and_words, through_registers):
                            np.array([[trn["r00"], trn["r01"]], [trn["r01"], trn["r11"]]]),
                            trn["lag"])
     assert out.accepted and log["trn"][0][0] == 0b010 and log["trn"][0][1] == _bits(out.nis)
-    assert log["trn"][0][2] == job_cycles(img, "trn") == 498
+    assert log["trn"][0][2] == job_cycles(img, "trn") == 496
     far = model.update_trn(np.array([trn_far["y0"], trn_far["y1"]]), np.eye(2), 0.0)
     assert not far.accepted and "gate" in far.reason
     assert log["trn"][1][0] == 0b110 and log["trn"][1][1] == _bits(far.nis)

@@ -21,13 +21,15 @@ def test_zybo_variant_verilog_xdc_and_filelist(tmp_path):
     header = header[:header.index(");")]
     ports = set(re.findall(r"\b(\w+)\b", header)) - {"module", "ins_trn_top"}
     assert "MMCME2_BASE" in text and "BUFG" in text
+    (tmp_path / "ins_trn_top.v").write_text(text)  # as the build flow leaves it
     made = {p.name for p in comp.write_artifacts(tmp_path, "ins_trn_top", target="zybo-z7-20")}
     assert made == {"ins_trn_top_regs.h", "ins_trn_top_regs.md", "ins_trn_top.xdc",
-                    "ins_trn_top.f"}
+                    "ins_trn_top.f", "ins_trn_top.tcl", "ins_trn_top_bd.v"}
     xdc = (tmp_path / "ins_trn_top.xdc").read_text()
     constrained = set(re.findall(r"get_ports \{ (\w+)(?:\[\d+\])? \}", xdc))
     assert constrained <= ports
-    bus_ports = {p for p in ports if p.startswith(("axi__", "dma__"))} | {"irq"}
+    # the buses, the interrupt and the fabric clock go to the block design (vivado.py)
+    bus_ports = {p for p in ports if p.startswith(("axi__", "dma__"))} | {"irq", "clk_sys"}
     assert ports - bus_ports == constrained
     for port in constrained:
         pin = ZYBO_Z7_20_PINS[port if port != "led" else "led[0]"][0]

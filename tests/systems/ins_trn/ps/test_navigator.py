@@ -53,6 +53,51 @@ def test_record_by_record_equals_whole_stream(short):
     assert one.accepted == whole.accepted and len(one.fixes) == len(whole.fixes)
 
 
+def _feed_all(nav, stream):
+    for k, t, i in zip(stream.kind, stream.t, stream.index, strict=True):
+        if k == IMU:
+            payload = (stream.gyro_words[i], stream.accel_words[i])
+        elif k == BARO:
+            payload = (stream.baro_altitude[i], stream.baro_status[i] == 0)
+        elif k == RANGER:
+            payload = (stream.ranger_range[i], stream.ranger_status[i] == 0)
+        else:
+            payload = ()
+        nav.feed(k, float(t), payload)
+    return nav.finish()
+
+
+def test_stretches_with_a_fix_in_flight_and_bad_samples_equal_record_by_record(short):
+    """The reference engine's stretches (Navigator.run -> run_records) against feed(): with
+    a link latency (a stretch stops at the first record at or after a fix's time), invalid
+    barometer samples, a non-finite IMU sample and truth records in the stream, the
+    solution, the log and every count are the same bits."""
+    import dataclasses
+
+    dem, cfg, data, stream = short
+    status = stream.baro_status.copy()
+    status[5::17] = 1
+    alt = stream.baro_altitude.copy()
+    alt[9] = np.nan
+    gw = stream.gyro_words.astype(float)
+    gw[3000, 1] = np.nan
+    bad = dataclasses.replace(stream, baro_status=status, baro_altitude=alt, gyro_words=gw)
+    runs = []
+    for whole in (True, False):
+        nav = Navigator(make_engine("reference", engine_setup(bad.header, cfg)), cfg,
+                        t0=bad.header["t0"], dem=dem, use_trn=True, trn_latency_s=1.3)
+        runs.append(nav.run(bad) if whole else _feed_all(nav, bad))
+    a, b = runs
+    assert np.array_equal(a.nav, b.nav) and np.array_equal(a.sigma, b.sigma)
+    assert np.array_equal(a.p_ne, b.p_ne) and np.array_equal(a.t, b.t)
+    assert a.accepted == b.accepted and a.rejected == b.rejected
+    assert a.rejected["baro invalid sample"] == np.count_nonzero(status) + 1
+    assert a.imu_samples_rejected == b.imu_samples_rejected == 1
+    assert [f["applied_at_s"] for f in a.fixes] == [f["applied_at_s"] for f in b.fixes]
+    assert sum(f["applied"] for f in a.fixes) > 0
+    assert all(f["applied_at_s"] >= f["time_s"] + 1.3 for f in a.fixes if f["applied"])
+
+
 def test_fp32_engine_tracks_the_reference(short):
     """40 s INS+TRN: the float32 engine's position stays within a decimetre of the float64
     engine's (the float32 height/position quantum is 1e-4 m; the filter's 1-sigma is ~10 m)."""
@@ -132,3 +177,20 @@ def test_log_without_imu_records_is_an_error(tmp_path):
     path.write_text("something else\n")
     with pytest.raises(LogError, match="not a navgate record log"):
         read_log(path)
+
+
+def test_profile_attitude_equals_the_dcm_array_formula():
+    """The navigator's scalar roll/pitch/yaw (one quaternion per ranger record) equals the
+    formula on rotations.quat_to_dcm_array's elements bit for bit, including near +-90 deg
+    pitch where the clip to [-1, 1] matters."""
+    from navgate.nav.rotations import quat_to_dcm_array
+    from navgate.systems.ins_trn.ps.navigator import _euler
+
+    rng = np.random.default_rng(5)
+    qs = rng.standard_normal((3000, 4))
+    qs = np.concatenate([qs, [[1.0, 0.0, 1.0, 0.0], [1.0, 0.0, -1.0, 0.0]]])
+    for q in qs / np.linalg.norm(qs, axis=1, keepdims=True):
+        c = quat_to_dcm_array(q)
+        want = (math.atan2(c[2, 1], c[2, 2]), -math.asin(max(-1.0, min(1.0, c[2, 0]))),
+                math.atan2(c[1, 0], c[0, 0]))
+        assert _euler(q) == want

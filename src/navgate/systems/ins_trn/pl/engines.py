@@ -25,7 +25,7 @@ from navgate.numerics.fp32 import float_to_bits
 from navgate.opflow.ir import Program
 from navgate.opflow.machine import BankedImage, ScheduledMachineStream
 from navgate.opflow.schedule import BankedUnits
-from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS, programs
+from navgate.systems.ins_trn.pl.fp32_program import RESET_MODULE, STATE_REGS, programs
 
 __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePropagator",
            "split_program", "engine_programs", "command_vectors", "stream_model",
@@ -154,7 +154,9 @@ def engine_programs() -> dict:
 def engine_image(which: str = "ins_engines", units: BankedUnits = ENGINE_UNITS) -> BankedImage:
     allp = engine_programs()
     progs = {k: allp[k] for k in PROGRAM_SETS[which]}
-    return BankedImage.build(progs, units, fixed_names(progs))
+    # the compensation resets read each cP once per update, off every critical path:
+    # ranking them would move the registers of every program to other banks
+    return BankedImage.build(progs, units, fixed_names(progs), rank_skip=(RESET_MODULE,))
 
 
 def simulate_calls(image: BankedImage, regs: dict, calls, vcd: str | None = None):

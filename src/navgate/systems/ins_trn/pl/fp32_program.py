@@ -435,9 +435,15 @@ def propagate_program(compensated: bool = True) -> Program:
 # ------------------------------------------------------------------ Kalman update engine
 
 
+#: the module of the ops that zero P's compensation words in an update
+RESET_MODULE = "compensation_reset"
+
+
 def _joseph(b: Builder, cols, k, s):
     """P <- P - K C' - C K' + K S K' on the upper triangle, with C = P H' (15 x m) and S
-    (m x m, symmetric, as dict (r, c) -> reg); the Joseph form for these H."""
+    (m x m, symmetric, as dict (r, c) -> reg); the Joseph form for these H. The update
+    reads the stored P (not P - cP) and zeroes each compensation word cP: the covariance
+    after an update is the new P alone (docs/seed000-engines.md, "Compensation words")."""
     m_dim = len(cols)
     n = N_STATES
     sk = {}
@@ -452,6 +458,11 @@ def _joseph(b: Builder, cols, k, s):
             terms += [(-1, b.mul(cols[r][i], k[r][j])) for r in range(m_dim)]
             terms += [(1, b.mul(k[r][i], sk[j, r])) for r in range(m_dim)]
             b.prog.commit[p_reg(i, j)] = b.sum(terms)
+            # the new P is the whole covariance: its compensation word restarts at zero
+            # (cP - cP = +0 for every finite cP; a NaN or infinite word stays NaN)
+            module, b.module = b.module, RESET_MODULE
+            b.prog.commit["c" + p_reg(i, j)] = b.sub("c" + p_reg(i, j), "c" + p_reg(i, j))
+            b.module = module
 
 
 def emit_correction(b: Builder, dx):

@@ -34,7 +34,7 @@ Register fields that configure blocks whose ports differ from the map:
 
 from __future__ import annotations
 
-from amaranth import Cat, ClockDomain, Module, ResetInserter, Signal
+from amaranth import Cat, ClockDomain, ClockSignal, Module, ResetInserter, Signal
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
@@ -371,7 +371,10 @@ class ZyboInsTrnTop(wiring.Component):
 
     def __init__(self):
         self.inner = InsTrnTop()
-        members = {"clk_in": In(1), "rst_btn": In(1)}
+        # clk_sys: the fabric clock (the MMCM's 100 MHz), out to the block design, which clocks
+        # the PS7's AXI ports and the interconnects with it: the bus then runs in the register
+        # bank's own domain, with no crossing in the fabric (vivado.py)
+        members = {"clk_in": In(1), "rst_btn": In(1), "clk_sys": Out(1)}
         for name, member in self.inner.signature.members.items():
             members[name] = member
         super().__init__(members)
@@ -379,7 +382,8 @@ class ZyboInsTrnTop(wiring.Component):
         self.THROUGHPUT = self.inner.THROUGHPUT
 
     def write_artifacts(self, out_dir, name: str, target: str | None = None):
-        """The C header and register docs, the XDC of the pins and a filelist."""
+        """The C header and register docs, the XDC of the pins, a filelist, and the Vivado
+        project script with its block-design wrapper (:mod:`.vivado`)."""
         from pathlib import Path
 
         from navgate.systems.ins_trn.pl.board import write_xdc
@@ -395,6 +399,9 @@ class ZyboInsTrnTop(wiring.Component):
             f"# top module: {name}; constraints: {name}.xdc; register map: {name}_regs.h\n"
             f"{name}.v\n")
         made.append(filelist)
+        from navgate.systems.ins_trn.pl.vivado import write_vivado
+
+        made += write_vivado(out_dir, name)  # reads the emitted NAME.v beside it
         return made
 
     def elaborate(self, platform):
@@ -403,7 +410,8 @@ class ZyboInsTrnTop(wiring.Component):
         m = Module()
         m.domains.sync = ClockDomain("sync")  # driven by clk_rst_gen
         m.submodules.clk_rst = crg = ClockResetGenerator(define_domain=False)
-        m.d.comb += [crg.clk_in.eq(self.clk_in), crg.ext_rst_n.eq(~self.rst_btn)]
+        m.d.comb += [crg.clk_in.eq(self.clk_in), crg.ext_rst_n.eq(~self.rst_btn),
+                     self.clk_sys.eq(ClockSignal("sync"))]
         m.submodules.top = top = self.inner
         for name, member in top.signature.members.items():
             if member.is_signature:

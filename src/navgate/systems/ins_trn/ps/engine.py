@@ -56,6 +56,84 @@ class EngineSetup:
     t0: float = 0.0  #: the time of IMU sample count 0 (s; the profile's time base)
 
 
+def check_setup(setup: EngineSetup) -> None:
+    """What every engine refuses before it writes a register (ValueError naming the field):
+    a non-positive or non-finite rate (the PL's dt = 1 / rate), a navigation state out of
+    range, a P0 that is not a finite symmetric positive semi-definite 15 x 15 matrix, non-finite
+    biases, a filter configuration that is not a FilterConfig."""
+    from navgate.nav import validate
+
+    validate.positive("rate_hz", setup.rate_hz)
+    nav = validate.finite_array("nav0", setup.nav0, (strapdown.NAV_SIZE,))
+    validate.nav_latitude("nav0[0] (latitude)", nav[0])
+    validate.height_m("nav0[2] (height)", nav[2])
+    validate.unit_quaternion("nav0[6:10] (attitude quaternion)", nav[6:10])
+    validate.covariance("p0", setup.p0, eskf.N_STATES)
+    validate.finite_array("bias_a0", setup.bias_a0, (3,))
+    validate.finite_array("bias_g0", setup.bias_g0, (3,))
+    if not isinstance(setup.filter, eskf.FilterConfig):
+        raise ValueError(f"filter: expected a FilterConfig, got {type(setup.filter).__name__}")
+    if not isinstance(setup.reference, LocalTangent):
+        raise ValueError(f"reference: expected a LocalTangent, got "
+                         f"{type(setup.reference).__name__}")
+    validate.non_negative("profile_spacing_m", setup.profile_spacing_m)
+    validate.finite_scalar("t0", setup.t0)
+
+
+def check_imu_words(gyro_words, accel_words, *, finite: bool = True
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The IMU words of one ``propagate`` call as two float64 (N, 3) arrays of equal length,
+    finite unless ``finite=False``. Every engine calls this first: a mis-shaped array would be
+    read out of bounds by the compiled sample loops (memory safety), and a NaN word has no SPI
+    encoding, so the PL engines refuse it. The float64 reference engine passes
+    ``finite=False``: its compiled loop counts a non-finite sample as rejected
+    (``imu_samples_rejected``) and integrates the last good one in its place, the same in a
+    stretch of records and record by record."""
+    from navgate.nav import validate
+
+    # called for every block the navigator propagates (a few samples each): the fast path is
+    # two conversions, two shape tests and one isfinite pass per array (a few microseconds);
+    # validate.finite_array only runs to name the bad index
+    try:
+        gw = np.ascontiguousarray(gyro_words, dtype=np.float64)
+        aw = np.ascontiguousarray(accel_words, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"gyro_words, accel_words: not numeric arrays ({error})") from None
+    for name, w in (("gyro_words", gw), ("accel_words", aw)):
+        if w.ndim != 2 or w.shape[1] != 3:
+            raise ValueError(f"{name}: expected an N x 3 array of words, got shape {w.shape}")
+        if finite and not np.isfinite(w).all():
+            validate.finite_array(name, w)
+    if gw.shape != aw.shape:
+        raise ValueError(f"accel_words: {aw.shape[0]} samples, gyro_words {gw.shape[0]}")
+    return gw, aw
+
+
+def check_altitude(h_meas, sigma) -> tuple[float, float]:
+    """A barometric update: finite height, finite positive sigma (a zero or negative sigma
+    is a zero or negative R)."""
+    from navgate.nav import validate
+
+    return validate.finite_scalar("h_meas", h_meas), validate.positive("sigma", sigma)
+
+
+def check_trn(y_ne, cov, lag_s) -> tuple[np.ndarray, np.ndarray, float]:
+    """A TRN fix: finite 2-vector, 2 x 2 symmetric positive semi-definite covariance, finite
+    lag >= 0 (a fix cannot measure the future)."""
+    from navgate.nav import validate
+
+    return (validate.finite_array("y_ne", y_ne, (2,)), validate.covariance("cov", cov, 2),
+            validate.non_negative("lag_s", lag_s))
+
+
+def check_inflate(d_p) -> np.ndarray:
+    """The PS's answer to a divergence adds a 2 x 2 covariance: finite, symmetric, positive
+    semi-definite (anything else could leave P indefinite or NaN)."""
+    from navgate.nav import validate
+
+    return validate.covariance("d_p", d_p, 2)
+
+
 @dataclass
 class UpdateOutcome:
     accepted: bool
@@ -73,6 +151,7 @@ class PlEngine(ABC):
     needs_imu_words: bool = False
 
     def __init__(self, setup: EngineSetup):
+        check_setup(setup)
         self.setup = setup
         self.accepted: dict = {}
         self.rejected: dict = {}
@@ -144,6 +223,21 @@ class PlEngine(ABC):
         """(distance word, strength) of the ranger frame as the PL's receiver reports it."""
         raise NotImplementedError(f"the {self.name} engine has no PL ranger path")
 
+    # -- stretches of records in one call ------------------------------------------------------
+    #: True when the engine takes whole stretches of IMU and barometer records in one call
+    #: (:meth:`run_records`); the navigator then calls the per-record methods only for the
+    #: other records
+    batch_records: bool = False
+
+    def run_records(self, stream, m0: int, m1: int, *, baro_sigma: float, log_every: int,
+                    logged: int, log) -> tuple[int, int, float | None, int]:
+        """Records m0..m1-1 of ``stream`` (IMU and barometer; others skipped) exactly as the
+        per-record calls would run them, logging into ``log`` = (nav, sigma, p_ne) arrays
+        (row ``logged`` onward, see :meth:`Navigator._log`). Returns (IMU samples run, rows
+        logged in all, the newest barometer altitude or None when the stretch had none,
+        invalid barometer samples)."""
+        raise NotImplementedError(f"the {self.name} engine runs records one at a time")
+
     # -- simulation figures ---------------------------------------------------------------------
     def hardware_stats(self) -> dict:
         """What a simulated PL counted during the run (cycles, interrupts, DMAs, ...); empty
@@ -177,8 +271,17 @@ class ReferenceEngine(PlEngine):
                                             rate_hz=setup.rate_hz, bias_a0=setup.bias_a0,
                                             bias_g0=setup.bias_g0)
         self._tangent = setup.reference
+        self._cal = None  #: calibration arrays for the compiled loop (built on first use)
+        self._counts = np.zeros(eskf.N_COUNTERS, np.int64)
+        self._no_log = (np.empty((0, strapdown.NAV_SIZE)), np.empty((0, eskf.N_STATES)),
+                        np.empty(0))
+        self._no_baro = (np.empty(0), np.empty(0, np.int8))
+
+    batch_records = True
 
     def calibrate(self, gyro_words, accel_words):
+        """Calibrated readings (N, 3) of a block of words, the arithmetic of the compiled
+        loops (:func:`navgate.nav.eskf.run_records` applies it sample by sample)."""
         cal = self.setup.calibration
 
         def one(words, lsb, bias, m):
@@ -191,31 +294,72 @@ class ReferenceEngine(PlEngine):
         return (one(gyro_words, cal.gyro_lsb, cal.gyro_bias, cal.gyro_matrix),
                 one(accel_words, cal.accel_lsb, cal.accel_bias, cal.accel_matrix))
 
-    def propagate(self, gyro_words, accel_words) -> None:
-        gyro, accel = self.calibrate(gyro_words, accel_words)
+    def _kernel(self, kinds, index, m0, m1, gyro_words, accel_words, baro_alt, baro_status,
+                baro_r, log_every, logged, log):
         f = self.filter
-        before = f.imu_samples_rejected
-        f.propagate(gyro, accel, 0, gyro.shape[0])
-        self.imu_samples_rejected += f.imu_samples_rejected - before
-        self.samples += gyro.shape[0]
+        if self._cal is None:
+            cal = self.setup.calibration
+            self._cal = (np.array([cal.gyro_lsb, cal.accel_lsb], float),
+                         np.array([cal.gyro_bias, cal.accel_bias], float),
+                         np.array([cal.gyro_matrix, cal.accel_matrix], float))
+        c = self._counts
+        c[:] = 0
+        c[eskf.C_SAMPLES] = self.samples
+        c[eskf.C_LOGGED] = logged
+        c[eskf.C_HAVE_GOOD] = f._have_good
+        h_baro = np.full(1, np.inf)  # inf: no barometer record in the stretch
+        out_nav, out_sigma, out_pne = self._no_log if log is None else log
+        eskf.run_records(f.nav, f.bias_a, f.bias_g, f.p, f.last_good, kinds, index, m0, m1,
+                         gyro_words, accel_words, *self._cal, baro_alt, baro_status,
+                         float(baro_r), f.gate1, f.dt, f.q_diag, f.decay_a, f.decay_g, True,
+                         log_every, out_nav, out_sigma, out_pne, c, h_baro)
+        f._have_good = bool(c[eskf.C_HAVE_GOOD])
+        n = int(c[eskf.C_SAMPLES]) - self.samples
+        self.samples += n
+        bad = int(c[eskf.C_IMU_BAD])
+        f.imu_samples_rejected += bad
+        self.imu_samples_rejected += bad
+        for table, i in ((f.accepted, eskf.C_BARO_ACC), (f.rejected, eskf.C_BARO_REJ)):
+            if c[i]:
+                table["baro"] = table.get("baro", 0) + int(c[i])
+        self.accepted, self.rejected = f.accepted, f.rejected
+        f.raise_for(int(c[eskf.C_ERROR]), "baro")
+        hb = float(h_baro[0])
+        return n, int(c[eskf.C_LOGGED]), (None if hb == np.inf else hb), \
+            int(c[eskf.C_BARO_INVALID])
+
+    def propagate(self, gyro_words, accel_words) -> None:
+        gyro_words, accel_words = check_imu_words(gyro_words, accel_words, finite=False)
+        gyro_words = np.ascontiguousarray(gyro_words)
+        accel_words = np.ascontiguousarray(accel_words)
+        n = gyro_words.shape[0]
+        self._kernel(np.zeros(n, np.uint8), np.arange(n), 0, n, gyro_words, accel_words,
+                     self._no_baro[0], self._no_baro[1], 1.0, 1, 0, None)
+
+    def run_records(self, stream, m0, m1, *, baro_sigma, log_every, logged, log):
+        return self._kernel(stream.kind, stream.index, int(m0), int(m1), stream.gyro_words,
+                            stream.accel_words, stream.baro_altitude, stream.baro_status,
+                            float(baro_sigma) ** 2, int(log_every), int(logged), log)
 
     def _outcome(self, upd) -> UpdateOutcome:
         return UpdateOutcome(bool(upd.accepted), float(upd.nis), upd.correction,
                              "" if upd.accepted else "rejected by chi-square gate")
 
     def update_altitude(self, h_meas, sigma) -> UpdateOutcome:
+        h_meas, sigma = check_altitude(h_meas, sigma)
         out = self._outcome(self.filter.update_altitude(h_meas, sigma))
         self.accepted, self.rejected = self.filter.accepted, self.filter.rejected
         return out
 
     def update_trn(self, y_ne, cov, lag_s) -> UpdateOutcome:
+        y_ne, cov, lag_s = check_trn(y_ne, cov, lag_s)
         out = self._outcome(self.filter.update_position_offset(y_ne, cov, lag_s))
         self.accepted, self.rejected = self.filter.accepted, self.filter.rejected
         return out
 
     def inflate_p_horizontal(self, d_p) -> None:
-        d = 0.5 * (np.asarray(d_p, float) + np.asarray(d_p, float).T)
-        self.filter.p[:2, :2] += d
+        d = check_inflate(d_p)
+        self.filter.p[:2, :2] += 0.5 * (d + d.T)
 
     def read_nav(self):
         return self.filter.nav.copy()

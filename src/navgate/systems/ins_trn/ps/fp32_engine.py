@@ -31,7 +31,16 @@ from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.systems.ins_trn.pl import fp32_program as fp
 from navgate.systems.ins_trn.pl.fp32_exec import Machine, run_samples
 from navgate.systems.ins_trn.pl.fp32_program import programs
-from navgate.systems.ins_trn.ps.engine import EngineSetup, PlEngine, UpdateOutcome, nav_from_ned
+from navgate.systems.ins_trn.ps.engine import (
+    EngineSetup,
+    PlEngine,
+    UpdateOutcome,
+    check_altitude,
+    check_imu_words,
+    check_inflate,
+    check_trn,
+    nav_from_ned,
+)
 from navgate.systems.ins_trn.ps.pl_profile import PlProfileBuffer, ProfileFifoModel
 from navgate.trn.profile import PROFILE_DEPTH
 
@@ -109,9 +118,8 @@ class Fp32Engine(PlEngine):
 
     # -- engine calls ---------------------------------------------------------------------------
     def propagate(self, gyro_words, accel_words) -> None:
+        gw, aw = check_imu_words(gyro_words, accel_words)
         c = self.m.compiled["propagate"]
-        gw = np.ascontiguousarray(gyro_words, dtype=np.float64)
-        aw = np.ascontiguousarray(accel_words, dtype=np.float64)
         run_samples(self.m.regs, c.ops, c.table, c.inputs, gw, aw, self.check_pd,
                     self.m.p_idx, self.pd_stats)
         self.samples += gw.shape[0]
@@ -139,10 +147,11 @@ class Fp32Engine(PlEngine):
         return UpdateOutcome(True, nis, np.array([res[f"dx{i}"] for i in range(15)]))
 
     def update_altitude(self, h_meas, sigma) -> UpdateOutcome:
+        h_meas, sigma = check_altitude(h_meas, sigma)
         return self._update("baro", "alt_gate", "alt_apply", 1, h_meas=h_meas, r=sigma**2)
 
     def update_trn(self, y_ne, cov, lag_s) -> UpdateOutcome:
-        cov = np.asarray(cov, float)
+        y_ne, cov, lag_s = check_trn(y_ne, cov, lag_s)
         return self._update("trn", "trn_gate", "trn_apply", 2, y0=y_ne[0], y1=y_ne[1],
                             r00=cov[0, 0], r01=0.5 * (cov[0, 1] + cov[1, 0]), r11=cov[1, 1],
                             lag=lag_s)
@@ -203,7 +212,8 @@ class Fp32Engine(PlEngine):
     def inflate_p_horizontal(self, d_p) -> None:
         """P00, P01, P11 += d (float32 adds, as the PS's register writes would be summed in
         the PL); the compensation words are left as they are."""
-        d = 0.5 * (np.asarray(d_p, float) + np.asarray(d_p, float).T)
+        d = check_inflate(d_p)
+        d = 0.5 * (d + d.T)
         for i, j in ((0, 0), (0, 1), (1, 1)):
             name = fp.p_reg(i, j)
             self.m.set(name, self.m.get(name) + float(np.float32(d[i, j])))

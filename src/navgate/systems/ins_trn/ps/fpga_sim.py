@@ -40,12 +40,8 @@ The result equals the ``fp32`` engine's bit for bit (tests/systems/ins_trn/ps/te
 
 from __future__ import annotations
 
-import hashlib
-import os
 import weakref
-from pathlib import Path
 
-import amaranth
 import numpy as np
 from amaranth import Module, Signal
 from amaranth.lib import stream, wiring
@@ -68,7 +64,7 @@ from navgate.systems.ins_trn.pl.sensors.bmp390_emulator import Bmp390Emulator
 from navgate.systems.ins_trn.pl.sensors.tfluna_emulator import SAMPLE_LAYOUT as LIDAR_SAMPLE
 from navgate.systems.ins_trn.pl.sensors.tfluna_emulator import TfLunaEmulator
 from navgate.systems.ins_trn.pl.top import CAL_REGISTER_OF, InsTrnTop
-from navgate.systems.ins_trn.ps.engine import EngineSetup, UpdateOutcome
+from navgate.systems.ins_trn.ps.engine import EngineSetup, UpdateOutcome, check_imu_words
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.ps.pl_profile import VALID_BIT
 
@@ -200,25 +196,10 @@ class _DmaMemory(wiring.Component):
 
 def sim_verilog(top: InsTrnSimTop) -> str:
     """The co-simulation top's Verilog (module ``dut``), emitted once per version of the
-    gateware: cached beside the Verilator models, keyed by the contents of every source file
-    of the navgate package and the Amaranth version (emitting it takes tens of seconds)."""
-    root = Path(__file__).resolve().parents[3]  # the navgate package
-    h = hashlib.sha256(amaranth.__version__.encode())
-    for path in sorted(root.rglob("*")):
-        if path.suffix in (".py", ".rdl") and path.is_file():
-            h.update(str(path.relative_to(root)).encode())
-            h.update(path.read_bytes())
-    cache = V.verilator_cache_dir()
-    cache.mkdir(parents=True, exist_ok=True)
-    path = cache / f"fpga-sim-dut-{h.hexdigest()[:24]}.v"
-    if path.exists():
-        top._MustUse__silence = top.top._MustUse__silence = True  # not elaborated again
-        return path.read_text()
-    text = V.emit_verilog(top, "dut")
-    tmp = path.with_suffix(f".{os.getpid()}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-    return text
+    gateware: from navgate's Verilog cache (:func:`navgate.cache.cached_verilog`, keyed by
+    the contents of every source file of the navgate package and the Amaranth version;
+    ``InsTrnSimTop`` takes no parameters). Emitting it takes tens of seconds."""
+    return V.emit_verilog(top, "dut", design="InsTrnSimTop", params={})
 
 
 #: state words the navigator reads at every log row and ranger record, fetched in one batch
@@ -380,8 +361,7 @@ class FpgaSimEngine(Fp32Engine):
 
     # -- engine calls -----------------------------------------------------------------------------
     def propagate(self, gyro_words, accel_words) -> None:
-        gw = np.asarray(gyro_words).reshape(-1, 3)
-        aw = np.asarray(accel_words).reshape(-1, 3)
+        gw, aw = check_imu_words(gyro_words, accel_words)
         words = np.concatenate([gw, aw], axis=1)
         if not (np.all(np.isfinite(words)) and np.all(words == np.round(words))
                 and words.min(initial=0) >= -32768 and words.max(initial=0) <= 32767):

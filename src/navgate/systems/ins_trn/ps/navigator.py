@@ -5,7 +5,10 @@ writes fixes; the PL runs calibration, mechanization, covariance propagation, th
 profile buffer and the Kalman update engine). The navigator consumes the sensor record stream
 of :mod:`navgate.systems.ins_trn.ps.records` one record at a time (:meth:`Navigator.feed`) or a
 whole stream (:meth:`Navigator.run`, which hands runs of consecutive IMU records to the engine
-in one call with the same result) and talks to the PL only through
+in one call with the same result; an engine with ``batch_records``, the float64 reference,
+takes whole stretches of IMU and barometer records between the records the PS must see in one
+compiled call, :meth:`PlEngine.run_records`, again with the same result) and talks to the PL
+only through
 :class:`navgate.systems.ins_trn.ps.engine.PlEngine`:
 
 - IMU record: ``engine.propagate`` (calibration, mechanization, covariance);
@@ -39,7 +42,6 @@ import numpy as np
 from navgate.nav import eskf
 from navgate.nav.calibration import ImuCalibration
 from navgate.nav.earth import LocalTangent
-from navgate.nav.rotations import quat_to_dcm_array
 from navgate.sim import sensors
 from navgate.systems.ins_trn.ps import pl_sensors
 from navgate.systems.ins_trn.ps.engine import EngineSetup, PlEngine, make_engine
@@ -286,7 +288,10 @@ class Navigator:
             self.feed_ranger(t, *payload)
 
     def run(self, stream: RecordStream) -> NavRun:
-        """Consume a whole stream (runs of IMU records go to the engine in one call)."""
+        """Consume a whole stream (runs of IMU records go to the engine in one call; with an
+        engine that takes them, whole stretches of IMU and barometer records)."""
+        if self.engine.batch_records and not self.engine.pl_sensors and self.realtime is None:
+            return self._run_batched(stream)
         kind = stream.kind
         other = np.flatnonzero(kind != IMU)
         baro = None
@@ -314,6 +319,72 @@ class Navigator:
                 self.feed_ranger(t, stream.ranger_range[i], stream.ranger_status[i] == 0)
             pos = m + 1
         return self.finish()
+
+    def _run_batched(self, stream: RecordStream) -> NavRun:
+        """:meth:`run` with the engine's :meth:`PlEngine.run_records`: the stretches between
+        the records the PS must see (ranger records on TRN runs; while a fix is in flight,
+        the first record at or after its time) go to the engine in one call each, the rest
+        through the per-record methods, so the result equals :meth:`feed` record by record."""
+        kind, times = stream.kind, stream.t
+        n_total = self.samples + int(np.count_nonzero(kind == IMU))
+        rows = n_total // self.log_every + 2
+        log = (np.empty((rows, 10)), np.empty((rows, 15)), np.empty(rows))
+        logged = len(self._nav)
+        for j in range(logged):  # rows logged before this call
+            log[0][j], log[1][j], log[2][j] = self._nav[j], self._sigma[j], self._p_ne[j]
+        other = np.flatnonzero(kind != IMU)
+        stops = np.flatnonzero(kind == RANGER) if self.use_trn else np.empty(0, np.int64)
+        stops = list(stops) + [len(stream)]
+        pos = 0
+
+        def stretch(a, b):
+            nonlocal logged
+            if b <= a:
+                return
+            n, logged, h, invalid = self.engine.run_records(
+                stream, a, b, baro_sigma=self.baro_sigma, log_every=self.log_every,
+                logged=logged, log=log)
+            self.samples += n
+            self.baro_invalid += invalid
+            if h is not None:
+                self.h_baro = h
+            if self.progress is not None and n:
+                self.progress(n)
+
+        for m in stops:
+            while self._pending is not None and pos < m:
+                # the first non-IMU record at or after the fix's time applies it
+                j0 = np.searchsorted(other, pos)
+                cand = other[j0:np.searchsorted(other, m)]
+                due = cand[times[cand] >= self._pending[0]]
+                if not due.size:
+                    break
+                j = int(due[0])
+                stretch(pos, j)
+                self._due(float(times[j]))
+                if kind[j] == BARO:
+                    i = stream.index[j]
+                    self._sync_log(log, logged)
+                    self.feed_baro(float(times[j]), stream.baro_altitude[i],
+                                   stream.baro_status[i] == 0)
+                pos = j + 1
+            stretch(pos, m)
+            if m == len(stream):
+                break
+            t = float(times[m])
+            self._due(t)
+            i = stream.index[m]
+            self.feed_ranger(t, stream.ranger_range[i], stream.ranger_status[i] == 0)
+            pos = m + 1
+        self._sync_log(log, logged)
+        return self.finish()
+
+    def _sync_log(self, log, logged):
+        """The rows the engine logged into ``log``, as :meth:`_log` would have kept them."""
+        for j in range(len(self._nav), logged):
+            self._nav.append(log[0][j].copy())
+            self._sigma.append(log[1][j].copy())
+            self._p_ne.append(float(log[2][j]))
 
     def finish(self) -> NavRun:
         e = self.engine
@@ -366,7 +437,13 @@ def navigate(stream: RecordStream, cfg, *, engine: str = "reference", dem=None,
 
 
 def _euler(q):
-    c = quat_to_dcm_array(np.asarray(q))
-    return (math.atan2(c[2, 1], c[2, 2]), -math.asin(max(-1.0, min(1.0, c[2, 0]))),
-            math.atan2(c[1, 0], c[0, 0]))
-
+    """(roll, pitch, yaw) of C_b^n(q): the elements of ``rotations.quat_to_dcm_array`` in
+    the same arithmetic, on Python floats (one quaternion per ranger record; the array
+    version costs ~25 us of NumPy overhead each)."""
+    q0, q1, q2, q3 = (float(x) for x in q)
+    c00 = q0 * q0 + q1 * q1 - q2 * q2 - q3 * q3
+    c10 = 2.0 * (q1 * q2 + q0 * q3)
+    c20 = 2.0 * (q1 * q3 - q0 * q2)
+    c21 = 2.0 * (q2 * q3 + q0 * q1)
+    c22 = q0 * q0 - q1 * q1 - q2 * q2 + q3 * q3
+    return (math.atan2(c21, c22), -math.asin(max(-1.0, min(1.0, c20))), math.atan2(c10, c00))

@@ -15,16 +15,18 @@ the gateware into the PS's copy, from which the read calls answer. The result mu
 
 from __future__ import annotations
 
+import dataclasses
+import time
 import weakref
 
 import numpy as np
 
 from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.opflow.machine import CMD_READ, CMD_START, CMD_WRITE, ScheduledMachineStream
-from navgate.systems.ins_trn.pl.engines import IMU_WORDS, engine_image
+from navgate.systems.ins_trn.pl.engines import ENGINE_UNITS, IMU_WORDS, engine_image
 from navgate.systems.ins_trn.pl.fp32_exec import to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CONFIG_REGS, STATE_REGS
-from navgate.systems.ins_trn.ps.engine import EngineSetup
+from navgate.systems.ins_trn.ps.engine import EngineSetup, check_imu_words
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
 
 __all__ = ["RtlEngine", "NativeLink", "RtlError"]
@@ -41,21 +43,28 @@ class NativeLink:
     command is taken when the wrapper offers it; ``waits`` are checked through the run
     commands' ``cycles``."""
 
-    def __init__(self, image):
+    def __init__(self, image, design: str | None = None, params: dict | None = None):
         from navgate.gateware.native_stream import NativeStreamServer
 
-        self.server = NativeStreamServer(ScheduledMachineStream(image))
+        # ``design``/``params``: what built ``image`` (the Verilog is then cached by them)
+        self.server = NativeStreamServer(ScheduledMachineStream(image), design=design,
+                                         params=params)
         self.cycles_run = 0
+        #: wall seconds spent in the model's batches (the simulation itself)
+        self.batch_seconds = 0.0
 
     def batch(self, rows, waits) -> dict:
         from navgate.gateware.native_stream import NativeStreamError
 
         arr = np.array(rows, dtype=np.int64).reshape(-1, 4)
+        t0 = time.perf_counter()
         try:
             return self.server.batch({"cmd": arr[:, 0], "addr": arr[:, 1], "data": arr[:, 2],
                                       "prog": arr[:, 3]})
         except NativeStreamError as exc:
             raise RtlError(str(exc)) from None
+        finally:
+            self.batch_seconds += time.perf_counter() - t0
 
     def close(self):
         self.server.close()
@@ -153,14 +162,18 @@ class RtlEngine(Fp32Engine):
     def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
         super().__init__(setup, check_pd=check_pd)
         image = engine_image("ins_engines")
-        self.link = NativeLink(image)
+        # the image is engine_image's defaults: its programs and ENGINE_UNITS, all in the
+        # source that the Verilog cache's key covers
+        self.link = NativeLink(image, design="ScheduledMachineStream",
+                               params={"engine_image": "ins_engines",
+                                       "units": dataclasses.asdict(ENGINE_UNITS)})
         self._finalizer = weakref.finalize(self, self.link.close)
         self.m = _RtlMachine(self.m, image, self.link)
         self.m.load()
 
     def propagate(self, gyro_words, accel_words) -> None:
-        gw = np.asarray(gyro_words, dtype=np.int64).reshape(-1, 3)
-        aw = np.asarray(accel_words, dtype=np.int64).reshape(-1, 3)
+        gw, aw = check_imu_words(gyro_words, accel_words)
+        gw, aw = gw.astype(np.int64), aw.astype(np.int64)
         self.m.propagate(gw, aw)
         self.samples += gw.shape[0]
 

@@ -1,0 +1,104 @@
+"""Small float32 loop nests built on :mod:`navgate.opflow.loops`: generic linear-algebra
+kernels used to prove the loop toolchain (executor, modulo scheduler, loop machine).
+
+* :func:`sym_rank1_update`: ``P <- P + s k k^T`` on the upper triangle of a symmetric
+  n x n matrix stored row by row (``n (n + 1) / 2`` words), one flat loop over the stored
+  elements with ROM tables mapping each to its row and column (no recurrence: II set by the
+  ports and units);
+* :func:`sparse_matvec`: ``y <- A x`` for a sparse A given by its non-zeros in row order
+  (values in memory ``a``, their columns and rows in ROM tables, first/last-of-row flags in
+  ROM tables): one accumulator per row, so II is the adder's recurrence;
+* :func:`dense_matvec`: ``y <- A x`` (or ``b + A x``: the accumulator starts from a loaded
+  word) as a two-level nest (rows, columns) with affine addresses and the accumulator reset
+  and stored by the level conditions;
+* :func:`dense_matvec_interleaved`: the same sums with the row loop inside: one accumulator
+  at distance ``n_rows`` carries every row's sum (each in the same order as
+  :func:`dense_matvec`, so the results are the same bits) and II drops to 1 once there are
+  as many rows as the adder has stages.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from navgate.opflow.ir import const_name
+from navgate.opflow.loops import Acc, Addr, Cond, LoopNest, LOp, Store
+
+__all__ = ["upper_index", "sym_rank1_update", "sparse_matvec", "dense_matvec",
+           "dense_matvec_interleaved"]
+
+
+def upper_index(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the stored upper triangle (i <= j), row by row."""
+    rows, cols = np.triu_indices(n)
+    return rows.astype(np.int64), cols.astype(np.int64)
+
+
+def sym_rank1_update(n: int, scale: float = 1.0) -> LoopNest:
+    """``P[i,j] <- P[i,j] + (scale k_i) k_j`` for i <= j (memories ``P``, ``k``); with
+    ``scale`` 1 the product is ``k_i k_j``."""
+    rows, cols = upper_index(n)
+    m = len(rows)
+    ops = [LOp("p", "load", ("P",), Addr(None, (1,))),
+           LOp("ki", "load", ("k",), Addr("row", (1,))),
+           LOp("kj", "load", ("k",), Addr("col", (1,)))]
+    a = "ki"
+    if scale != 1.0:
+        ops.append(LOp("ski", "mul", (const_name(scale), "ki")))
+        a = "ski"
+    ops += [LOp("kk", "mul", (a, "kj")), LOp("q", "add", ("p", "kk"))]
+    return LoopNest(f"sym_rank1_{n}", (m,), {"P": m, "k": n},
+                    {"row": rows, "col": cols}, ops, [],
+                    [Store("P", Addr(None, (1,)), "q")])
+
+
+def sparse_matvec(rows, cols, n_rows: int, n_cols: int) -> LoopNest:
+    """``y <- A x`` over the non-zeros ``(rows[k], cols[k])`` (sorted by row, every row of
+    ``y`` that has non-zeros written, the others left alone); A's values in memory ``a``
+    in the same order."""
+    rows = np.asarray(rows, np.int64)
+    cols = np.asarray(cols, np.int64)
+    if len(rows) == 0 or np.any(np.diff(rows) < 0):
+        raise ValueError("sparse_matvec needs non-zeros sorted by row")
+    first = np.r_[True, rows[1:] != rows[:-1]].astype(np.int64)
+    last = np.r_[rows[1:] != rows[:-1], True].astype(np.int64)
+    nnz = len(rows)
+    ops = [LOp("av", "load", ("a",), Addr(None, (1,))),
+           LOp("xv", "load", ("x",), Addr("col", (1,))),
+           LOp("pr", "mul", ("av", "xv")),
+           LOp("s", "add", ("acc", "pr"))]
+    return LoopNest(f"spmv_{n_rows}x{n_cols}_{nnz}", (nnz,),
+                    {"a": nnz, "x": n_cols, "y": n_rows},
+                    {"col": cols, "row": rows, "first": first, "last": last}, ops,
+                    [Acc("acc", const_name(0.0), "s", Cond("table", "first"))],
+                    [Store("y", Addr("row", (1,)), "s", Cond("table", "last"))])
+
+
+def dense_matvec(n_rows: int, n_cols: int, bias: bool = False) -> LoopNest:
+    """``y <- A x`` (``y <- b + A x`` with ``bias``: the sum starts from the loaded ``b_i``)
+    with A row-major in memory ``A``: levels (row, column)."""
+    ops = [LOp("av", "load", ("A",), Addr(None, (n_cols, 1))),
+           LOp("xv", "load", ("x",), Addr(None, (0, 1)))]
+    arrays = {"A": n_rows * n_cols, "x": n_cols, "y": n_rows}
+    init = const_name(0.0)
+    if bias:
+        ops.append(LOp("bv", "load", ("b",), Addr(None, (1, 0))))
+        arrays["b"] = n_rows
+        init = "bv"
+    ops += [LOp("pr", "mul", ("av", "xv")), LOp("s", "add", ("acc", "pr"))]
+    return LoopNest(f"matvec_{n_rows}x{n_cols}{'_bias' if bias else ''}", (n_rows, n_cols),
+                    arrays, {}, ops, [Acc("acc", init, "s", Cond("first", 1))],
+                    [Store("y", Addr(None, (1, 0)), "s", Cond("last", 1))])
+
+
+def dense_matvec_interleaved(n_rows: int, n_cols: int) -> LoopNest:
+    """``y <- A x`` with levels (column, row): the row sums interleave (accumulator distance
+    ``n_rows``), reset at column 0 and stored at the last column."""
+    ops = [LOp("av", "load", ("A",), Addr(None, (1, n_cols))),
+           LOp("xv", "load", ("x",), Addr(None, (1, 0))),
+           LOp("pr", "mul", ("av", "xv")),
+           LOp("s", "add", ("acc", "pr"))]
+    return LoopNest(f"matvec_il_{n_rows}x{n_cols}", (n_cols, n_rows),
+                    {"A": n_rows * n_cols, "x": n_cols, "y": n_rows}, {}, ops,
+                    [Acc("acc", const_name(0.0), "s", Cond("at_first", 0), n_rows)],
+                    [Store("y", Addr(None, (0, 1)), "s", Cond("at_last", 0))])

@@ -1,0 +1,545 @@
+"""Loop nests in opflow: the IR of a float32 loop nest, its bit-true executor (Numba) and a
+modulo scheduler for its body.
+
+Reference: iterative modulo scheduling (B. R. Rau, "Iterative modulo scheduling", MICRO-27,
+1994; the initiation interval II bounded below by the resource bound ResMII and the
+recurrence bound RecMII); address generation by strength reduction of affine indices and
+ROM tables, as in the loop accelerators of high-level synthesis (Gajski et al.,
+"High-Level Synthesis", 1992, ch. 8). :mod:`navgate.opflow.loopmachine` turns a schedule
+into an Amaranth sequencer and datapath that runs the nest bit for bit like
+:func:`run_nest`.
+
+IR
+--
+A :class:`LoopNest` has ``trips`` (trip counts, outermost first; the iterations are run in
+row-major order and numbered ``n = 0 .. N-1``), ``arrays`` (float32 memories: name ->
+words), ``tables`` (ROMs of non-negative integers) and a body run once per iteration:
+
+* :class:`Addr`: ``index = offset + sum(strides[l] * i_l)`` over the loop indices; the
+  address is ``index``, or ``tables[table][index]`` when ``table`` is set (a sparse
+  matrix's non-zeros, the upper-triangle map of a symmetric matrix);
+* :class:`Cond`: a per-iteration flag: ``("first", l)`` (every index from level ``l``
+  inwards is 0), ``("last", l)`` (each is its trip count - 1), ``("at_first", l)`` /
+  ``("at_last", l)`` (the index of level ``l`` alone) or ``("table", name)``
+  (``tables[name][n] != 0``, one entry per iteration);
+* ops (:class:`LOp`, SSA temporaries ``dst``): ``load`` (``srcs = (array,)``, ``addr``),
+  ``add``, ``sub``, ``mul`` on float32 (:mod:`navgate.numerics.fp32` rounding, subnormals
+  flushed); a source is a temporary of the same iteration, a constant ``c:<hex>``
+  (:func:`navgate.opflow.ir.const_name`) or an accumulator;
+* :class:`Acc`: a loop-carried value: read as ``init`` (a constant or a temporary) in an
+  iteration where ``reset`` holds, otherwise as the value of ``update`` (a temporary) in
+  the iteration ``distance`` before (1: the previous one; ``d`` > 1 interleaves ``d``
+  independent sums, e.g. the rows of a matrix-vector product with the row loop inside:
+  each row's sum keeps its order, and the recurrence bound drops to latency / d);
+* :class:`Store`: ``array[addr] <- src`` at the end of an iteration where ``when`` holds
+  (always when None).
+
+Semantics (:func:`run_nest`): iterations in order; each reads the memories as left by the
+iterations before it. :func:`check_nest` rejects a nest whose memories carry a value from one
+iteration to another (an address written in one iteration and read or written in another):
+such a value must ride an accumulator, so that the pipelined machine, which overlaps
+iterations, computes the same numbers.
+
+Scheduling (:func:`modulo_schedule`)
+------------------------------------
+One iteration starts every II cycles; every op has a fixed offset in its iteration. Resources
+per cycle modulo II: ``mul`` and ``add`` units (add/sub; fully pipelined, latencies of
+:mod:`navgate.gateware.fp32`), ``read_ports`` read ports and one write port per array. An
+iteration's addresses and flags are ready at offset 1 (one ROM read; they then ride delay
+lines to their ops), a load's word one cycle after it is issued, a unit's result ``L`` cycles
+after issue; an op reads its operands in its issue cycle from the delay line of the unit
+that made them. A store is issued after every load of its array in the iteration (the read
+sees the old word). An accumulator read at offset ``t`` whose update is ready at ``r``
+needs ``r - distance II <= t`` (the recurrence). ResMII = max over resources of uses /
+instances; RecMII = max over accumulators of ``(r - t) / distance`` (rounded up) in the
+schedule without resource limits; II
+starts at max(ResMII, RecMII) and grows until the greedy placement (topological order,
+each op at its earliest free slot) fits. Cycles of a nest: ``(N - 1) * II + depth``, depth
+the offset after an iteration's last result is written.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from navgate.gateware.fp32 import Fp32Add, Fp32Mul
+from navgate.opflow.execute import round_fp32
+from navgate.opflow.ir import Op, Program, const_value
+
+__all__ = ["Addr", "Cond", "LOp", "Acc", "Store", "LoopNest", "LoopError", "check_nest",
+           "iteration_indices", "addresses", "flags", "run_nest", "unroll", "LoopUnits",
+           "LoopSchedule", "modulo_schedule", "ADDR_READY", "LOAD_LATENCY"]
+
+LOOP_KINDS = ("load", "add", "sub", "mul")
+#: offset at which an iteration's addresses and flags are ready (one ROM/register stage)
+ADDR_READY = 1
+#: a load's word is ready one cycle after its address is presented (synchronous read)
+LOAD_LATENCY = 1
+
+
+class LoopError(ValueError):
+    """A malformed loop nest or one the machine cannot run as written."""
+
+
+@dataclass(frozen=True)
+class Addr:
+    table: str | None = None
+    strides: tuple = ()
+    offset: int = 0
+
+
+@dataclass(frozen=True)
+class Cond:
+    kind: str  #: "first", "last", "at_first", "at_last" or "table"
+    arg: object  #: level (first/last) or table name
+
+
+@dataclass(frozen=True)
+class LOp:
+    dst: str
+    kind: str
+    srcs: tuple
+    addr: Addr | None = None
+
+
+@dataclass(frozen=True)
+class Acc:
+    name: str
+    init: str
+    update: str
+    reset: Cond
+    distance: int = 1  #: the update read back is that of ``distance`` iterations before
+
+
+@dataclass(frozen=True)
+class Store:
+    array: str
+    addr: Addr
+    src: str
+    when: Cond | None = None
+
+
+@dataclass
+class LoopNest:
+    name: str
+    trips: tuple
+    arrays: dict  #: name -> words
+    tables: dict = field(default_factory=dict)  #: name -> sequence of non-negative ints
+    ops: list = field(default_factory=list)
+    accs: list = field(default_factory=list)
+    stores: list = field(default_factory=list)
+
+    @property
+    def iterations(self) -> int:
+        return int(np.prod(self.trips)) if self.trips else 1
+
+    def acc_names(self) -> dict:
+        return {a.name: a for a in self.accs}
+
+
+# ------------------------------------------------------------------ iteration space
+
+
+def iteration_indices(nest: LoopNest) -> np.ndarray:
+    """(N, levels) loop indices of every iteration, in order (row-major)."""
+    if not nest.trips:
+        return np.zeros((1, 0), np.int64)
+    grids = np.meshgrid(*[np.arange(t) for t in nest.trips], indexing="ij")
+    return np.stack([g.ravel() for g in grids], axis=1).astype(np.int64)
+
+
+def addresses(nest: LoopNest, addr: Addr, idx: np.ndarray | None = None) -> np.ndarray:
+    """The address of ``addr`` in every iteration."""
+    idx = iteration_indices(nest) if idx is None else idx
+    strides = np.asarray(addr.strides if addr.strides else (0,) * len(nest.trips), np.int64)
+    lin = addr.offset + (idx @ strides if idx.shape[1] else np.zeros(len(idx), np.int64))
+    if addr.table is None:
+        return lin
+    tab = np.asarray(nest.tables[addr.table], np.int64)
+    if lin.min() < 0 or lin.max() >= len(tab):
+        raise LoopError(f"{nest.name}: index into table {addr.table} out of range")
+    return tab[lin]
+
+
+def flags(nest: LoopNest, cond: Cond, idx: np.ndarray | None = None) -> np.ndarray:
+    """The flag ``cond`` in every iteration (bool)."""
+    idx = iteration_indices(nest) if idx is None else idx
+    if cond.kind == "table":
+        tab = np.asarray(nest.tables[cond.arg], np.int64)
+        if len(tab) != len(idx):
+            raise LoopError(f"{nest.name}: flag table {cond.arg} has {len(tab)} entries, "
+                            f"the nest {len(idx)} iterations")
+        return tab != 0
+    lvl = int(cond.arg)
+    if not 0 <= lvl < len(nest.trips):
+        raise LoopError(f"{nest.name}: no loop level {lvl}")
+    if cond.kind not in ("first", "last", "at_first", "at_last"):
+        raise LoopError(f"{nest.name}: unknown condition {cond.kind!r}")
+    upto = lvl + 1 if cond.kind.startswith("at_") else len(nest.trips)
+    want = 0 if cond.kind.endswith("first") else np.asarray(nest.trips[lvl:upto],
+                                                              np.int64) - 1
+    return np.all(idx[:, lvl:upto] == want, axis=1)
+
+
+def check_nest(nest: LoopNest) -> None:
+    """Raise :class:`LoopError` for a nest that is malformed or carries a value through
+    memory from one iteration to another."""
+    if any(int(t) < 1 for t in nest.trips):
+        raise LoopError(f"{nest.name}: trip counts must be >= 1: {nest.trips}")
+    for name, tab in nest.tables.items():
+        if np.asarray(tab).ndim != 1 or (len(tab) and np.min(tab) < 0):
+            raise LoopError(f"{nest.name}: table {name} must hold non-negative integers")
+    accs = nest.acc_names()
+    defined: set = set()
+    for op in nest.ops:
+        if op.kind not in LOOP_KINDS:
+            raise LoopError(f"{nest.name}: op kind {op.kind!r} not in {LOOP_KINDS}")
+        if op.dst in defined or op.dst in accs or op.dst.startswith("c:"):
+            raise LoopError(f"{nest.name}: {op.dst} defined twice")
+        if op.kind == "load":
+            if len(op.srcs) != 1 or op.srcs[0] not in nest.arrays or op.addr is None:
+                raise LoopError(f"{nest.name}: load {op.dst} needs an array and an address")
+        else:
+            if len(op.srcs) != 2:
+                raise LoopError(f"{nest.name}: {op.kind} {op.dst} takes two sources")
+            for s in op.srcs:
+                if not (s in defined or s in accs or s.startswith("c:")):
+                    raise LoopError(f"{nest.name}: {op.dst} reads {s} before it is defined")
+        defined.add(op.dst)
+    for a in nest.accs:
+        if a.update not in defined or not (a.init in defined or a.init.startswith("c:")):
+            raise LoopError(f"{nest.name}: accumulator {a.name} needs a defined init and "
+                            "update")
+    for st in nest.stores:
+        if st.array not in nest.arrays or st.src not in defined:
+            raise LoopError(f"{nest.name}: store of {st.src} to {st.array} is undefined")
+    idx = iteration_indices(nest)
+    touched: dict = {}  # (array, address) -> iterations that read or write it
+    written: dict = {}
+    for op in nest.ops:
+        if op.kind == "load":
+            _bounds(nest, op.srcs[0], a := addresses(nest, op.addr, idx))
+            for n, x in enumerate(a):
+                touched.setdefault((op.srcs[0], int(x)), set()).add(n)
+    for st in nest.stores:
+        a = addresses(nest, st.addr, idx)
+        _bounds(nest, st.array, a)
+        on = np.ones(len(idx), bool) if st.when is None else flags(nest, st.when, idx)
+        for n in np.flatnonzero(on):
+            key = (st.array, int(a[n]))
+            if key in written:
+                raise LoopError(f"{nest.name}: {st.array}[{key[1]}] written in iterations "
+                                f"{written[key]} and {n}")
+            written[key] = int(n)
+    for key, n in written.items():
+        others = touched.get(key, set()) - {n}
+        if others:
+            raise LoopError(f"{nest.name}: {key[0]}[{key[1]}] written in iteration {n} and "
+                            f"read in iteration {min(others)}: carry it in an accumulator")
+    for a in nest.accs:
+        reset = flags(nest, a.reset, idx)
+        if int(a.distance) < 1:
+            raise LoopError(f"{nest.name}: accumulator {a.name} distance must be >= 1")
+        if not reset[:a.distance].all():
+            raise LoopError(f"{nest.name}: accumulator {a.name} is read before its first "
+                            f"update (it must reset in the first {a.distance} iterations)")
+
+
+def _bounds(nest, array, a):
+    if len(a) and (a.min() < 0 or a.max() >= nest.arrays[array]):
+        raise LoopError(f"{nest.name}: address out of range of {array} "
+                        f"({nest.arrays[array]} words)")
+
+
+# ------------------------------------------------------------------ bit-true executor
+
+_K_LOAD, _K_ADD, _K_SUB, _K_MUL, _K_ACC = 0, 1, 2, 3, 4
+
+
+class CompiledNest:
+    """A nest lowered to integer tables for :func:`_run_kernel`: a per-iteration register
+    file (constants, temporaries, accumulator values), the op table (rows: kind, dst, a, b,
+    column: the array for a load or the flag column of an accumulator read), the address and
+    flag of every load, store and accumulator in every iteration."""
+
+    def __init__(self, nest: LoopNest):
+        check_nest(nest)
+        self.nest = nest
+        idx = iteration_indices(nest)
+        accs = nest.acc_names()
+        arrays = list(nest.arrays)
+        self.arrays = arrays
+        consts = sorted({s for op in nest.ops if op.kind != "load" for s in op.srcs
+                         if s.startswith("c:")} | {a.init for a in nest.accs
+                                                   if a.init.startswith("c:")})
+        slot: dict = {c: i for i, c in enumerate(consts)}
+        for op in nest.ops:
+            slot[op.dst] = len(slot)
+        for a in nest.accs:
+            slot[a.name] = len(slot)
+        self.nregs = len(slot)
+        self.init = np.zeros(self.nregs)
+        for c in consts:
+            self.init[slot[c]] = const_value(c)
+        rows, load_cols, seen = [], [], set()
+        acc_col = {a.name: k for k, a in enumerate(nest.accs)}
+        for op in nest.ops:
+            if op.kind == "load":
+                rows.append([_K_LOAD, slot[op.dst], arrays.index(op.srcs[0]), len(load_cols)])
+                load_cols.append(addresses(nest, op.addr, idx))
+                continue
+            for s in op.srcs:  # an accumulator's value is chosen just before its first read
+                if s in accs and s not in seen:
+                    seen.add(s)
+                    a = accs[s]
+                    rows.append([_K_ACC, slot[s], slot[a.init], acc_col[s]])
+            k = {"add": _K_ADD, "sub": _K_SUB, "mul": _K_MUL}[op.kind]
+            rows.append([k, slot[op.dst], slot[op.srcs[0]], slot[op.srcs[1]]])
+        self.ops = np.array(rows, np.int64).reshape(-1, 4)
+        n = len(idx)
+        self.load_addr = np.array(load_cols, np.int64).reshape(-1, n).T.copy()
+        self.acc_reset = np.array([flags(nest, a.reset, idx) for a in nest.accs],
+                                  np.bool_).reshape(-1, n).T.copy()
+        self.acc_slots = np.array([[slot[a.name], slot[a.update], a.distance]
+                                   for a in nest.accs], np.int64).reshape(-1, 3)
+        self.store = np.array([[arrays.index(s.array), slot[s.src]] for s in nest.stores],
+                              np.int64).reshape(-1, 2)
+        self.store_addr = np.array([addresses(nest, s.addr, idx) for s in nest.stores],
+                                   np.int64).reshape(-1, n).T.copy()
+        self.store_on = np.array([np.ones(n, bool) if s.when is None
+                                  else flags(nest, s.when, idx) for s in nest.stores],
+                                 np.bool_).reshape(-1, n).T.copy()
+        self.width = max(nest.arrays.values(), default=1)
+
+
+@njit(cache=True, error_model="numpy")
+def _run_kernel(mem, regs, ops, load_addr, acc_reset, acc_slots, store, store_addr,
+                store_on):
+    dmax = 1
+    for c in range(acc_slots.shape[0]):
+        dmax = max(dmax, acc_slots[c, 2])
+    carry = np.zeros((acc_slots.shape[0], dmax))  # ring of the last ``distance`` updates
+    for n in range(load_addr.shape[0]):
+        for r in range(ops.shape[0]):
+            k = ops[r, 0]
+            if k == 0:
+                regs[ops[r, 1]] = mem[ops[r, 2], load_addr[n, ops[r, 3]]]
+            elif k == 4:
+                col = ops[r, 3]
+                d = acc_slots[col, 2]
+                regs[ops[r, 1]] = regs[ops[r, 2]] if acc_reset[n, col] else carry[col, n % d]
+            else:
+                a = regs[ops[r, 2]]
+                b = regs[ops[r, 3]]
+                if k == 1:
+                    x = a + b
+                elif k == 2:
+                    x = a - b
+                else:
+                    x = a * b
+                regs[ops[r, 1]] = round_fp32(x)
+        for c in range(acc_slots.shape[0]):
+            carry[c, n % acc_slots[c, 2]] = regs[acc_slots[c, 1]]
+        for s in range(store.shape[0]):
+            if store_on[n, s]:
+                mem[store[s, 0], store_addr[n, s]] = regs[store[s, 1]]
+
+
+def run_nest(nest: LoopNest | CompiledNest, memories: dict) -> dict:
+    """Run the nest on ``memories`` (array name -> float32 values as float64, or uint32 bit
+    patterns); returns the memories after it (float64 holding float32 values), inputs
+    untouched. Values are flushed to float32 on the way in (:func:`execute.to_f32`)."""
+    c = nest if isinstance(nest, CompiledNest) else CompiledNest(nest)
+    mem = np.zeros((len(c.arrays), c.width))
+    for k, name in enumerate(c.arrays):
+        v = np.asarray(memories.get(name, np.zeros(c.nest.arrays[name])))
+        if v.dtype == np.uint32:
+            v = v.view(np.float32)
+        v = v.astype(np.float32).astype(np.float64)
+        v[np.abs(v) < 2.0**-126] *= 0.0  # subnormals flushed, sign kept
+        if v.shape != (c.nest.arrays[name],):
+            raise LoopError(f"{c.nest.name}: memory {name} needs {c.nest.arrays[name]} words")
+        mem[k, :len(v)] = v
+    _run_kernel(mem, c.init.copy(), c.ops, c.load_addr, c.acc_reset, c.acc_slots, c.store,
+                c.store_addr, c.store_on)
+    return {name: mem[k, :c.nest.arrays[name]].copy() for k, name in enumerate(c.arrays)}
+
+
+def unroll(nest: LoopNest) -> tuple[Program, dict]:
+    """The nest as a straight-line :class:`Program` over registers ``<array>[<address>]``
+    (for checking :func:`run_nest` against :func:`navgate.opflow.execute.run_bittrue`):
+    returns (program, register name -> (array, address)). Stores become commits."""
+    check_nest(nest)
+    idx = iteration_indices(nest)
+    prog = Program(nest.name)
+    regs = {f"{a}[{i}]": (a, i) for a, words in nest.arrays.items() for i in range(words)}
+    prog.registers = tuple(regs)
+    cur = {r: r for r in regs}  # register -> the value it holds now (name)
+    accs = nest.acc_names()
+    loads = {id(op): addresses(nest, op.addr, idx) for op in nest.ops if op.kind == "load"}
+    resets = {a.name: flags(nest, a.reset, idx) for a in nest.accs}
+    st_addr = [addresses(nest, s.addr, idx) for s in nest.stores]
+    st_on = [np.ones(len(idx), bool) if s.when is None else flags(nest, s.when, idx)
+             for s in nest.stores]
+    carry: dict = {}
+    t = 0
+    for n in range(len(idx)):
+        val: dict = {}
+
+        def name(s, val=val, n=n):
+            if s.startswith("c:"):
+                return s
+            if s in accs:
+                a = accs[s]
+                return name(a.init) if resets[s][n] else carry[s][n - a.distance]
+            return val[s]
+
+        for op in nest.ops:
+            if op.kind == "load":
+                val[op.dst] = cur[f"{op.srcs[0]}[{loads[id(op)][n]}]"]
+                continue
+            t += 1
+            dst = f"t{t}"
+            prog.ops.append(Op(dst, op.kind, (name(op.srcs[0]), name(op.srcs[1])), nest.name))
+            val[op.dst] = dst
+        for a in nest.accs:
+            carry.setdefault(a.name, {})[n] = val[a.update]
+        for k, s in enumerate(nest.stores):
+            if st_on[k][n]:
+                cur[f"{s.array}[{st_addr[k][n]}]"] = val[s.src]
+    prog.commit = {r: v for r, v in cur.items() if v != r}
+    return prog, regs
+
+
+# ------------------------------------------------------------------ modulo scheduling
+
+
+@dataclass(frozen=True)
+class LoopUnits:
+    """The loop machine's resources: pipelined float32 units and memory read ports."""
+
+    mul: int = 1
+    add: int = 1
+    read_ports: int = 2
+
+    def latency(self, kind: str) -> int:
+        if kind == "load":
+            return LOAD_LATENCY
+        return Fp32Mul.LATENCY if kind == "mul" else Fp32Add.LATENCY
+
+
+@dataclass
+class LoopSchedule:
+    nest: LoopNest
+    units: LoopUnits
+    ii: int
+    res_mii: int
+    rec_mii: int
+    time: dict  #: op dst -> issue offset; stores by ("store", k)
+    resource: dict  #: op dst / ("store", k) -> (resource, instance)
+    ready: dict  #: op dst -> offset its value is ready
+    depth: int  #: offset after an iteration's last store or result
+
+    @property
+    def cycles(self) -> int:
+        """Cycles from the first iteration's issue to the last iteration's last write."""
+        return (self.nest.iterations - 1) * self.ii + self.depth
+
+
+def _resource(op, units):
+    if op.kind == "load":
+        return ("read", op.srcs[0]), units.read_ports
+    unit = "mul" if op.kind == "mul" else "add"
+    return (unit,), getattr(units, unit)
+
+
+def modulo_schedule(nest: LoopNest, units: LoopUnits = LoopUnits(),
+                    max_ii: int | None = None) -> LoopSchedule:
+    """Modulo-schedule the nest's body (module docstring); raises :class:`LoopError` when no
+    II up to ``max_ii`` (default: the sum of every op's latency + 8) fits."""
+    check_nest(nest)
+    accs = nest.acc_names()
+    uses: dict = {}
+    for op in nest.ops:
+        res, count = _resource(op, units)
+        if count < 1:
+            raise LoopError(f"{nest.name}: no {res[0]} resource for {op.dst}")
+        uses[res] = uses.get(res, 0) + 1
+    caps = {res: _resource(next(o for o in nest.ops if _resource(o, units)[0] == res),
+                           units)[1] for res in uses}
+    for st in nest.stores:
+        uses[("write", st.array)] = uses.get(("write", st.array), 0) + 1
+        caps[("write", st.array)] = 1
+    res_mii = max([math.ceil(uses[r] / caps[r]) for r in uses] + [1])
+    free = _place(nest, units, None, accs)
+    rec_mii = max([math.ceil((free[2][a.update] - min(free[0][op.dst] for op in nest.ops
+                                                      if a.name in op.srcs)) / a.distance)
+                   for a in nest.accs if any(a.name in op.srcs for op in nest.ops)] + [1])
+    start = max(res_mii, rec_mii)
+    limit = max_ii or sum(units.latency(op.kind) for op in nest.ops) + 8
+    for ii in range(start, limit + 1):
+        got = _place(nest, units, ii, accs)
+        if got is None:
+            continue
+        time, resource, ready, depth = got
+        return LoopSchedule(nest, units, ii, res_mii, rec_mii, time, resource, ready, depth)
+    raise LoopError(f"{nest.name}: no schedule with II <= {limit}")
+
+
+def _place(nest, units, ii, accs):
+    """Greedy placement at one II (None: unlimited resources); (time, resource, ready,
+    depth) or None when it does not fit."""
+    time, resource, ready = {}, {}, {}
+    busy: set = set()  # (resource, instance, cycle mod II)
+
+    def take(res, count, earliest):
+        if ii is None:
+            return earliest, 0
+        for t in range(earliest, earliest + ii):
+            for inst in range(count):
+                if (res, inst, t % ii) not in busy:
+                    busy.add((res, inst, t % ii))
+                    return t, inst
+        return None
+
+    for op in nest.ops:
+        earliest = ADDR_READY
+        if op.kind != "load":
+            for s in op.srcs:
+                if s.startswith("c:"):
+                    continue
+                if s in accs:
+                    a = accs[s]
+                    if not a.init.startswith("c:"):
+                        earliest = max(earliest, ready[a.init])
+                else:
+                    earliest = max(earliest, ready[s])
+        res, count = _resource(op, units)
+        got = take(res, count, earliest)
+        if got is None:
+            return None
+        time[op.dst], inst = got
+        resource[op.dst] = (res, inst)
+        ready[op.dst] = time[op.dst] + units.latency(op.kind)
+    depth = max(ready.values(), default=ADDR_READY)
+    for k, st in enumerate(nest.stores):
+        earliest = max(ready[st.src], ADDR_READY)
+        loads = [time[op.dst] for op in nest.ops if op.kind == "load"
+                 and op.srcs[0] == st.array]
+        earliest = max([earliest] + [t + 1 for t in loads])
+        got = take(("write", st.array), 1, earliest)
+        if got is None:
+            return None
+        time[("store", k)], inst = got
+        resource[("store", k)] = (("write", st.array), inst)
+        depth = max(depth, time[("store", k)] + 1)
+    if ii is not None:
+        for a in nest.accs:
+            for op in nest.ops:
+                if a.name in op.srcs and ready[a.update] - a.distance * ii > time[op.dst]:
+                    return None
+    return time, resource, ready, depth

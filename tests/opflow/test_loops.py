@@ -1,0 +1,200 @@
+"""Loop nests of opflow: the Numba executor against the bit-true interpreter on the unrolled
+nest and against numpy float32 arithmetic, the modulo scheduler's II bounds and exact cycles,
+and the rejection of malformed nests."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from navgate.gateware.fp32 import Fp32Add, Fp32Mul
+from navgate.numerics.fp32 import floats_to_bits
+from navgate.opflow import loop_kernels as K
+from navgate.opflow.execute import run_bittrue
+from navgate.opflow.ir import const_name
+from navgate.opflow.loops import (
+    Acc,
+    Addr,
+    Cond,
+    LoopError,
+    LoopNest,
+    LoopUnits,
+    LOp,
+    Store,
+    check_nest,
+    modulo_schedule,
+    run_nest,
+    unroll,
+)
+
+
+def kernels(rows, cols):
+    return [K.sym_rank1_update(6), K.sym_rank1_update(4, 0.5), K.dense_matvec(3, 5),
+            K.dense_matvec(2, 4, bias=True), K.dense_matvec_interleaved(3, 4),
+            K.sparse_matvec(rows, cols, 6, 6)]
+
+
+def bits(values):
+    return floats_to_bits(values)
+
+
+@pytest.mark.parametrize("special", [False, True])
+def test_executor_equals_bittrue_interpreter_on_the_unrolled_nest(special, loop_data):
+    rng = np.random.default_rng(7 + special)
+    for nest in kernels(loop_data.rows, loop_data.cols):
+        for _ in range(3):
+            mems = loop_data.memories(nest, rng, special)
+            got = run_nest(nest, mems)
+            prog, regs = unroll(nest)
+            state = {r: bits([mems[a][i]])[0] for r, (a, i) in regs.items()}
+            new, _, _ = run_bittrue(prog, state, {})
+            for r, (a, i) in regs.items():
+                assert int(new[r][0]) == int(bits([got[a][i]])[0]), (nest.name, r)
+
+
+def test_kernels_compute_what_they_say_in_float32(loop_data):
+    """Against numpy float32 arithmetic (IEEE round to nearest even; normal operands)."""
+    rng = np.random.default_rng(3)
+    memories = loop_data.memories
+    SPMV_ROWS, SPMV_COLS = loop_data.rows, loop_data.cols  # noqa: N806
+    f = np.float32
+    nest = K.sym_rank1_update(7, 0.5)
+    mems = memories(nest, rng)
+    got = run_nest(nest, mems)["P"]
+    rows, cols = K.upper_index(7)
+    k = mems["k"].astype(f)
+    want = mems["P"].astype(f) + (f(0.5) * k[rows]) * k[cols]
+    assert np.array_equal(bits(got), bits(want))
+    nest = K.sparse_matvec(SPMV_ROWS, SPMV_COLS, 6, 6)
+    mems = memories(nest, rng)
+    got = run_nest(nest, mems)["y"]
+    want = mems["y"].astype(f)
+    for r in set(SPMV_ROWS):
+        acc = f(0.0)
+        for n, (rr, c) in enumerate(zip(SPMV_ROWS, SPMV_COLS, strict=True)):
+            if rr == r:
+                acc = f(acc + f(mems["a"][n]) * f(mems["x"][c]))
+        want[r] = acc
+    assert np.array_equal(bits(got), bits(want))  # rows 1 and 4 untouched
+    nest = K.dense_matvec(3, 5)
+    mems = memories(nest, rng)
+    got = run_nest(nest, mems)["y"]
+    a = mems["A"].astype(f).reshape(3, 5)
+    want = np.zeros(3, f)
+    for c in range(5):
+        want = want + a[:, c] * mems["x"].astype(f)[c]
+    assert np.array_equal(bits(got), bits(want))
+
+
+def _check_schedule(s):
+    nest, ii = s.nest, s.ii
+    accs = nest.acc_names()
+    seen = set()
+    for key, (res, inst) in s.resource.items():
+        slot = (res, inst, s.time[key] % ii)
+        assert slot not in seen, slot
+        seen.add(slot)
+    for op in nest.ops:
+        t = s.time[op.dst]
+        assert t >= 1
+        for src in op.srcs if op.kind != "load" else ():
+            if src in accs:
+                assert s.ready[accs[src].update] - accs[src].distance * ii <= t  # recurrence
+            elif not src.startswith("c:"):
+                assert s.ready[src] <= t
+    for k, st in enumerate(nest.stores):
+        assert s.time[("store", k)] >= s.ready[st.src]
+        assert s.time[("store", k)] < s.depth
+
+
+def test_modulo_schedule_ii_bounds_and_exact_cycles(loop_data):
+    lat_add, lat_mul = Fp32Add.LATENCY, Fp32Mul.LATENCY
+    # rank-1 update, 21 stored elements: 1 mul + 1 add + 3 loads + 1 store per element
+    s = modulo_schedule(K.sym_rank1_update(6))
+    assert (s.ii, s.res_mii, s.rec_mii) == (1, 1, 1)
+    # loads at 1, product at 2 (load + 1), sum at 2 + 5, store at 7 + 8 = 15: depth 16
+    assert s.time == {"p": 1, "ki": 1, "kj": 1, "kk": 2, "q": 2 + lat_mul,
+                      ("store", 0): 2 + lat_mul + lat_add}
+    assert s.depth == 16 and s.cycles == 20 * 1 + 16
+    # one read port: k is read twice per iteration, so II = 2 (resource bound)
+    s1 = modulo_schedule(K.sym_rank1_update(6), LoopUnits(read_ports=1))
+    assert (s1.ii, s1.res_mii) == (2, 2) and s1.cycles == 20 * 2 + s1.depth
+    # two multiplies on one multiplier: II 2; on two: II 1
+    assert modulo_schedule(K.sym_rank1_update(6, 0.5)).ii == 2
+    assert modulo_schedule(K.sym_rank1_update(6, 0.5), LoopUnits(mul=2)).ii == 1
+    # accumulations: the adder's latency is the recurrence bound
+    for nest in (K.sparse_matvec(loop_data.rows, loop_data.cols, 6, 6), K.dense_matvec(3, 5)):
+        s = modulo_schedule(nest)
+        assert (s.ii, s.rec_mii, s.res_mii) == (lat_add, lat_add, 1)
+        assert s.cycles == (nest.iterations - 1) * lat_add + 16
+    # interleaved row sums: the recurrence bound is the adder latency over the distance
+    for rows, ii in ((3, 3), (4, 2), (8, 1), (15, 1)):
+        s = modulo_schedule(K.dense_matvec_interleaved(rows, 5))
+        assert (s.ii, s.rec_mii) == (ii, -(-lat_add // rows))
+        assert s.cycles == (rows * 5 - 1) * ii + 16
+    for nest in kernels(loop_data.rows, loop_data.cols):
+        for units in (LoopUnits(), LoopUnits(read_ports=1), LoopUnits(mul=2, add=2)):
+            _check_schedule(modulo_schedule(nest, units))
+
+
+def test_interleaved_sums_are_the_same_bits():
+    """Row sums carried at distance n_rows keep each row's order: the same bits as the
+    row-by-row nest."""
+    rng = np.random.default_rng(11)
+    for rows, cols in ((3, 4), (15, 15), (1, 6)):
+        a, b = K.dense_matvec(rows, cols), K.dense_matvec_interleaved(rows, cols)
+        for _ in range(3):
+            mems = {k: rng.standard_normal(w) * 10.0 ** rng.integers(-8, 8, w)
+                    for k, w in a.arrays.items()}
+            assert np.array_equal(bits(run_nest(a, mems)["y"]), bits(run_nest(b, mems)["y"]))
+
+
+def _nest(ops, stores, accs=(), trips=(4,), arrays=None, tables=None):
+    return LoopNest("bad", trips, arrays or {"a": 4, "b": 4}, tables or {}, list(ops),
+                    list(accs), list(stores))
+
+
+LOAD_A = LOp("x", "load", ("a",), Addr(None, (1,)))
+
+
+@pytest.mark.parametrize("nest, message", [
+    (_nest([LOAD_A, LOp("y", "add", ("x", "x"))], [Store("a", Addr(None, (1,), 1), "y",
+                                                         None)]),
+     "out of range"),
+    (_nest([LOp("x", "load", ("a",), Addr(None, (1,), 1)), LOp("y", "add", ("x", "x"))],
+           [Store("a", Addr(None, (1,)), "y")], trips=(3,)),
+     "carry it in an accumulator"),
+    (_nest([LOAD_A, LOp("y", "add", ("x", "x"))], [Store("b", Addr(None, (0,)), "y")]),
+     "written in iterations"),
+    (_nest([LOAD_A, LOp("y", "div", ("x", "x"))], []), "op kind"),
+    (_nest([LOAD_A, LOp("y", "add", ("x", "z"))], []), "before it is defined"),
+    (_nest([LOAD_A, LOp("x", "add", ("x", "x"))], []), "defined twice"),
+    (_nest([LOAD_A], [], trips=(0,)), "trip counts"),
+    (_nest([LOAD_A, LOp("y", "add", ("s", "x"))], [],
+           [Acc("s", const_name(0.0), "y", Cond("table", "f"))], tables={"f": [1, 0]}),
+     "flag table"),
+    (_nest([LOp("x", "load", ("a",), Addr("t", (1,)))], [], tables={"t": [0, 1, 2]}),
+     "out of range"),
+    (_nest([LOAD_A, LOp("y", "add", ("s", "x"))], [],
+           [Acc("s", const_name(0.0), "y", Cond("first", 3))]), "no loop level"),
+    (_nest([LOAD_A, LOp("y", "add", ("s", "x"))], [],
+           [Acc("s", const_name(0.0), "y", Cond("first", 0), 2)]), "read before its first"),
+    (_nest([LOAD_A, LOp("y", "add", ("s", "x"))], [],
+           [Acc("s", const_name(0.0), "y", Cond("first", 0), 0)]), "distance must be"),
+])
+def test_malformed_nests_are_rejected(nest, message):
+    with pytest.raises(LoopError, match=message):
+        check_nest(nest)
+    with pytest.raises(LoopError, match=message):
+        modulo_schedule(nest)
+
+
+def test_in_place_update_of_the_same_word_is_allowed_and_run_in_order():
+    """A word read and written by the same iteration only (the rank-1 update's P) is no
+    recurrence: the store is scheduled after the load."""
+    nest = K.sym_rank1_update(3)
+    check_nest(nest)
+    s = modulo_schedule(nest)
+    assert s.time[("store", 0)] > s.time["p"]
+    with pytest.raises(LoopError, match="needs 6 words"):
+        run_nest(nest, {"P": np.zeros(5), "k": np.zeros(3)})
