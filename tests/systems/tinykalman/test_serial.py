@@ -129,11 +129,12 @@ def test_serial_datapath_verilator_random_with_rejected_samples():
     assert exp["sat"].any() and not exp["ok"].all()
     jumps = np.abs(np.diff(exp["roll"][300:].astype(np.int64)))
     assert (jumps > 60000).any(), "the roll state must wrap through +-180 deg"
-    res = V.verify(TinyKalmanSerialDatapath(), serial_datapath_model, ins, backend="verilator",
-                   valid_prob=0.7, ready_prob=0.6, seed=1)
+    dut = TinyKalmanSerialDatapath()
+    res = V.verify(dut, serial_datapath_model, ins, backend="verilator", valid_prob=0.7,
+                   ready_prob=0.6, seed=1)
     res.assert_ok()
     # CORDIC 667, then 2 x 16 clocks of prediction first and 2 x 2 x 16 of update
-    assert res.latency == TinyKalmanSerialDatapath().LATENCY == 667 + 32 + 64 == 763
+    assert res.latency == dut.LATENCY == 667 + 32 + 64 == 763
 
 
 def test_serial_datapath_amaranth_extreme_rates():
