@@ -9,8 +9,8 @@ column the serial chip's data path (:class:`TinyKalmanSerialDatapath`: the bit-s
 and the bit-serial filter of :mod:`navgate.systems.tinykalman.serial`), both in Verilator;
 the two must be equal (same arithmetic) and equal to the integer model.
 
-Run from the checkout root: ``python benchmarks/bench_tinykalman_settled.py`` (4.4 min wall,
-1.5 min CPU, on the shared machine with both Verilator builds uncached).
+Run from the checkout root: ``python benchmarks/bench_tinykalman_settled.py`` (1.9 min CPU,
+16 min wall on the shared machine at load ~10, both Verilator builds uncached).
 """
 
 from __future__ import annotations
