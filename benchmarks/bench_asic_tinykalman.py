@@ -1,4 +1,4 @@
-"""Seed 001 TinyKalman in the IHP SG13G2 standard cells (issue 30): pre-layout area, cells,
+"""Seed 001 TinyKalman in the IHP SG13G2 standard cells: pre-layout area, cells,
 flip-flops, the smallest TinyTapeout IHP tile at 65 % density and the longest path against the
 10 MHz clock, for the chip and its blocks, with :func:`navgate.hw.asic.synthesize_asic` (the
 flow of ``navgate build BLOCK --asic sg13g2``). Prints a table and writes
@@ -7,7 +7,9 @@ flow of ``navgate build BLOCK --asic sg13g2``). Prints a table and writes
 Run from the checkout root (the Liberty file is ``../shared/asic``, or give its path as the
 first argument): ``python benchmarks/bench_asic_tinykalman.py`` (about half a minute).
 Rows: the parallel chip (``tinykalman_top``) and the serial chip (``tinykalman_serial_top``,
-the bit-serial CORDIC of :mod:`navgate.systems.tinykalman.serial`) and their blocks.
+the bit-serial CORDIC and filter of :mod:`navgate.systems.tinykalman.serial`) and their
+blocks (``serial_cordic``, ``serial_datapath``: as stream blocks, with their own input
+registers, which the chip does without).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from pathlib import Path
 from navgate.hw.asic import TILES, default_liberty, synthesize_asic
 from navgate.hw.verilog import emit_verilog
 from navgate.systems.tinykalman.datapath import KalmanSteady, TinyKalmanCordic
-from navgate.systems.tinykalman.serial import TinyKalmanSerialCordic
+from navgate.systems.tinykalman.serial import TinyKalmanSerialCordic, TinyKalmanSerialDatapath
 from navgate.systems.tinykalman.spi import Mpu6500Spi
 from navgate.systems.tinykalman.top import TinyKalmanSerialTop, TinyKalmanTop
 from navgate.systems.tinykalman.uart import UartTx
@@ -30,6 +32,7 @@ BLOCKS = {
     "tinykalman_top": TinyKalmanTop,
     "tinykalman_serial_top": TinyKalmanSerialTop,
     "serial_cordic": TinyKalmanSerialCordic,
+    "serial_datapath": TinyKalmanSerialDatapath,
     "mpu6500_spi": Mpu6500Spi,
     "tinykalman_cordic": TinyKalmanCordic,
     "kalman_steady": KalmanSteady,

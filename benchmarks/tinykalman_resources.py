@@ -3,12 +3,14 @@ xc7z020 resources), the CORDIC at the upstream design's 8-bit/8-stage configurat
 comparison, and the per-sample timing budget. Prints a table and writes
 ``navgate-out/bench/tinykalman_resources.json``.
 
-Run: ``python benchmarks/tinykalman_resources.py`` (a few minutes: YoWASP Yosys).
+Run: ``python benchmarks/tinykalman_resources.py [BLOCK ...]`` (a few minutes: YoWASP Yosys;
+block names pick rows, e.g. ``tinykalman_serial_top``).
 """
 
 from __future__ import annotations
 
 import json
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -18,11 +20,12 @@ from navgate.hw.synth import GENERIC_FLOW, SynthesisError, generic_gates, synthe
 from navgate.hw.verilog import emit_verilog
 from navgate.systems.tinykalman.datapath import KalmanSteady, TinyKalmanCordic
 from navgate.systems.tinykalman.spi import Mpu6500Spi
-from navgate.systems.tinykalman.top import TinyKalmanTop, timing
+from navgate.systems.tinykalman.top import TinyKalmanSerialTop, TinyKalmanTop, timing
 from navgate.systems.tinykalman.uart import UartTx
 
 BLOCKS = {
     "tinykalman_top": TinyKalmanTop,
+    "tinykalman_serial_top": TinyKalmanSerialTop,
     "mpu6500_spi": Mpu6500Spi,
     "tinykalman_cordic": TinyKalmanCordic,  # not a registered block (synth_xilinx aborts)
     "kalman_steady": KalmanSteady,
@@ -45,7 +48,10 @@ def _retry(fn, *args):
 def main() -> None:
     rows = {}
     with tempfile.TemporaryDirectory() as tmp:
+        only = set(sys.argv[1:])
         for name, factory in BLOCKS.items():
+            if only and name not in only:
+                continue
             t0 = time.perf_counter()
             text = emit_verilog(factory(), name)
             gen = _retry(generic_gates, text, name, Path(tmp) / name / "generic")

@@ -80,9 +80,10 @@ DECODE_OUTPUTS = ("capture.bin", "roll_pitch.csv", "summary.json")
 @click.option("--variant", type=click.Choice(["parallel", "serial"]), default="parallel",
               show_default=True,
               help="Chip for --engine rtl: parallel (word-parallel iterative CORDIC, 45 clocks "
-                   "CS_N -> first start bit) or serial (bit-serial CORDIC, 28.8k um2 instead of "
-                   "45.4k in SG13G2, 621 clocks). Same arithmetic, byte-identical UART stream; "
-                   "the default keeps the chip earlier runs recorded and simulates faster.")
+                   "CS_N -> first start bit) or serial (bit-serial CORDIC and filter, 17.8k um2 "
+                   "instead of 45.4k in SG13G2, 737 clocks). Same arithmetic, byte-identical "
+                   "UART stream; the default keeps the chip earlier runs recorded and simulates "
+                   "faster.")
 @click.option("--limit", type=int, default=None, help="Use only the first N samples.")
 @out_option(default_out_dir("tinykalman"), "Output directory (written atomically).")
 @click.option("--quiet", is_flag=True, help="No table.")

@@ -33,7 +33,8 @@ BLOCKS: dict[str, tuple[str, str]] = {
     "tinykalman_top": ("navgate.systems.tinykalman.top:TinyKalmanTop",
                        "seed 001 TinyKalman chip, TinyTapeout user module (10 MHz, 100 Hz loop)"),
     "tinykalman_serial_top": ("navgate.systems.tinykalman.top:TinyKalmanSerialTop",
-                              "seed 001 TinyKalman chip, bit-serial CORDIC (one SG13G2 tile)"),
+                              "seed 001 TinyKalman chip, bit-serial CORDIC and filter "
+                              "(one SG13G2 1x1 tile)"),
     "mpu6500_spi": ("navgate.systems.tinykalman.spi:Mpu6500Spi",
                     "seed 001 MPU-6500 SPI master: WHO_AM_I + 14-byte burst, mode 3, 1 MHz"),
     "kalman_steady": ("navgate.systems.tinykalman.datapath:KalmanSteady",

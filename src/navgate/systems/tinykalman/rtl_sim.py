@@ -203,7 +203,7 @@ def run_amaranth(samples, n_samples: int, config: SimConfig = FAST, *,
     at_start = [next(v for c, v in reversed(flags) if c < s) for s in starts]
     return RtlRun(bytes(rx.bytes), state["cycles"], seconds,
                   _latencies(cs_rises, rx.starts), dev, rx.errors,
-                  {"uio_out_at_packet_start": at_start})
+                  {"uio_out_at_packet_start": at_start, "cs_rises": cs_rises})
 
 
 def _latencies(cs_rises, starts) -> list[int]:

@@ -22,9 +22,14 @@ that fails the WHO_AM_I check leaves the filter state unchanged and the packet r
 keeps streaming whatever the sensor does.
 
 ``variant``: ``"parallel"`` (default, the word-parallel iterative CORDIC) or ``"serial"``
-(:mod:`navgate.systems.tinykalman.serial`'s bit-serial CORDIC; the SPI master's word register
-is then the only copy of the burst and the packet bytes come from the filter state; registered
-as block ``tinykalman_serial_top``, :func:`TinyKalmanSerialTop`). Same pins and bytes.
+(:mod:`navgate.systems.tinykalman.serial`: the bit-serial CORDIC and filter; the SPI master
+shifts MISO bits straight into the registers that use them (ay, az into the CORDIC's x, y; the
+rates into z; ax into its own 15-bit register) and checks WHO_AM_I bit by bit; the packet goes
+out bit by bit from the filter state (:class:`~.uart.UartPacketTx`); the sample timer is an
+LFSR (:func:`lfsr_timer`); registered as block ``tinykalman_serial_top``,
+:func:`TinyKalmanSerialTop`). Same pins and bytes. In the serial chip the status pins change
+while a sample is computed (fault when the data path takes it, sat after the roll pass), before
+its packet; in the parallel chip when its packet starts.
 
 Elaboration parameters: ``spi_div`` (clocks per SCLK half period, default 5: 1 MHz),
 ``baud_div`` (clocks per UART bit, default 1042: 9596.9 baud), ``sample_period`` (clocks);
@@ -40,14 +45,20 @@ from amaranth import Array, Cat, ClockDomain, ClockSignal, Const, Module, Mux, R
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware.parameters import CheckedParameters
 from navgate.systems.tinykalman.datapath import CORDIC_LATENCY, TinyKalmanDatapath
 from navgate.systems.tinykalman.model import HEADER, PACKET_LEN, WHO_AM_I_VALUE
-from navgate.systems.tinykalman.serial import SERIAL_CORDIC_LATENCY, TinyKalmanSerialCordic
+from navgate.systems.tinykalman.serial import (
+    SERIAL_CORDIC_LATENCY,
+    SERIAL_DATAPATH_LATENCY,
+    TinyKalmanSerialDatapath,
+)
 from navgate.systems.tinykalman.spi import Mpu6500Spi, spi_cycles
-from navgate.systems.tinykalman.uart import BAUD_DIV_9600_AT_10MHZ, UartTx
+from navgate.systems.tinykalman.uart import BAUD_DIV_9600_AT_10MHZ, UartPacketTx, UartTx
 
 __all__ = ["TinyKalmanCore", "TinyKalmanTop", "TinyKalmanSerialTop", "min_sample_period",
-           "timing", "CLK_HZ", "TT_MODULE_NAME", "VARIANTS", "cordic_latency"]
+           "timing", "CLK_HZ", "TT_MODULE_NAME", "VARIANTS", "cordic_latency",
+           "datapath_latency", "lfsr_timer", "LFSR_TAPS"]
 
 CLK_HZ = 10_000_000
 TT_MODULE_NAME = "tt_um_navgate_tinykalman"
@@ -71,9 +82,47 @@ def cordic_latency(variant: str = "parallel") -> int:
                      f"got {variant!r}")
 
 
+def datapath_latency(variant: str = "parallel") -> int:
+    """Clocks from the data path's accepted input to the filter state of that sample: the
+    angle block and the one-clock filter (parallel), or the bit-serial CORDIC with the
+    bit-serial filter passes after each angle (serial)."""
+    if variant == "serial":
+        return SERIAL_DATAPATH_LATENCY
+    return cordic_latency(variant) + 1
+
+
+#: maximal-length Fibonacci LFSR taps (1-indexed bits, XOR feedback into bit 1), from Xilinx
+#: XAPP052 "Efficient Shift Registers, LFSR Counters, and Long Pseudo-Random Sequence
+#: Generators" table 3; :func:`lfsr_timer` checks the period it needs by stepping
+LFSR_TAPS = {3: (3, 2), 4: (4, 3), 5: (5, 3), 6: (6, 5), 7: (7, 6), 8: (8, 6, 5, 4),
+             9: (9, 5), 10: (10, 7), 11: (11, 9), 12: (12, 6, 4, 1), 13: (13, 4, 3, 1),
+             14: (14, 5, 3, 1), 15: (15, 14), 16: (16, 15, 13, 4), 17: (17, 14),
+             18: (18, 11), 19: (19, 6, 2, 1), 20: (20, 17)}
+
+
+def lfsr_timer(period: int) -> tuple[int, tuple[int, ...], int, int]:
+    """The serial chip's sample timer: ``(width, taps, seed, last)`` of the shortest LFSR
+    (:data:`LFSR_TAPS`) whose sequence from ``seed = 1`` does not come back to the seed within
+    ``period`` states; ``last`` is state ``period - 1``, after which the timer reloads the
+    seed (so the period is exactly ``period`` clocks)."""
+    width = next((n for n in sorted(LFSR_TAPS) if (1 << n) - 1 >= period), None)
+    if width is None:
+        raise ValueError(f"lfsr_timer: period {period} is longer than the widest LFSR")
+    taps, seed = LFSR_TAPS[width], 1
+    state = seed
+    for i in range(1, period):
+        bit = 0
+        for t in taps:
+            bit ^= (state >> (t - 1)) & 1
+        state = ((state << 1) | bit) & ((1 << width) - 1)
+        if state == seed:
+            raise ValueError(f"lfsr_timer: the {width}-bit LFSR repeats after {i} states")
+    return width, taps, seed, state
+
+
 def min_sample_period(spi_div: int, baud_div: int, variant: str = "parallel") -> int:
     """Shortest sample period for which a sample's packet is sent before the next starts."""
-    return spi_cycles(spi_div) + cordic_latency(variant) + 8 + 10 * PACKET_LEN * baud_div
+    return spi_cycles(spi_div) + datapath_latency(variant) + 7 + 10 * PACKET_LEN * baud_div
 
 
 def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
@@ -82,7 +131,9 @@ def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MH
     """Per-sample schedule in clocks (and seconds): SPI, latency from CS_N rising to the first
     start bit, packet time, busy time and the slack inside the sample period."""
     spi = spi_cycles(spi_div)
-    latency = spi_div + 1 + cordic_latency(variant) + 1 + 1
+    # the parallel chip registers the packet before its UART takes the first byte; the serial
+    # chip's UART starts on the data path's valid output
+    latency = spi_div + 1 + datapath_latency(variant) + (variant == "parallel")
     packet = 10 * PACKET_LEN * baud_div
     # start pulse is the cycle the timer is 0; CS_N falls 1 clock later; CS_N rises at
     # spi - spi_div (the end of the burst's hold phase, before the gap)
@@ -99,18 +150,34 @@ def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MH
     }
 
 
-class TinyKalmanCore(wiring.Component):
+def _check_chip(spi_div, baud_div, sample_period, variant) -> None:
+    """The chip's parameters (``ValueError`` naming the one that is wrong), checked before the
+    chip or any of its blocks exists (:class:`~navgate.gateware.parameters.CheckedParameters`)."""
+    cordic_latency(variant)
+    Mpu6500Spi.check_parameters(spi_div, False, ())
+    UartPacketTx.check_parameters(PACKET_LEN, baud_div)
+    need = min_sample_period(spi_div, baud_div, variant)
+    if not isinstance(sample_period, int) or sample_period < need:
+        raise ValueError(f"TinyKalman: sample_period must be an integer >= {need} clocks "
+                         f"for spi_div={spi_div}, baud_div={baud_div}; got {sample_period!r}")
+
+
+class TinyKalmanCore(CheckedParameters, wiring.Component):
     """The chip's logic on plain pins, in the ``sync`` domain (reset active high)."""
+
+    @classmethod
+    def check_parameters(cls, spi_div, baud_div, sample_period, variant):
+        _check_chip(spi_div, baud_div, sample_period, variant)
 
     def __init__(self, spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
                  sample_period: int = DEFAULT_SAMPLE_PERIOD, variant: str = "parallel"):
-        need = min_sample_period(spi_div, baud_div, variant)
         self.variant = variant
-        if not isinstance(sample_period, int) or sample_period < need:
-            raise ValueError(f"TinyKalman: sample_period must be an integer >= {need} clocks "
-                             f"for spi_div={spi_div}, baud_div={baud_div}; got {sample_period!r}")
-        self.spi = Mpu6500Spi(spi_div)
-        self.uart = UartTx(baud_div)
+        if variant == "serial":
+            self.spi = Mpu6500Spi(spi_div, direct=True, external=("ay", "az", "gx", "gy"))
+        else:
+            self.spi = Mpu6500Spi(spi_div)
+        self.uart = (UartPacketTx(PACKET_LEN, baud_div) if variant == "serial"
+                     else UartTx(baud_div))
         self.spi_div, self.baud_div, self.sample_period = spi_div, baud_div, sample_period
         self.LATENCY = timing(spi_div, baud_div, sample_period,
                               variant=variant)["latency_cs_rise_to_start_bit"]
@@ -129,15 +196,35 @@ class TinyKalmanCore(wiring.Component):
         m = Module()
         m.submodules.spi = spi = self.spi
         serial = self.variant == "serial"
-        m.submodules.datapath = datapath = TinyKalmanDatapath(
-            TinyKalmanSerialCordic if serial else None, held_input=serial)
+        if serial:
+            m.submodules.datapath = datapath = TinyKalmanSerialDatapath(held_input=True,
+                                                                         spi_fed=True)
+            m.d.comb += [datapath.spi_bit.eq(spi.bit)]
+            for name in spi.external:
+                m.d.comb += getattr(datapath, f"shift_{name}").eq(getattr(spi, f"shift_{name}"))
+            for name in ("gx", "gy"):
+                m.d.comb += getattr(datapath, f"last_{name}").eq(getattr(spi, f"last_{name}"))
+        else:
+            m.submodules.datapath = datapath = TinyKalmanDatapath()
         m.submodules.uart = uart = self.uart
 
         sending = Signal()
-        timer = Signal(range(self.sample_period))
-        m.d.sync += timer.eq(Mux(timer == self.sample_period - 1, 0, timer + 1))
+        if serial:
+            # the sample timer as a linear-feedback shift register (no incrementer): it starts
+            # at the seed, steps, and goes back to the seed after sample_period states
+            width, taps, seed, last = lfsr_timer(self.sample_period)
+            timer = Signal(width, init=seed)
+            feedback = timer[taps[0] - 1]
+            for t in taps[1:]:
+                feedback = feedback ^ timer[t - 1]
+            m.d.sync += timer.eq(Mux(timer == last, seed, Cat(feedback, timer[:-1])))
+            start = timer == seed
+        else:
+            timer = Signal(range(self.sample_period))
+            m.d.sync += timer.eq(Mux(timer == self.sample_period - 1, 0, timer + 1))
+            start = timer == 0
         m.d.comb += [
-            spi.start.eq(timer == 0),
+            spi.start.eq(start),
             spi.miso.eq(self.miso),
             self.mosi.eq(spi.mosi),
             self.sclk.eq(spi.sclk),
@@ -149,21 +236,35 @@ class TinyKalmanCore(wiring.Component):
         dp = datapath.i.payload
         m.d.comb += [
             dp.ax.eq(sp.ax), dp.ay.eq(sp.ay), dp.az.eq(sp.az), dp.gx.eq(sp.gx), dp.gy.eq(sp.gy),
-            dp.ok.eq(sp.who_am_i == WHO_AM_I_VALUE),
+            dp.ok.eq(sp.who_ok if serial else sp.who_am_i == WHO_AM_I_VALUE),
             datapath.i.valid.eq(spi.o.valid),
             spi.o.ready.eq(datapath.i.ready),
         ]
-        with m.If(datapath.o.valid & ~sending):
-            m.d.sync += [self.fault.eq(~datapath.o.payload.ok),
-                         self.sat.eq(datapath.o.payload.sat)]
+        if serial:
+            # the flags change while the sample is computed, before its packet: fault when the
+            # data path takes the sample, sat is the data path's own flag (set after roll)
+            with m.If(datapath.i.valid & datapath.i.ready):
+                m.d.sync += self.fault.eq(~dp.ok)
+            m.d.comb += self.sat.eq(datapath.o.payload.sat)
+        else:
+            with m.If(datapath.o.valid & ~sending):
+                m.d.sync += [self.fault.eq(~datapath.o.payload.ok),
+                             self.sat.eq(datapath.o.payload.sat)]
         # filter -> packet -> UART
-        index = Signal(range(PACKET_LEN))
         if serial:
             # the serial chip sends the filter state itself (it holds until the next sample's
-            # update, after this packet: sample_period >= min_sample_period)
+            # update, after this packet: sample_period >= min_sample_period), bit by bit
             roll, pitch = datapath.o.payload.roll, datapath.o.payload.pitch
-        else:
-            roll, pitch = Signal(16), Signal(16)
+            m.d.comb += [
+                uart.packet.eq(Cat(Const(HEADER[0], 8), Const(HEADER[1], 8), roll[8:],
+                                   roll[:8], pitch[8:], pitch[:8])),
+                uart.start.eq(datapath.o.valid),
+                sending.eq(uart.busy),
+                datapath.o.ready.eq(~sending),
+            ]
+            return m
+        index = Signal(range(PACKET_LEN))
+        roll, pitch = Signal(16), Signal(16)
         packet = Array([Const(HEADER[0], 8), Const(HEADER[1], 8), roll[8:], roll[:8],
                         pitch[8:], pitch[:8]])
         m.d.comb += [
@@ -172,11 +273,8 @@ class TinyKalmanCore(wiring.Component):
             uart.i.payload.eq(packet[index]),
         ]
         with m.If(datapath.o.valid & ~sending):
-            if serial:
-                m.d.sync += [sending.eq(1), index.eq(0)]
-            else:
-                m.d.sync += [roll.eq(datapath.o.payload.roll),
-                             pitch.eq(datapath.o.payload.pitch), sending.eq(1), index.eq(0)]
+            m.d.sync += [roll.eq(datapath.o.payload.roll),
+                         pitch.eq(datapath.o.payload.pitch), sending.eq(1), index.eq(0)]
         with m.If(sending & uart.i.ready):
             m.d.sync += index.eq(index + 1)
             with m.If(index == PACKET_LEN - 1):
@@ -184,8 +282,12 @@ class TinyKalmanCore(wiring.Component):
         return m
 
 
-class TinyKalmanTop(wiring.Component):
+class TinyKalmanTop(CheckedParameters, wiring.Component):
     """TinyKalman as a TinyTapeout user module (seed 001 pinout), 10 MHz."""
+
+    @classmethod
+    def check_parameters(cls, spi_div, baud_div, sample_period, variant):
+        _check_chip(spi_div, baud_div, sample_period, variant)
 
     def __init__(self, spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
                  sample_period: int = DEFAULT_SAMPLE_PERIOD, variant: str = "parallel"):
@@ -225,5 +327,6 @@ class TinyKalmanTop(wiring.Component):
 def TinyKalmanSerialTop(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MHZ,
                         sample_period: int = DEFAULT_SAMPLE_PERIOD) -> TinyKalmanTop:
     """The serial chip (block ``tinykalman_serial_top``): :class:`TinyKalmanTop` with the
-    bit-serial CORDIC (:mod:`navgate.systems.tinykalman.serial`), same pins and packets."""
+    bit-serial CORDIC and filter (:mod:`navgate.systems.tinykalman.serial`), same pins and
+    packets."""
     return TinyKalmanTop(spi_div, baud_div, sample_period, variant="serial")
