@@ -12,7 +12,15 @@ persistent native Verilator process (:class:`navgate.gateware.native_axi.NativeA
 takes batches of bus commands.
 
 The PS side is the ``fp32`` engine's (:class:`Fp32Engine`), talking to the PL only through
-registers:
+registers, with the board's driver: :class:`navgate.hw.regmap.Registers` over
+:class:`navgate.gateware.native_axi.NativeAxiBus`, by register and field name. On a board
+the same calls run over :class:`navgate.hw.bus.DevMemBus` or :class:`navgate.hw.bus.PynqBus`
+(docs/seed000-registers.md, "One driver, three buses"). Each engine call is one
+``regs.deferred()`` block, sent as one batch (one round trip to the native process):
+:meth:`Registers.wait_until` becomes the simulation's in-process poll and
+:meth:`Registers.read_later` answers are filled in when the batch comes back. The
+simulation's own extras, which a board has not, stay at bus level: ``bus.push`` (samples into
+the device emulators) and ``bus.wait`` (the ``irq`` line). The register accesses:
 
 - set-up: the calibration through CAL_* and CAL_APPLY; the other engine registers (noise,
   initial state, P0) through the engine register window (ENG_ADDR/ENG_WDATA/ENG_CMD); the
