@@ -91,7 +91,7 @@ def _layer(module: str) -> str:
 def test_the_graph_is_read():
     graph = import_graph()
     # a few edges that must be there, so that an empty graph cannot pass the tests below
-    assert "navgate.nav.eskf" in graph["navgate.systems.ins_trn.ps.engine"]
+    assert "navgate.nav.eskf" in graph["navgate.systems.ins_trn.ps.pl_interface"]
     assert "navgate.devices.adis16500" in graph["navgate.nav.calibration"]
     assert "navgate.devices.adis16500" in graph["navgate.sim.sensors"]
     # an import by name (a block registry's "module:attribute" string) is an edge too

@@ -79,8 +79,8 @@ def replay(log_path, engine, dem_path, no_trn, min_used, out, quiet):
     header = stream.header
     cfg = _flight_config(header, log_path, no_trn)
     try:  # the engines' own checks of the initial state (p0, nav0, rate, ...), up front
-        from navgate.systems.ins_trn.ps.engine import check_setup
         from navgate.systems.ins_trn.ps.navigator import engine_setup
+        from navgate.systems.ins_trn.ps.pl_interface import check_setup
 
         check_setup(engine_setup(header, cfg))
     except (KeyError, TypeError, IndexError, ValueError) as error:

@@ -2,7 +2,7 @@
 altitude updates and (optionally) TRN position fixes.
 
 The loop itself is the streaming navigator (:mod:`navgate.systems.ins_trn.ps.navigator`: the PS
-side over a PL engine of :mod:`navgate.systems.ins_trn.ps.engine`); this module turns the
+side over a PL engine of :mod:`navgate.systems.ins_trn.ps.pl_interface`); this module turns the
 scenario's sensor data into its record stream (:mod:`navgate.systems.ins_trn.ps.records`) and
 runs it, with the float64 ``reference`` engine or the float32 ``fp32`` engine.
 """

@@ -9,7 +9,7 @@ in one call with the same result; an engine with ``batch_records``, the float64 
 takes whole stretches of IMU and barometer records between the records the PS must see in one
 compiled call, :meth:`PlEngine.run_records`, again with the same result) and talks to the PL
 only through
-:class:`navgate.systems.ins_trn.ps.engine.PlEngine`:
+:class:`navgate.systems.ins_trn.ps.pl_interface.PlEngine`:
 
 - IMU record: ``engine.propagate`` (calibration, mechanization, covariance);
 - barometer record: ``engine.update_altitude`` (an invalid sample is counted, not applied);
@@ -44,7 +44,7 @@ from navgate.nav.calibration import ImuCalibration
 from navgate.nav.earth import LocalTangent
 from navgate.sim import sensors
 from navgate.systems.ins_trn.ps import pl_sensors
-from navgate.systems.ins_trn.ps.engine import EngineSetup, PlEngine, make_engine
+from navgate.systems.ins_trn.ps.pl_interface import EngineSetup, PlEngine, make_engine
 from navgate.systems.ins_trn.ps.records import BARO, IMU, RANGER, RecordStream
 from navgate.trn.profile import ACCEPTED
 
