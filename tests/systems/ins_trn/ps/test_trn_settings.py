@@ -85,3 +85,11 @@ def test_the_scenario_config_refuses_the_navigators_settings():
     for key in LEGACY_KEYS:
         with pytest.raises(TypeError):
             FlightConfig(**{key: None})
+
+
+def test_the_navigator_refuses_settings_of_another_type():
+    """A method name where the settings belong is a clear error, before any engine work."""
+    from navgate.systems.ins_trn.ps.navigator import Navigator
+
+    with pytest.raises(ValueError, match="trn must be TrnSettings, got str"):
+        Navigator(None, None, t0=0.0, trn="tercom")
