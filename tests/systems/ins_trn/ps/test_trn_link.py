@@ -425,7 +425,7 @@ def test_link_latency_applies_each_fix_late_once_and_never_after_its_deadline(sc
     # one request in flight at a time: requests at least the fix interval and the latency apart
     starts = [r["time_s"] for r in rows]
     gaps = np.diff(starts)
-    assert np.all(gaps >= max(cfg.fix_interval_s, 2.0) - 1e-9)
+    assert np.all(gaps >= max(flight.TrnSettings().fix_interval_s, 2.0) - 1e-9)
     # a fix that would arrive after its deadline is dropped, never applied
     from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
     from navgate.systems.ins_trn.ps.pl_interface import make_engine
