@@ -1,6 +1,6 @@
 """Block RAM budget of seed 000's ``ins_engines`` (issue 10: at most 4 BRAM36; issue 12: the
 whole ``ins_trn_top`` at most 11), worked out from the engines' own image
-(:func:`navgate.systems.ins_trn.pl.engines.engine_image`) for machines that run the fp32
+(:func:`navgate.systems.ins_trn.pl.nav_engines.engine_image`) for machines that run the fp32
 engine's op programs from a straight-line schedule (one control word, or one op entry, per
 scheduled op), against the targets. docs/seed000-engines.md §6 discusses the figures.
 
@@ -39,7 +39,7 @@ import math
 from collections import Counter
 
 from navgate.opflow.schedule import OPERAND_STAGES, OVERHEAD, _slot_unit
-from navgate.systems.ins_trn.pl.engines import ENGINE_UNITS, engine_image
+from navgate.systems.ins_trn.pl.nav_engines import ENGINE_UNITS, engine_image
 
 BRAM36_BITS = 36 * 1024  #: one RAMB36E1 (32 kbit data + 4 kbit parity, all usable as data)
 UPDATE_2D_TARGET = 450

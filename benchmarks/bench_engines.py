@@ -1,4 +1,5 @@
-"""Seed 000's engines on the banked scheduled float32 datapath (navgate.systems.ins_trn.pl.engines):
+"""Seed 000's engines on the banked scheduled float32 datapath
+(navgate.systems.ins_trn.pl.nav_engines):
 exact cycle counts of every program per block (first issue to last write; a command adds
 the ``start``/``done`` cycle), the lower bounds of fp32_program.schedule_bounds, register banks
 and microcode sizes, and the Verilator simulation rate of ``ins_engines`` (native model of
@@ -18,7 +19,8 @@ import json
 import numpy as np
 
 from navgate.opflow.schedule import UNIT_LATENCY
-from navgate.systems.ins_trn.pl.engines import (
+from navgate.systems.ins_trn.pl.fp32_program import schedule_bounds
+from navgate.systems.ins_trn.pl.nav_engines import (
     ENGINE_UNITS,
     IMU_WORDS,
     PROGRAM_SETS,
@@ -27,7 +29,6 @@ from navgate.systems.ins_trn.pl.engines import (
     engine_programs,
     random_registers,
 )
-from navgate.systems.ins_trn.pl.fp32_program import schedule_bounds
 
 
 def main():

@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 from navgate.systems.ins_trn.ps import flight
-from navgate.systems.ins_trn.ps.engine import make_engine
 from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
+from navgate.systems.ins_trn.ps.pl_interface import make_engine
 from navgate.trn.dem import Dem
 
 

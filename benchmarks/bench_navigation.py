@@ -264,8 +264,8 @@ def bench_fp32_engine(nav0, p0, cfg, gyro, accel, traj):
     """The float32 engine on the same readings (identity calibration, float words)."""
     from navgate.nav.calibration import ImuCalibration
     from navgate.nav.earth import LocalTangent
-    from navgate.systems.ins_trn.ps.engine import EngineSetup
     from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
+    from navgate.systems.ins_trn.ps.pl_interface import EngineSetup
 
     cal = ImuCalibration(gyro_lsb=1.0, accel_lsb=1.0)
     setup = EngineSetup(cal, cfg, 400.0, nav0, p0, np.zeros(3), np.zeros(3),

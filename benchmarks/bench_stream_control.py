@@ -37,7 +37,7 @@ from navgate.hw.synth import synthesize
 from navgate.hw.verilog import emit_verilog
 from navgate.opflow.machine import _or_all, row_counter
 from navgate.opflow.schedule import OPERAND_STAGES, _slot_unit
-from navgate.systems.ins_trn.pl.engines import engine_image
+from navgate.systems.ins_trn.pl.nav_engines import engine_image
 
 BANK_BITS = 3
 KIND_BITS = 3

@@ -19,7 +19,7 @@ import json
 from dataclasses import replace
 from pathlib import Path
 
-from navgate.systems.ins_trn.pl.engines import ENGINE_UNITS, engine_image
+from navgate.systems.ins_trn.pl.nav_engines import ENGINE_UNITS, engine_image
 
 
 def configs() -> dict:

@@ -24,7 +24,7 @@ from navgate.hw.verilog import emit_verilog
 
 
 def _parts():
-    from navgate.systems.ins_trn.pl.engines import InsEngines
+    from navgate.systems.ins_trn.pl.nav_engines import InsEngines
     from navgate.systems.ins_trn.pl.output_formatter import NavOutputFormatter
     from navgate.systems.ins_trn.pl.profile_manager import AltitudeProfileManager
     from navgate.systems.ins_trn.pl.registers import register_bank

@@ -91,7 +91,7 @@ def _layer(module: str) -> str:
 def test_the_graph_is_read():
     graph = import_graph()
     # a few edges that must be there, so that an empty graph cannot pass the tests below
-    assert "navgate.nav.eskf" in graph["navgate.systems.ins_trn.ps.engine"]
+    assert "navgate.nav.eskf" in graph["navgate.systems.ins_trn.ps.pl_interface"]
     assert "navgate.devices.adis16500" in graph["navgate.nav.calibration"]
     assert "navgate.devices.adis16500" in graph["navgate.sim.sensors"]
     # an import by name (a block registry's "module:attribute" string) is an edge too
@@ -107,6 +107,32 @@ def test_shared_libraries_import_no_system(shared):
         for target in targets if _layer(target) in ("systems", "cli")
     )
     assert not offenders, "shared library imports a system or the CLI:\n" + "\n".join(offenders)
+
+
+#: the TRN modules the scenario may reach: the DEM, for route planning and the ranger's truth
+SIM_MAY_IMPORT_FROM_TRN = {"navgate.trn.dem"}
+#: the navigator's TRN machinery, which the scenario must not reach even through others
+TRN_NAVIGATOR_MODULES = ("navgate.trn.correlators", "navgate.trn.pmf", "navgate.trn.tercom")
+
+
+def test_the_scenario_imports_no_trn_but_the_dem():
+    """sim/ (the scenario) sits below trn/'s navigator parts: its modules import from trn only
+    the DEM, and nothing sim reaches, directly or through others, is a correlator, the PMF
+    or TERCOM (their settings are the navigator's own, trn_settings.TrnSettings)."""
+    graph = import_graph()
+    sim = [m for m in graph if _layer(m) == "sim"]
+    assert "navgate.sim.flight" in sim
+    direct = sorted(f"{m} -> {t}" for m in sim for t in graph[m]
+                    if _layer(t) == "trn" and t not in SIM_MAY_IMPORT_FROM_TRN)
+    assert not direct, "the scenario imports TRN modules:\n" + "\n".join(direct)
+    reached, todo = set(), list(sim)
+    while todo:
+        for target in graph.get(todo.pop(), ()):
+            if target not in reached:
+                reached.add(target)
+                todo.append(target)
+    bad = sorted(m for m in reached if m.startswith(TRN_NAVIGATOR_MODULES))
+    assert not bad, "the scenario reaches the navigator's TRN modules: " + ", ".join(bad)
 
 
 def test_opflow_names_no_system():

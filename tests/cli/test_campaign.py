@@ -37,7 +37,7 @@ def test_bad_options_one_line_error(tmp_path, capsys, args, needle):
 @pytest.mark.slow
 def test_short_campaign_writes_every_output(tmp_path):
     proc = navgate("campaign", "--seeds", "0-1", "--duration", "40", "--workers", "2",
-                   "--trn", "pmf", "--trn", "tercom", "--out", str(tmp_path), "--quiet")
+                   "--trn", "pmf", "--trn", "tercom", "--out", str(tmp_path))
     assert proc.returncode == 0, proc.stderr
     for name in ("summary.json", "results.csv", "error_cdf.png", "nees_hist.png"):
         assert (tmp_path / name).stat().st_size > 0, name

@@ -184,6 +184,10 @@ HEADERS = {
     "reference latitude": (lambda h: h["reference"].update(lat_rad=2.0), "reference.lat_rad"),
     "missing initial": (lambda h: h.pop("initial"), "lacks 'initial'"),
     "zero imu rate": (lambda h: h["config"].update(imu_rate_hz=0.0), "flight configuration"),
+    "TRN fix interval 0": (lambda h: h["trn"].update(fix_interval_s=0.0), "fix_interval_s"),
+    "unknown TRN setting": (lambda h: h["trn"].update(magic=1), "unknown TRN setting(s): magic"),
+    "old layout, unknown method": (lambda h: (h.pop("trn"), h["config"].update(
+        trn_method="magic")), "unknown TRN method 'magic'"),
     "nested 100,000 deep": (lambda h: "[" * 100_000 + "]" * 100_000, "nested too deeply"),
     "not an object": (lambda h: "[1, 2]", "not a JSON object"),
 }
@@ -219,3 +223,25 @@ def test_interrupted_replay_keeps_the_previous_results(short_log, tmp_path, navg
     assert sorted(p.name for p in out.iterdir()) == ["summary.json"]
     assert (out / "summary.json").read_text() == "previous\n"
     assert not [p for p in tmp_path.iterdir() if "navgate-tmp" in p.name]
+
+
+def _old_layout(h):
+    """The header as logs written before the scenario/navigator split have it: the TRN
+    settings inside the flight configuration, under their old names."""
+    trn = h.pop("trn")
+    h["config"].update(trn_method=trn["method"], fix_interval_s=trn["fix_interval_s"],
+                       lag_compensation=trn["lag_compensation"], pmf=trn["pmf"],
+                       tercom=trn["tercom"])
+
+
+def test_replay_reads_a_log_of_the_old_header_layout(short_log, tmp_path, navgate_run):
+    """A log whose config still holds the TRN keys replays as the new layout does."""
+    log, fly_summary = short_log
+    assert "trn" in json.loads(_lines(log)[1][2:])  # fly writes the new layout
+    path = _with_header(log, tmp_path, _old_layout)
+    code, _, err = navgate_run(["replay", path, "--out", tmp_path / "r"])
+    assert code == 0, err
+    s = json.loads((tmp_path / "r" / "summary.json").read_text())
+    for key in ("final_horizontal_error_m", "rms_horizontal_error_second_half_m",
+                "nees_position_mean"):
+        assert s["ins_only"][key] == fly_summary["ins_only"][key], key

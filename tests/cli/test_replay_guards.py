@@ -48,8 +48,8 @@ def header():
 
 def test_the_hand_made_header_passes_the_checks():
     from navgate.sim.flight import FlightConfig
-    from navgate.systems.ins_trn.ps.engine import check_setup
     from navgate.systems.ins_trn.ps.navigator import engine_setup
+    from navgate.systems.ins_trn.ps.pl_interface import check_setup
 
     check_setup(engine_setup(header(), FlightConfig()))
 

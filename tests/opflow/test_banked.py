@@ -323,7 +323,7 @@ def _src0(prog, dst):
 
 
 def test_engine_image_respects_ports():
-    from navgate.systems.ins_trn.pl.engines import engine_image
+    from navgate.systems.ins_trn.pl.nav_engines import engine_image
 
     _check_ports(engine_image("ins_engines"))
 
@@ -331,7 +331,7 @@ def test_engine_image_respects_ports():
 def test_engine_image_shared_write_port_respects_ports():
     from dataclasses import replace
 
-    from navgate.systems.ins_trn.pl.engines import ENGINE_UNITS, engine_image
+    from navgate.systems.ins_trn.pl.nav_engines import ENGINE_UNITS, engine_image
 
     base = replace(ENGINE_UNITS, split_ports=False)  # operand ports not split (§7's runs)
     img = engine_image("ins_engines", replace(base, shared_write_port=True))

@@ -135,7 +135,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
     try:
         cfg = flight.FlightConfig(duration_s=duration, imu_rate_hz=imu_rate, seed=seed,
                                   ideal_sensors=ideal_sensors, trn=not no_trn, ranger=ranger,
-                                  speed_mps=speed, trn_method=trn_method)
+                                  speed_mps=speed)
+        trn = flight.TrnSettings(method=trn_method)
     except ValueError as error:
         raise CliError(str(error).replace("duration_s", "--duration")) from None
     try:
@@ -196,7 +197,7 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
                 result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
                                     stage=lambda s: bar.update(task, description=s), route=route,
                                     engine=engine, trn_link=trn_link, trn_latency_s=trn_latency,
-                                    realtime=realtime)
+                                    realtime=realtime, trn=trn)
             except simulation_errors() as error:
                 raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
             except DemError as error:

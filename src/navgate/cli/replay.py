@@ -77,10 +77,10 @@ def replay(log_path, engine, dem_path, no_trn, min_used, out, quiet):
         raise CliError(f"{log_path}: {error}" if str(log_path) not in str(error)
                        else str(error)) from None
     header = stream.header
-    cfg = _flight_config(header, log_path, no_trn)
+    cfg, trn = _flight_config(header, log_path, no_trn)
     try:  # the engines' own checks of the initial state (p0, nav0, rate, ...), up front
-        from navgate.systems.ins_trn.ps.engine import check_setup
         from navgate.systems.ins_trn.ps.navigator import engine_setup
+        from navgate.systems.ins_trn.ps.pl_interface import check_setup
 
         check_setup(engine_setup(header, cfg))
     except (KeyError, TypeError, IndexError, ValueError) as error:
@@ -113,7 +113,7 @@ def replay(log_path, engine, dem_path, no_trn, min_used, out, quiet):
         try:
             runs = fly_stream(stream, dem, cfg, engine=engine,
                               progress=lambda n: bar.advance(task, n),
-                              stage=lambda s: bar.update(task, description=s))
+                              stage=lambda s: bar.update(task, description=s), trn=trn)
         except simulation_errors() as error:
             raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
         except DemError as error:
@@ -159,17 +159,17 @@ def replay(log_path, engine, dem_path, no_trn, min_used, out, quiet):
 
 
 def _flight_config(header, log_path, no_trn):
-    """The flight configuration the log was recorded with (one line when unusable)."""
+    """The flight configuration and the navigator's TRN settings the log was recorded with
+    (one line when unusable): the header's ``config`` and ``trn``, or, in a log written before
+    they were split, the TRN keys inside ``config`` (trn_settings.from_header maps them)."""
     from dataclasses import fields, replace
 
     from navgate.sim.flight import FlightConfig
-    from navgate.trn.pmf import PmfConfig
-    from navgate.trn.tercom import TercomConfig
+    from navgate.systems.ins_trn.ps.trn_settings import from_header
 
     try:
         conf = dict(header["config"])
-        conf["tercom"] = TercomConfig(**conf.get("tercom", {}))
-        conf["pmf"] = PmfConfig(**conf.get("pmf", {}))
+        trn = from_header(header)
         known = {f.name for f in fields(FlightConfig)}
         cfg = FlightConfig(**{k: v for k, v in conf.items() if k in known})
         if not (math.isfinite(cfg.imu_rate_hz) and 0 < cfg.imu_rate_hz <= 1e5):
@@ -179,7 +179,7 @@ def _flight_config(header, log_path, no_trn):
     except (KeyError, TypeError, ValueError, ArithmeticError) as error:
         raise CliError(f"{log_path}: header lacks a usable flight configuration "
                        f"({str(error)[:120]})") from None
-    return replace(cfg, trn=False) if no_trn else cfg
+    return (replace(cfg, trn=False) if no_trn else cfg), trn
 
 
 class _Replayed:

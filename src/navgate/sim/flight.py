@@ -20,7 +20,7 @@ gyro bias 10 deg/h), docs/scenario.md.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -28,8 +28,6 @@ from navgate.nav import eskf
 from navgate.nav.earth import LocalTangent, radii
 from navgate.sim import sensors, trajectory
 from navgate.trn.dem import Dem
-from navgate.trn.pmf import PmfConfig
-from navgate.trn.tercom import TercomConfig
 
 DEG = math.pi / 180.0
 
@@ -44,6 +42,9 @@ class FlightConfig:
     imu_rate_hz: float = 400.0
     seed: int = 0
     ideal_sensors: bool = False
+    #: fly the INS+TRN run beside the INS-only one: which runs the scenario asks for (how the
+    #: navigator's TRN works, method, fix interval and so on, is the navigator's own
+    #: configuration, seed 000's TrnSettings)
     trn: bool = True
     speed_mps: float = 60.0
     turn_rate_dps: float = 3.0
@@ -52,15 +53,10 @@ class FlightConfig:
     margin_m: float = 2000.0
     max_leg_m: float = 9000.0
     ranger: str = "long-range"
-    trn_method: str = "pmf"  #: a name of navgate.trn.correlators.METHODS (docs/trn.md)
     baro_rate_hz: float = 25.0
     ranger_rate_hz: float = 10.0
-    #: seconds between TRN attempts; None: the method's own (correlators.FIX_INTERVAL_S),
-    #: resolved at construction (dataclasses.replace keeps the resolved value)
-    fix_interval_s: float | None = None
     log_rate_hz: float = 10.0
     profile_spacing_m: float = 30.0
-    lag_compensation: bool = True
     # initial (GPS-aided) uncertainty at the moment GPS is lost
     init_pos_sigma_m: float = 5.0
     init_alt_sigma_m: float = 2.0
@@ -69,8 +65,6 @@ class FlightConfig:
     init_heading_sigma_rad: float = 0.3 * DEG
     init_accel_bias_sigma: float = 1e-3 * sensors.G0
     init_gyro_bias_sigma: float = 10.0 * DEG / 3600.0
-    tercom: TercomConfig = field(default_factory=TercomConfig)
-    pmf: PmfConfig = field(default_factory=PmfConfig)
 
     def __post_init__(self):
         checks = {
@@ -85,15 +79,6 @@ class FlightConfig:
             raise ValueError(f"duration_s {self.duration_s:g} s is too short for the scenario: "
                              f"at least {self.min_duration_s:g} s (two periods of the slowest "
                              "sensor or log)")
-        from navgate.trn.correlators import FIX_INTERVAL_S, METHODS
-
-        if self.trn_method not in METHODS:
-            raise ValueError(f"unknown TRN method {self.trn_method!r}; choose from "
-                             f"{', '.join(METHODS)}")
-        if self.fix_interval_s is None:
-            object.__setattr__(self, "fix_interval_s", FIX_INTERVAL_S[self.trn_method])
-        if not (math.isfinite(self.fix_interval_s) and self.fix_interval_s > 0):
-            raise ValueError(f"invalid fix_interval_s: {self.fix_interval_s}")
         if self.ranger not in sensors.RANGER_PRESETS:
             raise ValueError(f"unknown ranger {self.ranger!r}; choose from "
                              f"{', '.join(sensors.RANGER_PRESETS)}")

@@ -76,14 +76,14 @@ BLOCKS: dict[str, tuple[str, str]] = {
     "ins_trn_top": ("navgate.systems.ins_trn.pl.top:InsTrnTop",
                     "seed 000 ins_trn_top: registers, sensors, sequencer, engines, formatter, "
                     "profile DMA, interrupts"),
-    # Seed 000's PL engines (navgate.systems.ins_trn.pl.engines): the banked scheduled float32
+    # Seed 000's PL engines (navgate.systems.ins_trn.pl.nav_engines): the banked scheduled float32
     # datapath (navgate.opflow, docs/seed000-engines.md)
-    "ins_engines": ("navgate.systems.ins_trn.pl.engines:InsEngines",
+    "ins_engines": ("navgate.systems.ins_trn.pl.nav_engines:InsEngines",
                     "seed 000 INS engines: propagate + altitude/TRN updates, shared fp32 units"),
-    "kalman_update_engine": ("navgate.systems.ins_trn.pl.engines:KalmanUpdateEngine",
+    "kalman_update_engine": ("navgate.systems.ins_trn.pl.nav_engines:KalmanUpdateEngine",
                              "seed 000 Kalman update engine (1-D altitude, 2-D TRN), fp32"),
-    "ins_mechanization": ("navgate.systems.ins_trn.pl.engines:InsMechanization",
+    "ins_mechanization": ("navgate.systems.ins_trn.pl.nav_engines:InsMechanization",
                           "seed 000 IMU calibration + INS mechanization, fp32, one sample"),
-    "covariance_propagator": ("navgate.systems.ins_trn.pl.engines:CovariancePropagator",
+    "covariance_propagator": ("navgate.systems.ins_trn.pl.nav_engines:CovariancePropagator",
                               "seed 000 Phi/Q generation + covariance propagation, fp32"),
 }

@@ -12,8 +12,8 @@ import pytest
 from navgate.numerics.fp32 import float_to_bits
 from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS
 from navgate.systems.ins_trn.ps import flight
-from navgate.systems.ins_trn.ps.engine import make_engine
 from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
+from navgate.systems.ins_trn.ps.pl_interface import make_engine
 from navgate.trn.dem import Dem
 
 

@@ -7,15 +7,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from navgate.systems.ins_trn.pl.engines import (
+from navgate.systems.ins_trn.pl.fp32_exec import run_bittrue
+from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS, programs, schedule_bounds
+from navgate.systems.ins_trn.pl.nav_engines import (
     IMU_WORDS,
     engine_image,
     engine_programs,
     random_registers,
     simulate_calls,
 )
-from navgate.systems.ins_trn.pl.fp32_exec import run_bittrue
-from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS, programs, schedule_bounds
 
 #: exact cycles (first issue to last write) of each program on the banked machine with
 #: 4 mul + 4 add slots and a misc slot (iterative divider and square root), 8 banks of 2 read
@@ -171,7 +171,7 @@ def _verilator_run(img, seed: int, name: str):
     as measured and as scheduled."""
     from navgate.gateware import verify as V
     from navgate.opflow.machine import ScheduledMachineStream
-    from navgate.systems.ins_trn.pl.engines import command_vectors, stream_model
+    from navgate.systems.ins_trn.pl.nav_engines import command_vectors, stream_model
 
     rng = np.random.default_rng(seed)
     names = [n for n in img.layout.fixed if not n.startswith("c:")]
@@ -201,7 +201,7 @@ def test_ins_engines_true_dual_port_banks_bit_exact_verilator():
     random registers bit-exact, and every run's cycles those of its schedule."""
     from dataclasses import replace
 
-    from navgate.systems.ins_trn.pl.engines import ENGINE_UNITS
+    from navgate.systems.ins_trn.pl.nav_engines import ENGINE_UNITS
 
     img = engine_image("ins_engines", replace(ENGINE_UNITS, split_ports=False,
                                               shared_write_port=True))
@@ -281,7 +281,7 @@ def test_engine_blocks_document_latency_and_throughput():
     from amaranth.hdl import Fragment
 
     from navgate.hw.blocks import all_blocks
-    from navgate.systems.ins_trn.pl import engines
+    from navgate.systems.ins_trn.pl import nav_engines as engines
     factories = {"ins_engines": engines.InsEngines,
                  "kalman_update_engine": engines.KalmanUpdateEngine,
                  "ins_mechanization": engines.InsMechanization,

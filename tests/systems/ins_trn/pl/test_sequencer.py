@@ -79,7 +79,7 @@ def test_sequencer_equals_fp32_engine(setup_and_words, through_registers):
     setup, gw, aw = setup_and_words
     model = Fp32Engine(setup)
     m = model.m
-    image = __import__("navgate.systems.ins_trn.pl.engines",
+    image = __import__("navgate.systems.ins_trn.pl.nav_engines",
                        fromlist=["engine_image"]).engine_image("ins_engines")
     dut = _RegisterFront(image) if through_registers else NavSequencer(image)
     addr = dut.addr

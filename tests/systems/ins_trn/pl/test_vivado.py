@@ -62,7 +62,7 @@ def built(tmp_path_factory):
     from navgate.systems.ins_trn.pl.top import InsTrnTop
 
     out = tmp_path_factory.mktemp("zybo")
-    component = InsTrnTop().for_target("zybo-z7-20")
+    component = InsTrnTop.for_target("zybo-z7-20")
     (out / f"{TOP}.v").write_text(emit_verilog(component, TOP))
     made = component.write_artifacts(out, TOP, target="zybo-z7-20")
     assert {p.name for p in made} >= {f"{TOP}.tcl", f"{TOP}_bd.v", f"{TOP}.xdc"}

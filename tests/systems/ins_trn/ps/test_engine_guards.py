@@ -1,6 +1,6 @@
 """The seed-000 engines' guards: every engine (reference, fp32, fp32-plain, rtl,
 fpga-sim) refuses what it cannot use with a ValueError naming the argument, through the one
-set of checks in :mod:`navgate.systems.ins_trn.ps.engine` (check_setup, check_imu_words,
+set of checks in :mod:`navgate.systems.ins_trn.ps.pl_interface` (check_setup, check_imu_words,
 check_altitude, check_trn, check_inflate), and nothing reaches the registers.
 
 The reference and the float32 models are built; the Verilator engines (rtl, fpga-sim) are
@@ -20,9 +20,9 @@ from navgate.nav import eskf
 from navgate.nav.calibration import ImuCalibration
 from navgate.nav.earth import LocalTangent
 from navgate.sim import sensors
-from navgate.systems.ins_trn.ps.engine import EngineSetup, make_engine
 from navgate.systems.ins_trn.ps.engine_registry import engine_class, engine_names
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
+from navgate.systems.ins_trn.ps.pl_interface import EngineSetup, make_engine
 
 NAN = float("nan")
 LAT, LON, H = math.radians(46.5), math.radians(7.5), 1500.0

@@ -36,7 +36,8 @@ def test_default_flight_figures_are_those_of_the_float64_loop(dem):
     """The streaming navigator with the reference engine reproduces the batch loop's
     figures (seed 0, TERCOM): INS-only final 406.8 m, TRN 2nd-half RMS 23.7 m, NEES 1.26,
     47/8 fixes."""
-    s = flight.fly(dem, flight.FlightConfig(trn_method="tercom")).summary()
+    s = flight.fly(dem, flight.FlightConfig(),
+                   trn=flight.TrnSettings(method="tercom")).summary()
     assert s["engine"] == "reference" and s["trn_aided"]["trn_method"] == "tercom"
     assert round(s["ins_only"]["final_horizontal_error_m"], 1) == 406.8
     assert round(s["trn_aided"]["rms_horizontal_error_second_half_m"], 1) == 23.7
@@ -135,8 +136,8 @@ def test_flat_real_terrain_mostly_pauses_tercom(shared_data):
     path = shared_data / "pysheds_dem.tif"
     if not path.exists():
         pytest.skip("pysheds_dem.tif not present")
-    res = flight.fly(Dem.from_file(path), flight.FlightConfig(duration_s=300.0,
-                                                              trn_method="tercom"))
+    res = flight.fly(Dem.from_file(path), flight.FlightConfig(duration_s=300.0),
+                     trn=flight.TrnSettings(method="tercom"))
     s = res.summary()["trn_aided"]
     reasons = s["fix_rejection_reasons"]
     correlated = s["fixes_attempted"] - reasons.get("too few samples", 0)
@@ -158,14 +159,14 @@ def test_flat_real_terrain_pmf_never_worse_than_ins_only(shared_data):
     assert s["trn_aided"]["nees_position_mean"] < chi2.ppf(0.999, 2)
 
 
-def test_fix_interval_follows_the_method_unless_given():
-    from navgate.trn.correlators import FIX_INTERVAL_S
+def test_the_scenario_config_holds_no_trn_settings():
+    """The navigator's TRN settings are its own (trn_settings.TrnSettings), not the
+    scenario's: FlightConfig has none of their fields and refuses them."""
+    from dataclasses import fields
 
-    assert flight.FlightConfig().trn_method == "pmf"
-    assert flight.FlightConfig().fix_interval_s == FIX_INTERVAL_S["pmf"] == 5.0
-    assert flight.FlightConfig(trn_method="tercom").fix_interval_s == 10.0
-    assert flight.FlightConfig(trn_method="tercom", fix_interval_s=3.0).fix_interval_s == 3.0
-    with pytest.raises(ValueError):
-        flight.FlightConfig(fix_interval_s=0.0)
-    with pytest.raises(ValueError):
-        flight.FlightConfig(trn_method="magic")
+    from navgate.systems.ins_trn.ps.trn_settings import LEGACY_KEYS
+
+    names = {f.name for f in fields(flight.FlightConfig)}
+    assert not names & set(LEGACY_KEYS)
+    with pytest.raises(TypeError):
+        flight.FlightConfig(trn_method="tercom")

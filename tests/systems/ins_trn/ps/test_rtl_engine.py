@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from navgate.systems.ins_trn.pl.engines import engine_image
+from navgate.systems.ins_trn.pl.nav_engines import engine_image
 
 #: cycles per IMU sample (propagate + start), asserted in test_engines.py
 PER_SAMPLE = 655

@@ -425,10 +425,10 @@ def test_link_latency_applies_each_fix_late_once_and_never_after_its_deadline(sc
     # one request in flight at a time: requests at least the fix interval and the latency apart
     starts = [r["time_s"] for r in rows]
     gaps = np.diff(starts)
-    assert np.all(gaps >= max(cfg.fix_interval_s, 2.0) - 1e-9)
+    assert np.all(gaps >= max(flight.TrnSettings().fix_interval_s, 2.0) - 1e-9)
     # a fix that would arrive after its deadline is dropped, never applied
-    from navgate.systems.ins_trn.ps.engine import make_engine
     from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
+    from navgate.systems.ins_trn.ps.pl_interface import make_engine
 
     eng = make_engine("reference", engine_setup(stream.header, cfg))
     nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, trn_latency_s=3.0,
@@ -624,8 +624,8 @@ def test_realtime_flight_against_a_slow_service_never_waits_and_applies_each_fix
                             realtime=speed)
             stats = link.stats()
         with TrnLink(pi.spec, timeout_s=5.0) as link:  # a deadline the fixes cannot meet
-            from navgate.systems.ins_trn.ps.engine import make_engine
             from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
+            from navgate.systems.ins_trn.ps.pl_interface import make_engine
 
             nav = Navigator(make_engine("reference", engine_setup(stream.header, cfg)), cfg,
                             t0=stream.header["t0"], dem=dem, trn_link=link, realtime=speed,

@@ -4,7 +4,7 @@ PL engines of ``ins_trn_top``.
 Reference: seed 000 "Data Flow" (an IMU sample runs calibration, mechanization and covariance
 propagation; the PS's TRN fix runs the Kalman update engine) and "Memory Architecture" (one
 state memory the engines share). The engines are the banked float32 machine of
-:mod:`navgate.systems.ins_trn.pl.engines` (``ins_engines``: programs ``propagate``,
+:mod:`navgate.systems.ins_trn.pl.nav_engines` (``ins_engines``: programs ``propagate``,
 ``alt_gate``/``alt_apply``, ``trn_gate``/``trn_apply``); this block owns its host port and its
 start/done handshake and runs one *job* at a time:
 

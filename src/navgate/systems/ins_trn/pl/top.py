@@ -112,7 +112,7 @@ class InsTrnTop(wiring.Component):
     interrupt ``irq``, sensor pins and four status LEDs, in the ``sync`` domain."""
 
     def __init__(self, *, tick_cycles: int = 100):
-        from navgate.systems.ins_trn.pl.engines import engine_image
+        from navgate.systems.ins_trn.pl.nav_engines import engine_image
 
         self.tick_cycles = tick_cycles
         self.image = engine_image("ins_engines")

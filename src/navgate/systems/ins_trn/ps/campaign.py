@@ -173,12 +173,12 @@ def run_one(conf: Configuration, seed: int, duration_s: float, imu_rate_hz: floa
     row = {"dem": conf.dem, "trn": conf.trn, "ranger": conf.ranger, "seed": int(seed),
            "status": "ok", "error": "", "duration_s": duration_s}
     try:
-        from navgate.systems.ins_trn.ps.flight import FlightConfig, fly
+        from navgate.systems.ins_trn.ps.flight import FlightConfig, TrnSettings, fly
 
         dem = _load_dem(conf.dem)
         cfg = FlightConfig(duration_s=duration_s, imu_rate_hz=imu_rate_hz, seed=int(seed),
-                           trn=True, trn_method=conf.trn, ranger=conf.ranger)
-        result = fly(dem, cfg)
+                           trn=True, ranger=conf.ranger)
+        result = fly(dem, cfg, trn=TrnSettings(method=conf.trn))
         trn_run = result.runs["trn_aided"]
         ins_run = result.runs["ins_only"]
         st = result.scores["trn_aided"].summary(trn_run.t)

@@ -5,7 +5,7 @@ of the group :data:`ENTRY_POINT_GROUP` in ``pyproject.toml`` (``name = "module:C
 way ``navgate build`` finds its blocks. Listing the names reads only the installed metadata,
 so the command line can offer ``--engine`` choices without importing NumPy, Numba or
 Verilator; :func:`engine_class` imports the one engine asked for. This module imports nothing
-of navgate: the engines import :mod:`navgate.systems.ins_trn.ps.engine` (their interface), and
+of navgate: the engines import :mod:`navgate.systems.ins_trn.ps.pl_interface` (their interface), and
 nothing below them names them.
 """
 

@@ -7,6 +7,7 @@ loop is :mod:`navgate.systems.ins_trn.ps.navigation`; the report is
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time as _time
 from dataclasses import dataclass
@@ -26,6 +27,7 @@ from navgate.sim.flight import (
 )
 from navgate.systems.ins_trn.ps.navigation import NavRun, flight_stream, run_navigation
 from navgate.systems.ins_trn.ps.navigator import navigate
+from navgate.systems.ins_trn.ps.trn_settings import TrnSettings
 from navgate.trn.dem import Dem
 
 
@@ -42,6 +44,7 @@ class FlightResult:
     engine: str = "reference"
     reference_runs: dict | None = None  #: name -> NavRun of the reference engine (fp32 runs)
     stream: object = None  #: the sensor record stream (records.RecordStream)
+    trn: TrnSettings = dataclasses.field(default_factory=TrnSettings)  #: the navigator's TRN
 
     def summary(self) -> dict:
         cfg = self.config
@@ -87,7 +90,7 @@ class FlightResult:
                 for f in run.fixes:
                     if f.get("integrity"):
                         events[f["integrity"]] = events.get(f["integrity"], 0) + 1
-                s["trn_method"] = cfg.trn_method
+                s["trn_method"] = self.trn.method
                 s["integrity_events"] = events
                 s["fixes_attempted"] = len(run.fixes)
                 s["fixes_accepted"] = len(applied)
@@ -127,24 +130,29 @@ def max_position_difference(dem: Dem, a: NavRun, b: NavRun) -> float:
     return float(np.max(d))
 
 
-def record_stream(dem: Dem, cfg: FlightConfig, route: Route | None = None):
+def record_stream(dem: Dem, cfg: FlightConfig, route: Route | None = None,
+                  trn: TrnSettings | None = None):
     """Plan (unless ``route`` is given) and simulate a flight, and package its sensor records
-    for the navigator: (route, sensor data, record stream)."""
+    for the navigator (the header records ``trn``): (route, sensor data, record stream)."""
     if route is None:
         route = plan_route(dem, cfg)
     data = simulate_sensors(route, dem, cfg)
-    return route, data, flight_stream(data, dem, cfg, initial_estimate(data, cfg))
+    return route, data, flight_stream(data, dem, cfg, initial_estimate(data, cfg), trn=trn)
 
 
 def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None,
         engine: str = "reference", trn_link=None, trn_latency_s: float = 0.0,
-        realtime: float | None = None) -> FlightResult:
+        realtime: float | None = None, trn: TrnSettings | None = None) -> FlightResult:
     """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done.
 
     ``engine``: the PL engine (``reference`` or ``fp32``); with a non-reference engine the
     reference engine flies the same records too, for the comparison in the summary.
+    ``trn``: the navigator's TRN settings (default :class:`TrnSettings`: PMF, its own fix
+    interval, lag compensation on).
     """
     start = _time.perf_counter()
+    if trn is None:
+        trn = TrnSettings()
     if route is None:
         if stage:
             stage("planning route")
@@ -153,24 +161,26 @@ def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | N
         stage("simulating sensors")
     data = simulate_sensors(route, dem, cfg)
     init = initial_estimate(data, cfg)
-    stream = flight_stream(data, dem, cfg, init)
+    stream = flight_stream(data, dem, cfg, init, trn=trn)
     runs = fly_stream(stream, dem, cfg, engine=engine, progress=progress, stage=stage,
-                      trn_link=trn_link, trn_latency_s=trn_latency_s, realtime=realtime)
+                      trn_link=trn_link, trn_latency_s=trn_latency_s, realtime=realtime,
+                      trn=trn)
     reference_runs = None
     if engine != "reference":
-        reference_runs = fly_stream(stream, dem, cfg, engine="reference", stage=stage)
+        reference_runs = fly_stream(stream, dem, cfg, engine="reference", stage=stage, trn=trn)
     log_every = max(1, int(round(cfg.imu_rate_hz / cfg.log_rate_hz)))
     scores = {name: score(run, data.truth, log_every) for name, run in runs.items()}
     return FlightResult(cfg, dem, route, data, runs, scores, log_every,
-                        _time.perf_counter() - start, engine, reference_runs, stream)
+                        _time.perf_counter() - start, engine, reference_runs, stream, trn)
 
 
 def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progress=None,
                stage=None, trn_link=None, trn_latency_s: float = 0.0,
-               realtime: float | None = None) -> dict:
-    """The INS-only and (cfg.trn) INS+TRN runs over one record stream; ``realtime`` (a
-    speed factor) paces the INS+TRN run to the wall clock (the INS-only run, which does not
-    talk to the Pi, runs as fast as it can)."""
+               realtime: float | None = None, trn: TrnSettings | None = None) -> dict:
+    """The INS-only and (cfg.trn) INS+TRN runs over one record stream, the latter with the
+    TRN settings ``trn`` (default :class:`TrnSettings`); ``realtime`` (a speed factor) paces
+    the INS+TRN run to the wall clock (the INS-only run, which does not talk to the Pi, runs
+    as fast as it can)."""
     runs = {}
     if stage:
         stage(f"navigating: INS only ({engine})")
@@ -181,10 +191,11 @@ def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progr
             stage(f"navigating: INS + TRN ({engine})")
         runs["trn_aided"] = navigate(stream, cfg, engine=engine, dem=dem, use_trn=True,
                                      name="trn_aided", progress=progress, trn_link=trn_link,
-                                     trn_latency_s=trn_latency_s, realtime=realtime)
+                                     trn_latency_s=trn_latency_s, realtime=realtime, trn=trn)
     return runs
 
 
-__all__ = ["FlightConfig", "FlightResult", "NavRun", "RouteError", "fly", "fly_stream",
+__all__ = ["FlightConfig", "FlightResult", "NavRun", "RouteError", "TrnSettings", "fly",
+           "fly_stream",
            "record_stream",
            "max_position_difference", "plan_route", "run_navigation"]

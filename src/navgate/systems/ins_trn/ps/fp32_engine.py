@@ -31,7 +31,7 @@ from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.systems.ins_trn.pl import fp32_program as fp
 from navgate.systems.ins_trn.pl.fp32_exec import Machine, run_samples
 from navgate.systems.ins_trn.pl.fp32_program import programs
-from navgate.systems.ins_trn.ps.engine import (
+from navgate.systems.ins_trn.ps.pl_interface import (
     EngineSetup,
     PlEngine,
     UpdateOutcome,

@@ -68,9 +68,9 @@ from navgate.gateware.native_axi import (
 )
 from navgate.hw.regmap import Registers
 from navgate.numerics.fp32 import bits_to_float, float_to_bits
-from navgate.systems.ins_trn.pl.engines import engine_image
 from navgate.systems.ins_trn.pl.fp32_exec import to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CAL_REGS, N_STATES, NAV_REGS, p_reg
+from navgate.systems.ins_trn.pl.nav_engines import engine_image
 from navgate.systems.ins_trn.pl.registers import register_map
 from navgate.systems.ins_trn.pl.sensors.adis16500_emulator import SAMPLE_LAYOUT as IMU_SAMPLE
 from navgate.systems.ins_trn.pl.sensors.adis16500_emulator import Adis16500Emulator
@@ -79,8 +79,8 @@ from navgate.systems.ins_trn.pl.sensors.bmp390_emulator import Bmp390Emulator
 from navgate.systems.ins_trn.pl.sensors.tfluna_emulator import SAMPLE_LAYOUT as LIDAR_SAMPLE
 from navgate.systems.ins_trn.pl.sensors.tfluna_emulator import TfLunaEmulator
 from navgate.systems.ins_trn.pl.top import CAL_REGISTER_OF, InsTrnTop
-from navgate.systems.ins_trn.ps.engine import EngineSetup, UpdateOutcome, check_imu_words
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
+from navgate.systems.ins_trn.ps.pl_interface import EngineSetup, UpdateOutcome, check_imu_words
 from navgate.systems.ins_trn.ps.pl_profile import VALID_BIT
 
 __all__ = ["InsTrnSimTop", "FpgaSimEngine", "FpgaSimError"]

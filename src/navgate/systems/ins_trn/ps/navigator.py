@@ -9,14 +9,15 @@ in one call with the same result; an engine with ``batch_records``, the float64 
 takes whole stretches of IMU and barometer records between the records the PS must see in one
 compiled call, :meth:`PlEngine.run_records`, again with the same result) and talks to the PL
 only through
-:class:`navgate.systems.ins_trn.ps.engine.PlEngine`:
+:class:`navgate.systems.ins_trn.ps.pl_interface.PlEngine`:
 
 - IMU record: ``engine.propagate`` (calibration, mechanization, covariance);
 - barometer record: ``engine.update_altitude`` (an invalid sample is counted, not applied);
   the newest barometer altitude is kept for the profile;
 - ranger record (TRN runs only): the profile consumer computes roll/pitch from the state
   registers and pushes the entry (``engine.profile_push``); on an accepted entry, when the
-  fix schedule allows (one attempt per ``fix_interval_s``), the correlator runs on the
+  fix schedule allows (one attempt per the TRN settings' ``fix_interval_s``,
+  :class:`~navgate.systems.ins_trn.ps.trn_settings.TrnSettings`), the correlator runs on the
   profile snapshot with the search window from the horizontal covariance, and an accepted
   fix goes to ``engine.update_trn``; the applied correction shifts the stored profile. The
   correlator is in this process or, through a ``trn_link``
@@ -44,8 +45,9 @@ from navgate.nav.calibration import ImuCalibration
 from navgate.nav.earth import LocalTangent
 from navgate.sim import sensors
 from navgate.systems.ins_trn.ps import pl_sensors
-from navgate.systems.ins_trn.ps.engine import EngineSetup, PlEngine, make_engine
+from navgate.systems.ins_trn.ps.pl_interface import EngineSetup, PlEngine, make_engine
 from navgate.systems.ins_trn.ps.records import BARO, IMU, RANGER, RecordStream
+from navgate.systems.ins_trn.ps.trn_settings import TrnSettings
 from navgate.trn.profile import ACCEPTED
 
 
@@ -69,11 +71,11 @@ class NavRun:
     realtime: dict | None = None  #: real-time mode's figures (ps.realtime.Realtime.summary)
 
 
-def make_correlator(cfg, dem, tangent):
+def make_correlator(trn: TrnSettings, dem, tangent):
     """The PS-side TRN correlator (the single call site of navgate.trn.correlators)."""
     from navgate.trn.correlators import make_correlator as _make
 
-    return _make(cfg.trn_method, dem, tangent, cfg.tercom, pmf=cfg.pmf)
+    return _make(trn.method, dem, tangent, trn.tercom, pmf=trn.pmf)
 
 
 def engine_setup(header: dict, cfg) -> EngineSetup:
@@ -97,14 +99,20 @@ def engine_setup(header: dict, cfg) -> EngineSetup:
 
 
 class Navigator:
-    """The PS side of seed 000 over one PL engine."""
+    """The PS side of seed 000 over one PL engine: ``cfg`` is the scenario (rates, ranger,
+    profile spacing), ``trn`` the navigator's TRN settings (default :class:`TrnSettings`)."""
 
     def __init__(self, engine: PlEngine, cfg, *, t0: float, dem=None, use_trn: bool = True,
                  name: str = "nav", progress=None, trn_link=None,
                  trn_latency_s: float = 0.0, trn_deadline_s: float = 30.0,
-                 realtime: float | None = None):
+                 realtime: float | None = None, trn: TrnSettings | None = None):
         self.engine = engine
         self.cfg = cfg
+        if trn is None:
+            trn = TrnSettings()
+        if not isinstance(trn, TrnSettings):
+            raise ValueError(f"trn must be TrnSettings, got {type(trn).__name__}")
+        self.trn = trn
         self.use_trn = bool(use_trn) and dem is not None
         self.name = name
         self.progress = progress
@@ -118,8 +126,8 @@ class Navigator:
         if self.use_trn:  # the Pi's service over the link, or the correlator in this process
             from navgate.trn.correlators import make_monitor
 
-            self.correlator = (trn_link.correlator(cfg, self.tangent) if trn_link is not None
-                               else make_correlator(cfg, dem, self.tangent))
+            self.correlator = (trn_link.correlator(trn, self.tangent) if trn_link is not None
+                               else make_correlator(trn, dem, self.tangent))
             self.monitor = make_monitor(self.correlator)
         for arg, value in (("trn_latency_s", trn_latency_s), ("trn_deadline_s", trn_deadline_s)):
             if not (isinstance(value, int | float) and math.isfinite(value) and value >= 0):
@@ -140,7 +148,7 @@ class Navigator:
                 raise ValueError("trn_latency_s is for simulated time; real-time mode "
                                  "measures the real latency")
             self.realtime = Realtime(realtime, self.t0, 1.0 / cfg.baro_rate_hz,
-                                     cfg.fix_interval_s)
+                                     trn.fix_interval_s)
         self.fixes: list = []
         self.last_fix_t = -math.inf
         self.h_baro = math.nan
@@ -207,7 +215,7 @@ class Navigator:
         status = e.profile_push(time=t, h_baro=float(self.h_baro), slant_range=float(slant_range),
                                 range_valid=bool(valid), roll=roll, pitch=pitch,
                                 pos_n=float(pn), pos_e=float(pe))
-        if (status == ACCEPTED and t - self.last_fix_t >= self.cfg.fix_interval_s
+        if (status == ACCEPTED and t - self.last_fix_t >= self.trn.fix_interval_s
                 and self._pending is None and self._inflight is None):  # one at a time
             self.last_fix_t = t
             self._fix(t)
@@ -260,7 +268,7 @@ class Navigator:
         if result.accepted:
             # y = p_ins - p_fix = -shift, measured lag_s ago (plus the link's latency)
             y = np.array([result.ins_n - result.fix_n, result.ins_e - result.fix_e])
-            lag = result.lag_s + (t - t_request) if self.cfg.lag_compensation else 0.0
+            lag = result.lag_s + (t - t_request) if self.trn.lag_compensation else 0.0
             upd = e.update_trn(y, result.cov, lag)
             row["nis"] = upd.nis
             row["applied"] = upd.accepted
@@ -425,14 +433,16 @@ class Navigator:
 
 def navigate(stream: RecordStream, cfg, *, engine: str = "reference", dem=None,
              use_trn: bool = True, name: str = "nav", progress=None, trn_link=None,
-             trn_latency_s: float = 0.0, realtime: float | None = None) -> NavRun:
+             trn_latency_s: float = 0.0, realtime: float | None = None,
+             trn: TrnSettings | None = None) -> NavRun:
     """Build the engine from the stream header and run the navigator over the stream
     (``trn_link``: a :class:`~navgate.systems.ins_trn.ps.trn_link.TrnLink` to correlate on
-    the Pi's service instead of in this process)."""
+    the Pi's service instead of in this process; ``trn``: the TRN settings, default
+    :class:`TrnSettings`)."""
     eng = make_engine(engine, engine_setup(stream.header, cfg))
     nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=use_trn, name=name,
                     progress=progress, trn_link=trn_link, trn_latency_s=trn_latency_s,
-                    realtime=realtime)
+                    realtime=realtime, trn=trn)
     return nav.run(stream)
 
 

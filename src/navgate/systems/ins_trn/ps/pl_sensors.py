@@ -15,7 +15,7 @@ delivers what its interfaces compute, the PS turns that into the navigator's mea
   distance x unit.
 
 The float32 engines (``fp32``, ``rtl``, ``fpga-sim``) model the PL, so the navigator reads
-these sensors through them (:attr:`navgate.systems.ins_trn.ps.engine.PlEngine.pl_sensors`);
+these sensors through them (:attr:`navgate.systems.ins_trn.ps.pl_interface.PlEngine.pl_sensors`);
 the float64 reference engine takes the records as they are.
 """
 

@@ -145,13 +145,20 @@ def stream_from_sensors(data, truth_every: int | None, header: dict) -> RecordSt
 # ------------------------------------------------------------------ header
 
 
-def make_header(cfg, data, init, calibration, reference) -> dict:
-    """JSON-ready header: what the navigator needs besides the records."""
+def make_header(cfg, data, init, calibration, reference, trn=None) -> dict:
+    """JSON-ready header: what the navigator needs besides the records. ``config`` is the
+    scenario (:class:`navgate.sim.flight.FlightConfig`), ``trn`` the navigator's TRN settings
+    (:class:`~navgate.systems.ins_trn.ps.trn_settings.TrnSettings`, default when None); a log
+    written before that split has the TRN keys inside ``config``
+    (:func:`~navgate.systems.ins_trn.ps.trn_settings.from_header` reads both)."""
+    from navgate.systems.ins_trn.ps.trn_settings import TrnSettings, header_entry
+
     def arr(x):
         return np.asarray(x, float).tolist()
 
     return {
         "config": asdict(cfg),
+        "trn": header_entry(TrnSettings() if trn is None else trn),
         "ideal": bool(data.ideal),
         "imu_rate_hz": float(cfg.imu_rate_hz),
         "t0": float(data.truth.t[0]),

@@ -1,5 +1,5 @@
 """The ``rtl`` engine: seed 000's PL engines as gateware (``ins_engines``, the scheduled
-float32 datapath of :mod:`navgate.systems.ins_trn.pl.engines`) running in Verilator, driven call
+float32 datapath of :mod:`navgate.systems.ins_trn.pl.nav_engines`) running in Verilator, driven call
 by call through a persistent native model (:mod:`navgate.gateware.native_stream`; the
 verification harness's VPI model of the same Verilog is checked in
 tests/systems/ins_trn/pl/test_engines.py).
@@ -23,11 +23,11 @@ import numpy as np
 
 from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.opflow.machine import CMD_READ, CMD_START, CMD_WRITE, ScheduledMachineStream
-from navgate.systems.ins_trn.pl.engines import ENGINE_UNITS, IMU_WORDS, engine_image
 from navgate.systems.ins_trn.pl.fp32_exec import to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CONFIG_REGS, STATE_REGS
-from navgate.systems.ins_trn.ps.engine import EngineSetup, check_imu_words
+from navgate.systems.ins_trn.pl.nav_engines import ENGINE_UNITS, IMU_WORDS, engine_image
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
+from navgate.systems.ins_trn.ps.pl_interface import EngineSetup, check_imu_words
 
 __all__ = ["RtlEngine", "NativeLink", "RtlError"]
 

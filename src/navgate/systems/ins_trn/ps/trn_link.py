@@ -331,9 +331,9 @@ class TrnLink:
                 self._drop()
             return None
 
-    def correlator(self, cfg, tangent) -> RemoteCorrelator:
-        return RemoteCorrelator(self, cfg.trn_method,
-                                asdict(cfg.pmf if cfg.trn_method == "pmf" else cfg.tercom),
+    def correlator(self, trn, tangent) -> RemoteCorrelator:
+        """The Pi's correlator for ``trn`` (the navigator's TrnSettings) at ``tangent``."""
+        return RemoteCorrelator(self, trn.method, asdict(trn.correlator_config),
                                 (tangent.lat0, tangent.lon0, tangent.h0))
 
     def new_id(self) -> int:

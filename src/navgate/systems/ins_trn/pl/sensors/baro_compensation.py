@@ -21,7 +21,7 @@ from amaranth.lib.wiring import In, Out
 from navgate.devices import bmp390
 
 from ..shared_units import forward_units, unit_members
-from .fp32_engine import Fp32Engine, Program
+from .fp32_sequencer import Fp32Sequencer, Program
 
 IN_LAYOUT = data.StructLayout({"up": unsigned(24), "ut": unsigned(24),
                                "nvm": unsigned(8 * bmp390.NVM_LEN)})
@@ -45,7 +45,7 @@ class BaroCompensation(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.engine = eng = Fp32Engine(self.program, shared_units=self.shared_units)
+        m.submodules.engine = eng = Fp32Sequencer(self.program, shared_units=self.shared_units)
         ip = self.i.payload
         m.d.comb += [eng.i.payload.up.eq(ip.up), eng.i.payload.ut.eq(ip.ut)]
         for name, off, signed_, size in bmp390.NVM_FIELDS:

@@ -3,7 +3,7 @@ scaling, bias, scale factor and misalignment, on one shared float32 adder/multip
 
 The bit-true specification is :func:`navgate.nav.calibration.apply_calibration_fp32` (the same
 function the float32 navigation engine uses); :data:`PROGRAM` is its operation order, written
-out for the :class:`~.fp32_engine.Fp32Engine`, and the tests check the gateware against that
+out for the :class:`~.fp32_sequencer.Fp32Sequencer`, and the tests check the gateware against that
 function bit for bit. Parameters (26 float32 words: gyro LSB, accel LSB, 3+3 biases, two 3x3
 matrices row-major) are the seed's CAL_* registers, written through ``par_*`` while idle; their
 initial values are the seed-000 LSBs with zero bias and identity matrices.
@@ -18,7 +18,7 @@ from amaranth.hdl import Module, signed, unsigned
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
-from .fp32_engine import Fp32Engine, Program
+from .fp32_sequencer import Fp32Sequencer, Program
 
 AXES = ("x", "y", "z")
 SENSORS = ("g", "a")  # gyro, accel
@@ -81,7 +81,7 @@ class ImuCalibrationBlock(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.engine = eng = Fp32Engine(self.program)
+        m.submodules.engine = eng = Fp32Sequencer(self.program)
         for f in IN_FIELDS:  # sign-extend to the engine's int32 inputs
             m.d.comb += getattr(eng.i.payload, f).eq(getattr(self.i.payload, f).as_signed())
         for f in IN_FIELDS:

@@ -80,7 +80,7 @@ class Program:
         return len(self.inputs) + self._op_cycles() + len(self.outputs) + 2
 
 
-class Fp32Engine(wiring.Component):
+class Fp32Sequencer(wiring.Component):
     """Runs :class:`Program` once per input: stream ``i`` {inputs} -> stream ``o`` {outputs}.
 
     ``par_we``/``par_addr``/``par_data`` write parameter ``par_addr`` (index into
