@@ -374,3 +374,38 @@ def test_a_bare_bank_without_streams_or_watched_outputs(top, regmap):
             sim.push("feed", 1)
         with pytest.raises(NativeAxiError, match="output 'irq' is not watched"):
             sim.wait("irq")
+
+
+def test_readings_polls_and_waits_queued_in_one_batch(top, regmap):
+    """Under deferred, read_later, Registers.wait_until (the bus's poll) and the bus's wait go
+    into the batch with the writes and pushes: one round trip, the Readings filled in when it
+    is sent, a deferred SLVERR read or a poll timeout raised then; outside it, at once."""
+    rng = np.random.default_rng(3)
+    pay = random_payloads(rng, 12)
+    with new_sim(top) as sim:
+        bus = NativeAxiBus(sim)
+        regs = Registers(regmap, bus)
+        regs.write("THRESH", n=12, spare=0)
+        b0, c0 = sim.batches, sim.commands
+        with regs.deferred():
+            before = regs.read_later("COUNT")
+            bus.push("feed", pay)
+            counted = regs.wait_until("COUNT", M32, 12, limit=1_000)
+            irq = bus.wait("irq", 100)
+            sums = [regs.read_later(r) for r in ("SUM", "COUNT", "CHECK")]
+            assert not sums[0].ready and sim.batches == b0
+            with pytest.raises(RuntimeError, match="has not been sent"):
+                _ = sums[0].value
+        assert (sim.batches, sim.commands) == (b0 + 1, c0 + 1 + 12 + 1 + 1 + 3)
+        assert before.value == 0 and counted.value == 12
+        assert 0 < irq.value <= IRQ_DELAY
+        assert tuple(r.value for r in sums) == accumulate(pay["a"], pay["b"], pay["tag"])
+        assert regs.read_later("COUNT").value == 12 and sim.batches == b0 + 2  # at once
+        assert regs.wait_until("COUNT", 0xFF, 12, limit=10).value == 12
+        with pytest.raises(AxiResponseError, match="SLVERR reading offset 0x024 .deferred"):
+            with bus.deferred():
+                bus.read_later(0x24)
+        with pytest.raises(NativeAxiError, match="poll of 0xc timed out after 20 cycles"):
+            with regs.deferred():
+                regs.wait_until("COUNT", 0xFFFFFFFF, 13, limit=20)
+        assert regs.read("COUNT") == 12                    # the model is still usable

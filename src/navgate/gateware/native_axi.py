@@ -67,7 +67,7 @@ from amaranth.lib import wiring
 
 from navgate.gateware import verify as V
 from navgate.gateware.native_stream import compile_native
-from navgate.hw.regmap import OKAY
+from navgate.hw.regmap import OKAY, Reading
 
 __all__ = ["NativeAxiSim", "NativeAxiBus", "NativeAxiError", "AxiResponseError",
            "build_native_axi"]
@@ -211,7 +211,8 @@ class NativeAxiSim:
         self.final_cycles: int | None = None
         self._depth = 0
         self._queue: list[str] = []
-        self._checks: list[tuple[str, int, bool]] = []  # per queued command
+        #: per queued command: kind, address, check the response, the Reading to fill in
+        self._checks: list[tuple[str, int, bool, Reading | None]] = []
 
     # ------------------------------------------------------------------ transport
     def batch(self, commands: Iterable[str]) -> list[str]:
@@ -244,18 +245,30 @@ class NativeAxiSim:
         tokens = answer.split()
         if len(tokens) != len(full):
             raise NativeAxiError(f"native model answered {len(tokens)} of {len(full)}")
-        for (kind, addr, check), token in zip(checks, tokens[:len(queued)], strict=True):
+        for (kind, addr, check, reading), token in zip(checks, tokens[:len(queued)],
+                                                       strict=True):
             if kind == "W" and check and token != str(OKAY):
                 raise AxiResponseError(f"{_RESP_NAMES[int(token)]} writing offset "
                                        f"0x{addr:03X} (deferred)")
+            if reading is not None:
+                if kind == "R":
+                    data, _, resp = token.partition("/")
+                    if check and resp and int(resp) != OKAY:
+                        raise AxiResponseError(f"{_RESP_NAMES[int(resp)]} reading offset "
+                                               f"0x{addr:03X} (deferred)")
+                    reading.set(int(data, 16))
+                else:
+                    reading.set(int(token, 16 if kind == "P" else 10))
         return tokens[len(queued):]
 
-    def _command(self, cmd: str, kind: str = "", addr: int = 0, check: bool = True):
+    def _command(self, cmd: str, kind: str = "", addr: int = 0, check: bool = True,
+                 reading: Reading | None = None):
         """One command: queued under :meth:`deferred` when ``kind`` (its answer is not
-        needed), else sent with the queue; its answer (None when queued)."""
+        needed, or goes into ``reading`` when the batch is sent), else sent with the queue;
+        its answer (None when queued)."""
         if self._depth and kind:
             self._queue.append(cmd)
-            self._checks.append((kind, addr, check))
+            self._checks.append((kind, addr, check, reading))
             return None
         return self._send([cmd])[0]
 
@@ -371,6 +384,40 @@ class NativeAxiSim:
             output = self.watch.index(output)
         return int(self._command(f"Q {int(output)} {int(limit)}"))
 
+    # ------------------------------------------------------------------ answers later
+    def read_later(self, addr: int) -> Reading:
+        """:meth:`read`, queued under :meth:`deferred` (the :class:`Reading` is filled in
+        when the batch is sent; SLVERR raises then), else at once."""
+        if not self._depth:
+            return Reading(self.read(addr))
+        reading = Reading()
+        self._command(f"R {self._addr(addr):x}", "R", addr, True, reading)
+        return reading
+
+    def poll_later(self, addr: int, mask: int, value: int, limit: int = 10_000) -> Reading:
+        """:meth:`poll`, queued under :meth:`deferred` (a timeout raises
+        :class:`NativeAxiError` when the batch is sent), else at once."""
+        if not self._depth:
+            return Reading(self.poll(addr, mask, value, limit))
+        reading = Reading()
+        self._command(f"P {self._addr(addr):x} {mask & 0xFFFFFFFF:x} "
+                      f"{value & 0xFFFFFFFF:x} {int(limit)}", "P", addr, True, reading)
+        return reading
+
+    def wait_later(self, output, limit: int = 10_000) -> Reading:
+        """:meth:`wait`, queued under :meth:`deferred`, else at once."""
+        if not self._depth:
+            return Reading(self.wait(output, limit))
+        if isinstance(output, str):
+            if output not in self.watch:
+                raise NativeAxiError(f"output {output!r} is not watched; watched: {self.watch}")
+            output = self.watch.index(output)
+        if not 0 <= output < len(self.watch):
+            raise NativeAxiError(f"no watched output {output}")
+        reading = Reading()
+        self._command(f"Q {int(output)} {int(limit)}", "Q", 0, True, reading)
+        return reading
+
     @property
     def cycles(self) -> int:
         """Clock cycles simulated since reset (sends what :meth:`deferred` has queued)."""
@@ -406,7 +453,12 @@ class NativeAxiBus:
     """A bus transport for :class:`navgate.hw.regmap.Registers` over a :class:`NativeAxiSim`
     (``read(offset)``/``write(offset, value)`` at byte offsets from ``base``; SLVERR raises
     :class:`AxiResponseError`, an ``OSError`` as :class:`navgate.hw.bus.MemoryBus` raises).
-    Under :meth:`deferred` writes are queued and sent with the next read."""
+    Under :meth:`deferred` writes are queued and sent with the next read; :meth:`read_later`
+    and :meth:`poll` (what :meth:`Registers.wait_until` uses, in clock cycles) are queued too
+    and answer a :class:`~navgate.hw.regmap.Reading`, so a driver's whole job is one round
+    trip. The simulation's extras, which a board's bus has not (its sensors are real):
+    :meth:`push` into an input stream (a device emulator's samples) and :meth:`wait` for a
+    watched output (the interrupt line), both queued under :meth:`deferred`."""
 
     def __init__(self, sim: NativeAxiSim, base: int = 0):
         self.sim = sim
@@ -417,6 +469,18 @@ class NativeAxiBus:
 
     def write(self, offset: int, value: int) -> None:
         self.sim.write(self.base + offset, int(value) & 0xFFFFFFFF)
+
+    def read_later(self, offset: int) -> Reading:
+        return self.sim.read_later(self.base + offset)
+
+    def poll(self, offset: int, mask: int, value: int, limit: int) -> Reading:
+        return self.sim.poll_later(self.base + offset, mask, value, limit)
+
+    def push(self, stream, fields) -> None:
+        self.sim.push(stream, fields)
+
+    def wait(self, output, limit: int = 10_000) -> Reading:
+        return self.sim.wait_later(output, limit)
 
     def deferred(self):
         return self.sim.deferred()

@@ -10,7 +10,13 @@ with ``systemrdl-compiler``. From the compiled model this module derives
 * :class:`RegisterFileModel` - the bit-true behaviour of the bank as software sees it (byte
   strobes, read-to-clear, write-1 strobes, OKAY/SLVERR), the oracle of the gateware tests;
 * :class:`Registers` - the driver: one API over any bus with ``read(offset) -> int`` and
-  ``write(offset, value)`` (see :mod:`navgate.hw.bus` for the transports).
+  ``write(offset, value)`` (see :mod:`navgate.hw.bus` for the transports). A bus may offer
+  more, and the driver then uses it: ``poll(offset, mask, value, limit)`` (wait for a value in
+  the bus's own time, as the co-simulation does in clock cycles), ``read_later(offset)`` and
+  ``deferred()`` (queue accesses and send them as one batch; reads answer a
+  :class:`Reading` filled in when the batch is sent). On a plain bus (``/dev/mem``, PYNQ)
+  :meth:`Registers.wait_until` reads in a bounded loop and every :class:`Reading` is filled in
+  at once, so the same driver code runs on the board and in the co-simulation.
 
 Side effects understood (SystemRDL field properties): ``sw`` r/w/rw, ``hw`` r/w/na, ``reset``,
 ``onread = rclr`` (read to clear; an event in the same cycle as the read stays pending),
@@ -24,6 +30,7 @@ knows no particular map (seed 000's is ``navgate/systems/ins_trn/pl/registers.rd
 
 from __future__ import annotations
 
+import contextlib
 import math
 import numbers
 import struct
@@ -329,6 +336,38 @@ def _register_int(name: str, value) -> int:
     raise ValueError(f"{name}: expected an integer register value, got {value!r}")
 
 
+class RegisterTimeout(TimeoutError):
+    """:meth:`Registers.wait_until` ran out of reads before the register took the value."""
+
+
+class Reading:
+    """A register value that may not have been read yet: filled in at once on a plain bus,
+    or when a deferring bus (``deferred()``) sends its batch. :attr:`value` before then is a
+    RuntimeError."""
+
+    __slots__ = ("_value",)
+
+    def __init__(self, value: int | None = None):
+        self._value = value
+
+    def set(self, value: int) -> None:
+        self._value = int(value)
+
+    @property
+    def ready(self) -> bool:
+        return self._value is not None
+
+    @property
+    def value(self) -> int:
+        if self._value is None:
+            raise RuntimeError("the read has not been sent yet (it is queued in a deferred "
+                               "batch: leave the block, or read something, first)")
+        return self._value
+
+    def __repr__(self) -> str:
+        return f"Reading({self._value!r})"
+
+
 class Registers:
     """Driver for a register map over a bus (``read(offset)``, ``write(offset, value)``).
 
@@ -339,6 +378,12 @@ class Registers:
         regs.write("IMU_CFG", enable=1, spi_div=9)
         regs.write_f32("TRN_POS_N", 1234.5)
         north = regs.read_f32("POS_N")
+        regs.wait_until("ENG_STATUS", busy=0, limit=100_000)
+
+    With a bus that batches (:class:`navgate.gateware.native_axi.NativeAxiBus`), accesses
+    inside ``with regs.deferred():`` go out as one round trip; :meth:`read_later` and
+    :meth:`wait_until` then answer :class:`Reading` objects filled in when it is sent. On
+    any other bus ``deferred()`` does nothing and every access happens when it is made.
     """
 
     def __init__(self, regmap: RegisterMap, bus):
@@ -352,9 +397,71 @@ class Registers:
         return int(self.bus.read(self.offset(name))) & 0xFFFFFFFF
 
     def read_fields(self, name: str) -> dict[str, int]:
-        reg = self.regmap[name]
-        value = self.read(name)
-        return {f.name: (value >> f.lsb) & ((1 << f.width) - 1) for f in reg.fields}
+        return self.decode(name, self.read(name))
+
+    def decode(self, name: str, value: int) -> dict[str, int]:
+        """The fields of ``value`` as register ``name`` lays them out."""
+        return {f.name: (value >> f.lsb) & ((1 << f.width) - 1)
+                for f in self.regmap[name].fields}
+
+    def read_later(self, name: str) -> Reading:
+        """Read ``name``: at once on a plain bus, queued in the batch on a deferring bus."""
+        later = getattr(self.bus, "read_later", None)
+        if later is None:
+            return Reading(self.read(name))
+        return later(self.offset(name))
+
+    def deferred(self):
+        """A context in which a batching bus queues the accesses and sends them as one
+        batch (on leaving it, or with the first plain :meth:`read`); elsewhere a no-op."""
+        deferred = getattr(self.bus, "deferred", None)
+        return deferred() if deferred is not None else contextlib.nullcontext(self)
+
+    def field_mask(self, name: str, **fields: int) -> tuple[int, int]:
+        """(mask, value) selecting the named fields at the given values."""
+        known = {f.name: f for f in self.regmap[name].fields}
+        mask = value = 0
+        for field_name, field_value in fields.items():
+            f = known.get(field_name)
+            if f is None:
+                raise KeyError(f"register {name} has no field {field_name!r}")
+            field_value = _register_int(f"{name}.{field_name}", field_value)
+            if not 0 <= field_value < (1 << f.width):
+                raise ValueError(f"{name}.{field_name} = {field_value} does not fit "
+                                 f"{f.width} bits")
+            mask |= f.mask
+            value |= field_value << f.lsb
+        return mask, value
+
+    def wait_until(self, name: str, mask: int | None = None, value: int | None = None, *,
+                   limit: int = 10_000, **fields: int) -> Reading:
+        """Wait until ``(register & mask) == value`` (or the named fields hold the given
+        values); the final register value. A bus with ``poll(offset, mask, value, limit)``
+        waits in its own time (the co-simulation: at most ``limit`` clock cycles, queued in
+        the batch under :meth:`deferred`); on any other bus the register is read at most
+        ``limit`` times, then :class:`RegisterTimeout`."""
+        if fields:
+            if mask is not None or value is not None:
+                raise TypeError("give either mask and value or fields, not both")
+            mask, value = self.field_mask(name, **fields)
+        elif mask is None or value is None:
+            raise TypeError("wait_until needs mask and value, or fields")
+        if not (0 <= mask <= 0xFFFFFFFF and 0 <= value <= 0xFFFFFFFF) or value & ~mask:
+            raise ValueError(f"{name}: value {value:#x} outside mask {mask:#x}")
+        limit = int(limit)
+        if limit < 1:
+            raise ValueError(f"{name}: wait limit {limit} (at least 1)")
+        offset = self.offset(name)
+        poll = getattr(self.bus, "poll", None)
+        if poll is not None:
+            got = poll(offset, mask, value, limit)
+            return got if isinstance(got, Reading) else Reading(int(got))
+        for _ in range(limit):
+            got = self.read(name)
+            if got & mask == value:
+                return Reading(got)
+        raise RegisterTimeout(f"{name} & {mask:#x} != {value:#x} after {limit} reads "
+                              f"(last {got:#x})")
 
     def write(self, name: str, value: int | None = None, **fields: int) -> None:
         """Write a whole value, or named fields (the others from their reset values)."""

@@ -12,7 +12,15 @@ persistent native Verilator process (:class:`navgate.gateware.native_axi.NativeA
 takes batches of bus commands.
 
 The PS side is the ``fp32`` engine's (:class:`Fp32Engine`), talking to the PL only through
-registers:
+registers, with the board's driver: :class:`navgate.hw.regmap.Registers` over
+:class:`navgate.gateware.native_axi.NativeAxiBus`, by register and field name. On a board
+the same calls run over :class:`navgate.hw.bus.DevMemBus` or :class:`navgate.hw.bus.PynqBus`
+(docs/seed000-registers.md, "One driver, three buses"). Each engine call is one
+``regs.deferred()`` block, sent as one batch (one round trip to the native process):
+:meth:`Registers.wait_until` becomes the simulation's in-process poll and
+:meth:`Registers.read_later` answers are filled in when the batch comes back. The
+simulation's own extras, which a board has not, stay at bus level: ``bus.push`` (samples into
+the device emulators) and ``bus.wait`` (the ``irq`` line). The register accesses:
 
 - set-up: the calibration through CAL_* and CAL_APPLY; the other engine registers (noise,
   initial state, P0) through the engine register window (ENG_ADDR/ENG_WDATA/ENG_CMD); the
@@ -40,6 +48,7 @@ The result equals the ``fp32`` engine's bit for bit (tests/systems/ins_trn/ps/te
 
 from __future__ import annotations
 
+import contextlib
 import weakref
 
 import numpy as np
@@ -51,7 +60,13 @@ from amaranth.lib.wiring import In, Out
 from navgate.gateware import verify as V
 from navgate.gateware.axi4 import axi4_write_signature
 from navgate.gateware.axi_lite import axi_lite_signature
-from navgate.gateware.native_axi import NativeAxiError, NativeAxiSim
+from navgate.gateware.native_axi import (
+    AxiResponseError,
+    NativeAxiBus,
+    NativeAxiError,
+    NativeAxiSim,
+)
+from navgate.hw.regmap import Registers
 from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.systems.ins_trn.pl.fp32_exec import to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CAL_REGS, N_STATES, NAV_REGS, p_reg
@@ -248,11 +263,12 @@ class _DmaProfileFifo:
         self.dmas = 0  #: profile DMA transfers made
 
     def push(self, words) -> None:
-        e = self.e
-        out = e._batch([f"R {e.off[r]:x}" for r in ("PROF_SAMPLE_N", "PROF_SAMPLE_E",
-                                                     "PROF_SAMPLE_T")]
-                       + [e._w("PROF_ENTRY_H", words[0]), e._w("PROF_PUSH", 1)])
-        latched = (int(out[0], 16), int(out[1], 16), int(out[2], 16) | VALID_BIT)
+        with self.e._job() as regs:
+            out = [regs.read_later(r) for r in ("PROF_SAMPLE_N", "PROF_SAMPLE_E",
+                                                "PROF_SAMPLE_T")]
+            regs.write("PROF_ENTRY_H", int(words[0]))
+            regs.write("PROF_PUSH", push=1)
+        latched = (out[0].value, out[1].value, out[2].value | VALID_BIT)
         if latched != tuple(words[1:]):
             raise FpgaSimError(f"timestamp correlator latched {latched}, the PS expected "
                                f"{tuple(words[1:])}")
@@ -261,19 +277,22 @@ class _DmaProfileFifo:
         e = self.e
         if not 0 < count <= DMA_WORDS // 4:
             raise FpgaSimError(f"profile DMA of {count} entries (1-{DMA_WORDS // 4})")
-        off = e.off
-        cmds = [f"R {off['IRQ_STATUS']:x}", e._w("PROF_ADDR", 0), e._w("PROF_COUNT", count),
-                e._w("PROF_CTRL", 1), "Q 0 100000", f"R {off['IRQ_STATUS']:x}",
-                f"R {off['PROF_STATUS']:x}"]
-        cmds += [f"R {DMA_WINDOW + 4 * k:x}" for k in range(4 * count)]
-        out = e._batch(cmds)
-        irq_status, status = int(out[5], 16), int(out[6], 16)
+        with e._job() as regs:
+            regs.read_later("IRQ_STATUS")  # clear what is pending (read to clear)
+            regs.write("PROF_ADDR", 0)
+            regs.write("PROF_COUNT", count)
+            regs.write("PROF_CTRL", start=1)
+            regs.bus.wait("irq", 100_000)
+            irq, prof = regs.read_later("IRQ_STATUS"), regs.read_later("PROF_STATUS")
+            # DDR is not a register: the co-simulation's PS reads it through the AXI window
+            ddr = [regs.bus.read_later(DMA_WINDOW + 4 * k) for k in range(4 * count)]
+        irq_status, status = irq.value, prof.value
         if irq_status != 1 or status & 1:
             raise FpgaSimError(f"profile DMA of {count} entries: IRQ_STATUS {irq_status:#x} "
                                f"(update only expected), PROF_STATUS {status:#x}")
         self.dmas += 1
         e.interrupts += 1
-        return np.array([int(t, 16) for t in out[7:]], np.uint32).reshape(count, 4)
+        return np.array([r.value for r in ddr], np.uint32).reshape(count, 4)
 
 
 class FpgaSimEngine(Fp32Engine):
@@ -289,10 +308,11 @@ class FpgaSimEngine(Fp32Engine):
         super().__init__(setup, check_pd=False)
         self.image = engine_image("ins_engines")
         self.addr = self.image.layout.fixed
-        self.off = {r.name: r.offset for r in register_map().registers}
         top = InsTrnSimTop()
         self.sim = NativeAxiSim(top, streams=("imu_feed", "lidar_feed", "baro_feed"),
                                 watch=("irq",), verilog=sim_verilog(top))
+        #: the driver, as on the board (there over DevMemBus or PynqBus)
+        self.regs = Registers(register_map(), NativeAxiBus(self.sim))
         self.baro_samples = 0
         self.lidar_frames = 0
         self._finalizer = weakref.finalize(self, self.sim.close)
@@ -302,62 +322,64 @@ class FpgaSimEngine(Fp32Engine):
         self.m = _WindowMachine(self, self.m)
 
     # -- bus ------------------------------------------------------------------------------------
-    def _w(self, reg: str, value: int) -> str:
-        return f"W {self.off[reg]:x} {int(value) & 0xFFFFFFFF:x} f"
-
-    def _batch(self, cmds: list[str]) -> list[str]:
+    @contextlib.contextmanager
+    def _job(self):
+        """One engine job's register accesses, sent as one batch (one round trip) when the
+        block ends; a bus error, SLVERR or timeout is an :class:`FpgaSimError`."""
         try:
-            out = self.sim.batch(cmds)
-        except NativeAxiError as exc:
+            with self.regs.deferred():
+                yield self.regs
+        except (NativeAxiError, AxiResponseError) as exc:
             raise FpgaSimError(str(exc)) from None
-        bad = [c for c, t in zip(cmds, out, strict=True)
-               if (c[0] == "W" and t != "0") or (c[0] == "R" and "/" in t)]
-        if bad:
-            raise FpgaSimError(f"bus error on {bad[0]!r}")
-        return out
 
-    def _wait_idle(self) -> str:
-        return f"P {self.off['ENG_STATUS']:x} 1 0 100000"
+    def _wait_idle(self) -> None:
+        self.regs.wait_until("ENG_STATUS", busy=0, limit=100_000)
+
+    def _window_put(self, name: str, bits: int) -> None:
+        regs = self.regs
+        regs.write("ENG_ADDR", self.addr[name])
+        regs.write("ENG_WDATA", bits)
+        regs.write("ENG_CMD", write=1)
 
     def window_write(self, items) -> None:
-        cmds = []
-        for name, bits in items:
-            cmds += [self._w("ENG_ADDR", self.addr[name]), self._w("ENG_WDATA", bits),
-                     self._w("ENG_CMD", 1)]
-        cmds.append(self._wait_idle())
-        self._batch(cmds)
+        with self._job():
+            for name, bits in items:
+                self._window_put(name, bits)
+            self._wait_idle()
 
     def window_read(self, names) -> list[int]:
-        cmds = []
-        for name in names:
-            a = self.addr[name] if isinstance(name, str) else int(name)
-            cmds += [self._w("ENG_ADDR", a), self._w("ENG_CMD", 2), self._wait_idle(),
-                     f"R {self.off['ENG_RDATA']:x}"]
-        out = self._batch(cmds)
-        return [int(out[4 * k + 3], 16) for k in range(len(names))]
+        regs = self.regs
+        out = []
+        with self._job():
+            for name in names:
+                regs.write("ENG_ADDR", self.addr[name] if isinstance(name, str) else int(name))
+                regs.write("ENG_CMD", read=1)
+                self._wait_idle()
+                out.append(regs.read_later("ENG_RDATA"))
+        return [r.value for r in out]
 
     def _load(self):
         ps = self.m
         items = [(n, float_to_bits(ps.regs[ps.index[n]]) if n in ps.index else 0)
                  for n in self.addr if not n.startswith("c:") and n not in CAL_REGS]
         ref = self.setup.reference
-        cmds = [self._w("CTRL", 0)]
-        for name, bits in items:
-            cmds += [self._w("ENG_ADDR", self.addr[name]), self._w("ENG_WDATA", bits),
-                     self._w("ENG_CMD", 1)]
-        # the calibration through the seed's CAL_* registers and CAL_APPLY
-        cmds += [self._w(reg, float_to_bits(ps.get(word)))
-                 for reg, word in CAL_REGISTER_OF.items()]
-        cmds += [self._w("CAL_APPLY", 1), self._wait_idle()]
-        cmds += [self._w("REF_LAT", float_to_bits(ref.lat0)),
-                 self._w("REF_LON", float_to_bits(ref.lon0)),
-                 self._w("REF_ALT", float_to_bits(ref.h0)),
-                 self._w("IMU_CFG", 0 | 1 << 8 | 1 << 9),  # fastest SCLK, enabled, DR-paced
-                 self._w("BARO_CFG", 2 | 1 << 8 | 1 << 9),  # fastest SCLK, enabled, INT-paced
-                 self._w("IRQ_ENABLE", 1),
-                 self._w("CTRL", 1),
-                 self._wait_idle()]
-        self._batch(cmds)
+        with self._job() as regs:
+            regs.write("CTRL", enable=0)
+            for name, bits in items:
+                self._window_put(name, bits)
+            # the calibration through the seed's CAL_* registers and CAL_APPLY
+            for reg, word in CAL_REGISTER_OF.items():
+                regs.write(reg, float_to_bits(ps.get(word)))
+            regs.write("CAL_APPLY", apply=1)
+            self._wait_idle()
+            regs.write("REF_LAT", float_to_bits(ref.lat0))
+            regs.write("REF_LON", float_to_bits(ref.lon0))
+            regs.write("REF_ALT", float_to_bits(ref.h0))
+            regs.write("IMU_CFG", spi_div=0, enable=1, dr_sync=1)  # fastest SCLK, DR-paced
+            regs.write("BARO_CFG", spi_div=2, enable=1, int_sync=1)  # fastest SCLK, INT-paced
+            regs.write("IRQ_ENABLE", update=1, error=0)
+            regs.write("CTRL", enable=1)
+            self._wait_idle()
 
     # -- engine calls -----------------------------------------------------------------------------
     def propagate(self, gyro_words, accel_words) -> None:
@@ -367,17 +389,16 @@ class FpgaSimEngine(Fp32Engine):
                 and words.min(initial=0) >= -32768 and words.max(initial=0) <= 32767):
             raise FpgaSimError("the fpga-sim engine needs the IMU's int16 output words "
                                "(the ideal sensors' float words have no SPI encoding)")
-        fmt = self.sim.formats["imu_feed"]
         w = words.astype(np.int64)
         n = w.shape[0]
-        packed = V.pack(fmt, {"gx": w[:, 0], "gy": w[:, 1], "gz": w[:, 2], "ax": w[:, 3],
-                              "ay": w[:, 4], "az": w[:, 5], "temp": np.zeros(n, np.int64),
-                              "diag": np.zeros(n, np.int64)})
         self.propagations += n
-        target = (self.propagations & 0xFFFFFF) << 8
-        cmds = [f"S 0 {int(p):x}" for p in packed]
-        cmds.append(f"P {self.off['ENG_STATUS']:x} ffffff01 {target:x} {4000 * n + 100000}")
-        self._batch(cmds)
+        with self._job() as regs:
+            regs.bus.push("imu_feed", {"gx": w[:, 0], "gy": w[:, 1], "gz": w[:, 2],
+                                       "ax": w[:, 3], "ay": w[:, 4], "az": w[:, 5],
+                                       "temp": np.zeros(n, np.int64),
+                                       "diag": np.zeros(n, np.int64)})
+            regs.wait_until("ENG_STATUS", propagations=self.propagations & 0xFFFFFF, busy=0,
+                            limit=4000 * n + 100_000)
         self.m.cache.clear()
         self.samples += n
 
@@ -391,12 +412,14 @@ class FpgaSimEngine(Fp32Engine):
                     "TRN_COV_NN": inputs["r00"], "TRN_COV_NE": inputs["r01"],
                     "TRN_COV_EE": inputs["r11"], "TRN_LAG": inputs["lag"], "TRN_GATE": gate}
             ctrl, status, nis_reg = "TRN_CTRL", "TRN_STATUS", "TRN_NIS"
-        cmds = [f"R {self.off['IRQ_STATUS']:x}"]  # clear pending (read to clear)
-        cmds += [self._w(r, float_to_bits(to_f32(v))) for r, v in regs.items()]
-        cmds += [self._w(ctrl, 1), "Q 0 100000", f"R {self.off['IRQ_STATUS']:x}",
-                 f"R {self.off[status]:x}", f"R {self.off[nis_reg]:x}"]
-        out = self._batch(cmds)
-        irq_status, st, nis_bits = (int(t, 16) for t in out[-3:])
+        with self._job() as bus_regs:
+            bus_regs.read_later("IRQ_STATUS")  # clear what is pending (read to clear)
+            for r, v in regs.items():
+                bus_regs.write(r, float_to_bits(to_f32(v)))
+            bus_regs.write(ctrl, start=1)
+            bus_regs.bus.wait("irq", 100_000)
+            out = [bus_regs.read_later(r) for r in ("IRQ_STATUS", status, nis_reg)]
+        irq_status, st, nis_bits = (r.value for r in out)
         if not irq_status & 1 or st & 0b011 != 0b010:
             raise FpgaSimError(f"{ctrl}: no update interrupt or not done "
                                f"(IRQ_STATUS {irq_status:#x}, {status} {st:#x})")
@@ -426,30 +449,28 @@ class FpgaSimEngine(Fp32Engine):
         """The sample through the BMP390 emulator, the SPI pins, ``spi_master_baro`` (INT
         paced) and ``baro_compensation``: push the ADC words, wait until BARO_SAMPLES counts
         the sample, read BARO_PRESS."""
-        packed = V.pack(self.sim.formats["baro_feed"],
-                        {"up": [int(uncomp_press)], "ut": [int(uncomp_temp)]})[0]
         self.baro_samples += 1
-        out = self._batch([f"S 2 {int(packed):x}",
-                           f"P {self.off['BARO_SAMPLES']:x} ffffffff "
-                           f"{self.baro_samples & 0xFFFFFFFF:x} 100000",
-                           f"R {self.off['BARO_PRESS']:x}"])
-        return bits_to_float(int(out[-1], 16))
+        with self._job() as regs:
+            regs.bus.push("baro_feed", {"up": int(uncomp_press), "ut": int(uncomp_temp)})
+            regs.wait_until("BARO_SAMPLES", count=self.baro_samples & 0xFFFFFFFF,
+                            limit=100_000)
+            press = regs.read_later("BARO_PRESS")
+        return bits_to_float(press.value)
 
     def read_ranger(self, dist: int, strength: int) -> tuple[int, int]:
         """The frame through the TF-Luna emulator, the UART pin and ``uart_rx_lidar``: push
         it, wait until LIDAR_FRAMES counts it, read LIDAR_DATA."""
-        cmds = []
-        if not self.lidar_frames:  # the ranger's receiver is enabled with its first frame
-            cmds.append(self._w("LIDAR_CFG", LIDAR_BIT_CYCLES | 1 << 16))
-        packed = V.pack(self.sim.formats["lidar_feed"],
-                        {"dist": [int(dist)], "strength": [int(strength)],
-                         "temp": [LIDAR_TEMP_WORD]})[0]
+        first = not self.lidar_frames
         self.lidar_frames += 1
-        cmds += [f"S 1 {int(packed):x}",
-                 f"P {self.off['LIDAR_FRAMES']:x} ffffffff {self.lidar_frames & 0xFFFFFFFF:x} "
-                 f"{200 * LIDAR_BIT_CYCLES + 10_000}",
-                 f"R {self.off['LIDAR_DATA']:x}"]
-        word = int(self._batch(cmds)[-1], 16)
+        with self._job() as regs:
+            if first:  # the ranger's receiver is enabled with its first frame
+                regs.write("LIDAR_CFG", baud_div=LIDAR_BIT_CYCLES, enable=1)
+            regs.bus.push("lidar_feed", {"dist": int(dist), "strength": int(strength),
+                                         "temp": LIDAR_TEMP_WORD})
+            regs.wait_until("LIDAR_FRAMES", count=self.lidar_frames & 0xFFFFFFFF,
+                            limit=200 * LIDAR_BIT_CYCLES + 10_000)
+            data = regs.read_later("LIDAR_DATA")
+        word = data.value
         return word & 0xFFFF, word >> 16
 
     def read_cov(self):
