@@ -1,10 +1,10 @@
 """Bit-exact verification of every float32 core against navgate.numerics.fp32.
 
 For each block of ``navgate.gateware.fp32.BLOCKS`` (and the adder in subtract
-mode): the special-value cross table and >= 100,000 biased random vectors in
-Amaranth's simulator (part of them under random valid gaps and ready stalls),
+mode): the special-value cross table and 20,000 biased random vectors in
+Amaranth's simulator (half of them under random valid gaps and ready stalls),
 20,000 random + directed vectors through the emitted Verilog in Verilator via
-cocotb, and (``-m slow``) 1,000,000 vectors in Verilator.  Zero mismatches are
+cocotb, and (``-m slow``) 100,000 more in Amaranth and 1,000,000 in Verilator.  Zero mismatches are
 required; latency and cycle counts are exact.
 """
 
@@ -17,9 +17,13 @@ from navgate.gateware.verify import emit_verilog, lint_verilog, verify
 from navgate.gateware.verify_fp32 import CASES, conversion_cases
 
 NAMES = list(CASES)
-# 100,000 random vectors per operation in Amaranth, in two seeded chunks so
-# that pytest-xdist can spread them; the second chunk runs under backpressure.
-CHUNKS = [(0, 50_000, {}), (1, 50_000, {"valid_prob": 0.9, "ready_prob": 0.85})]
+# random vectors per operation in Amaranth, in two seeded chunks so that pytest-xdist can
+# spread them; the second chunk runs under backpressure. 2 x 10,000 in the default suite
+# (with the 20,000 in Verilator below); 2 x 50,000 more, other seeds, under -m slow.
+BACKPRESSURE = {"valid_prob": 0.9, "ready_prob": 0.85}
+CHUNKS = [(0, 10_000, {}), (1, 10_000, BACKPRESSURE)]
+SLOW_CHUNKS = [pytest.param(2, 50_000, {}, marks=pytest.mark.slow),
+               pytest.param(3, 50_000, BACKPRESSURE, marks=pytest.mark.slow)]
 
 
 def _check(res):
@@ -50,7 +54,8 @@ def test_directed_amaranth(name):
     assert res.cycles == res.n_vectors + dut.LATENCY
 
 
-@pytest.mark.parametrize("chunk,n,handshake", CHUNKS, ids=["free", "backpressure"])
+@pytest.mark.parametrize("chunk,n,handshake", CHUNKS + SLOW_CHUNKS,
+                         ids=["free", "backpressure", "free-100k", "backpressure-100k"])
 @pytest.mark.parametrize("name", NAMES)
 def test_random_amaranth(name, chunk, n, handshake):
     case = CASES[name]
