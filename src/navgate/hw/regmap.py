@@ -467,17 +467,8 @@ class Registers:
         """Write a whole value, or named fields (the others from their reset values)."""
         reg = self.regmap[name]
         if value is None:
-            value = reg.reset_value & reg.sw_write_mask
-            known = {f.name: f for f in reg.fields}
-            for field_name, field_value in fields.items():
-                f = known.get(field_name)
-                if f is None:
-                    raise KeyError(f"register {name} has no field {field_name!r}")
-                field_value = _register_int(f"{name}.{field_name}", field_value)
-                if not 0 <= field_value < (1 << f.width):
-                    raise ValueError(f"{name}.{field_name} = {field_value} does not fit "
-                                     f"{f.width} bits")
-                value = (value & ~f.mask) | (field_value << f.lsb)
+            mask, field_bits = self.field_mask(name, **fields)
+            value = (reg.reset_value & reg.sw_write_mask & ~mask) | field_bits
         elif fields:
             raise TypeError("give either a value or fields, not both")
         else:

@@ -132,7 +132,8 @@ def test_the_cross_check_catches_a_port_typed_twice_wrongly(built):
 def _tclsh(script: Path) -> subprocess.CompletedProcess:
     tclsh = shutil.which("tclsh")
     if tclsh is None:
-        pytest.skip("tclsh is not installed")
+        pytest.skip("tclsh (a system package, not on PyPI) is not installed: the Vivado "
+                    "script's syntax check needs it")
     stubs = script.parent / "stubs.tcl"
     stubs.write_text(f"set ::script [list {{{script}}}]\n" + STUBS)
     return subprocess.run([tclsh, str(stubs)], capture_output=True, text=True, timeout=60,

@@ -515,7 +515,8 @@ def test_trn_serve_and_fly_over_a_serial_line_at_921600_baud(tmp_path, navgate_r
     import subprocess
     import sys
 
-    pytest.importorskip("serial")
+    pytest.importorskip("serial", reason="pyserial is the optional navgate[serial] extra "
+                        "(README's [all] install has it)")
     modem = NullModem()
     service = subprocess.Popen(
         [sys.executable, "-m", "navgate.cli", "trn-serve", "--serial", modem.paths[0],
