@@ -69,7 +69,7 @@ from navgate.systems.ins_trn.pl import fp32_program as fp
 
 __all__ = ["Segment", "LoopProgram", "chain_sums", "elementwise", "prune", "run_program",
            "loop_programs", "segment_cycles", "program_cycles", "lane_units", "P_INDEX",
-           "NEG_ZERO", "ONE"]
+           "NEG_ZERO", "ONE", "DEFAULT_LANES"]
 
 N = N_STATES
 #: stored index of P's element (i, j), i <= j (the order of fp32_program.P_REGS)
@@ -77,6 +77,9 @@ P_INDEX = {(i, j): n for n, (i, j) in enumerate((i, j) for i in range(N) for j i
 ONE = const_name(1.0)
 NEG_ZERO = const_name(-0.0)
 NEG_ZERO_VALUE = -0.0
+#: the default lane count: three float32 multipliers (two DSP48E1 each) fit issue 29's
+#: budget of 6 DSP48E1 for ins_engines
+DEFAULT_LANES = 3
 
 
 def pidx(i: int, j: int) -> int:
@@ -207,6 +210,8 @@ def chain_sums(name: str, sums: list, a_array: str, b_array: str, out_array: str
     ``pad``: (a, b) words whose product is -0 (1.0 and -0.0); ``u`` terms per iteration;
     ``tracks`` interleaved sums (default: enough for II = 1, ``u`` adder latencies)."""
     d = tracks or u * Fp32Add.LATENCY
+    if any(not terms for _, terms in sums):
+        raise ValueError(f"{name}: a sum with no terms")
     steps = [max(1, math.ceil(len(t) / u)) for _, t in sums]
     load = [0] * d
     lanes: list = [[] for _ in range(d)]
@@ -474,7 +479,7 @@ def _input_segment(name: str, inputs) -> Segment:
 
 
 @lru_cache(maxsize=8)
-def loop_programs(lanes: int = 3) -> dict:
+def loop_programs(lanes: int = DEFAULT_LANES) -> dict:
     """The loop programs of the fp32 engine's five programs; ``lanes`` sets the terms per
     iteration of the chained sums (one per multiplier + adder lane)."""
     alt_gate, alt_apply = _alt()

@@ -1,0 +1,168 @@
+"""Seed 000's programs as segments + loop nests (loop_programs): the same float32 bits as the
+fp32 engine's programs (opflow's compiled executor) for every committed register and every
+output, on random states and on directed cases (zero rows of P, huge and tiny values, NaN and
+infinity), on the default lanes and on one lane; the exact cycles of the default lane count;
+the builders' order of summation and their rejection of malformed tables."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from navgate.numerics.fp32 import float_to_bits
+from navgate.opflow.execute import Machine
+from navgate.opflow.ir import Builder
+from navgate.opflow.loops import run_nest
+from navgate.systems.ins_trn.pl import fp32_program as fp
+from navgate.systems.ins_trn.pl import loop_programs as L
+from navgate.systems.ins_trn.pl.nav_engines import IMU_WORDS, random_registers
+
+KEYS = ("propagate", "alt_gate", "alt_apply", "trn_gate", "trn_apply")
+
+
+@pytest.fixture(scope="module")
+def ref():
+    return Machine(fp.programs())
+
+
+def _state(rng, key):
+    progs = fp.programs()
+    regs = random_registers(rng, list(fp.STATE_REGS) + list(progs[key].inputs))
+    state = {}
+    for n, w in regs.items():
+        if n in IMU_WORDS:
+            state[n] = float(w - (1 << 32) if w >= 1 << 31 else w)
+        else:
+            state[n] = float(np.uint32(w).view(np.float32))
+    inputs = {n: state.pop(n) for n in progs[key].inputs}
+    return state, inputs
+
+
+def _compare(ref, key, state, inputs, lanes=L.DEFAULT_LANES):
+    for n, v in state.items():
+        ref.set(n, v)
+    want_out = ref.run(key, **inputs)
+    got, out = L.run_program(L.loop_programs(lanes)[key], state, inputs)
+    bad = [n for n in fp.STATE_REGS if float_to_bits(got[n]) != float_to_bits(ref.get(n))]
+    assert not bad, f"{key}: {len(bad)} registers differ, first {bad[:4]}"
+    assert set(want_out) <= set(out)
+    bad = [k for k, v in want_out.items() if float_to_bits(out[k]) != float_to_bits(v)]
+    assert not bad, f"{key}: outputs differ: {bad[:4]}"
+    return got
+
+
+@pytest.mark.parametrize("key", KEYS)
+def test_random_states_give_the_fp32_programs_bits(ref, key):
+    rng = np.random.default_rng(29 + KEYS.index(key))
+    for _ in range(40):
+        _compare(ref, key, *_state(rng, key))
+
+
+@pytest.mark.parametrize("lanes", [1, 2, 4])
+def test_propagate_bits_on_other_lane_counts(ref, lanes):
+    """The chained sums are packed differently for each lane count (terms per iteration,
+    tracks, padding): the same bits."""
+    rng = np.random.default_rng(100 + lanes)
+    for _ in range(4):
+        _compare(ref, "propagate", *_state(rng, "propagate"), lanes=lanes)
+
+
+def _directed(rng, key, case):
+    state, inputs = _state(rng, key)
+    p = [(i, j) for i in range(15) for j in range(i, 15)]
+    if case == "zero_rows":  # rows 3..5 and 9 of P zero, with both signs
+        for n, (i, j) in enumerate(p):
+            if i in (3, 4, 5, 9) or j in (3, 4, 5, 9):
+                state[fp.P_REGS[n]] = 0.0 if (i + j) % 2 else -0.0
+                state[fp.CP_REGS[n]] = -0.0
+    elif case == "huge_tiny":  # products overflow to infinity and underflow to zero
+        for n, (i, j) in enumerate(p):
+            state[fp.P_REGS[n]] = (3e38 if (i * 7 + j) % 3 == 0 else
+                                   1e-30 if (i + j) % 3 == 1 else state[fp.P_REGS[n]])
+        state["dt"] = 1e-20 if key == "propagate" else state["dt"]
+    elif case == "nan_inf":
+        state[fp.P_REGS[20]] = float("nan")
+        state[fp.CP_REGS[50]] = float("inf")
+        state[fp.P_REGS[7]] = float("-inf")
+    elif case == "zero_all":
+        for n in range(len(p)):
+            state[fp.P_REGS[n]] = -0.0
+            state[fp.CP_REGS[n]] = 0.0
+    return state, inputs
+
+
+@pytest.mark.parametrize("case", ["zero_rows", "huge_tiny", "nan_inf", "zero_all"])
+@pytest.mark.parametrize("key", KEYS)
+def test_directed_cases_give_the_fp32_programs_bits(ref, key, case):
+    rng = np.random.default_rng(7)
+    got = _compare(ref, key, *_directed(rng, key, case))
+    if case == "nan_inf" and key in ("propagate", "alt_apply", "trn_apply"):
+        # the case reaches P: NaN spreads (not a silent finite value)
+        assert any(np.isnan(got[n]) for n in fp.P_REGS)
+
+
+#: exact cycles of every step on the default lanes (3 multiplier + adder lanes; segments
+#: by opflow's list scheduler, nests by its modulo scheduler)
+CYCLES = {
+    "propagate": [("prop_head", 520), ("cov_M", 391), ("cov_E", 247), ("cov_kahan", 274)],
+    "alt_gate": [("alt_gate", 55)],
+    "alt_apply": [("alt_gate", 55), ("alt_vec", 27), ("alt_joseph", 270), ("alt_corr", 186)],
+    "trn_gate": [("trn_gate", 144)],
+    "trn_apply": [("trn_inputs", 0), ("trn_gate", 144), ("trn_vec", 102),
+                  ("trn_joseph", 413), ("trn_corr", 186)],
+}
+
+
+def test_cycles_of_the_default_lanes_exact():
+    lps = L.loop_programs(L.DEFAULT_LANES)
+    got = {k: [(r[0], r[2]) for r in L.program_cycles(lps[k], L.DEFAULT_LANES)]
+           for k in CYCLES}
+    assert got == CYCLES
+
+
+def test_chain_sums_keep_the_builders_order_and_signs():
+    """chain_sums against Builder.sum run by opflow's executor on cancelling terms (the order
+    matters: the reversed sum differs), with -0 and NaN terms."""
+    rng = np.random.default_rng(3)
+    n_a, n_b = 40, 12
+    a = (rng.standard_normal(n_a) * 10.0 ** rng.integers(-2, 3, n_a)).astype(np.float32)
+    b = (rng.standard_normal(n_b) * 10.0 ** rng.integers(-2, 3, n_b)).astype(np.float32)
+    a[[3, 4]] = [-0.0, np.nan]
+    a[38], b[11] = 1.0, -0.0  # the pad words
+    sums = [(k, [(int(rng.integers(0, 36)), int(rng.integers(0, 11)))
+                 for _ in range(int(rng.integers(1, 9)))]) for k in range(20)]
+    sums.append((20, [(3, 0)]))  # -0 * b: a signed zero alone
+    b[0] = abs(b[0])
+    want = {}
+    reversed_differs = 0
+    for k, terms in sums:
+        for order in (terms, terms[::-1]):
+            bld = Builder("s", registers=[f"a{i}" for i in range(n_a)]
+                          + [f"b{i}" for i in range(n_b)])
+            bld.prog.outputs = {"y": bld.sum([(1, bld.mul(f"a{i}", f"b{j}"))
+                                              for i, j in order])}
+            m = Machine({"s": bld.prog})
+            for i in range(n_a):
+                m.set(f"a{i}", float(a[i]))
+            for j in range(n_b):
+                m.set(f"b{j}", float(b[j]))
+            y = float_to_bits(m.run("s")["y"])
+            if order is terms:
+                want[k] = y
+            else:
+                reversed_differs += y != want[k]
+    assert reversed_differs >= 3  # the order is observable on these terms
+    assert want[20] == 0x80000000  # -0 * positive: the signed zero survives the -0 start
+    for u in (1, 2, 3):
+        nest = L.chain_sums("t", sums, "A", "B", "Y", {"A": n_a, "B": n_b, "Y": 21},
+                            (38, 11), u)
+        got = run_nest(nest, {"A": a.astype(float), "B": b.astype(float),
+                              "Y": np.zeros(21)})["Y"]
+        assert [float_to_bits(v) for v in got] == [want[k] for k in range(21)], u
+
+
+def test_builders_reject_malformed_tables():
+    with pytest.raises(ValueError, match="table has 3 entries, not 4"):
+        L.elementwise("x", 4, {"v": ("A", [0, 1, 2])}, [], [], {"A": 4})
+    with pytest.raises(ValueError, match="no terms"):
+        L.chain_sums("x", [(0, [])], "A", "B", "Y", {"A": 2, "B": 2, "Y": 1}, (0, 1))
