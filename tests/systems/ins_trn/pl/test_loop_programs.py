@@ -38,11 +38,11 @@ def _state(rng, key):
     return state, inputs
 
 
-def _compare(ref, key, state, inputs, lanes=L.DEFAULT_LANES):
+def _compare(ref, key, state, inputs, lanes=L.DEFAULT_LANES, variant="fused"):
     for n, v in state.items():
         ref.set(n, v)
     want_out = ref.run(key, **inputs)
-    got, out = L.run_program(L.loop_programs(lanes)[key], state, inputs)
+    got, out = L.run_program(L.loop_programs(lanes, variant)[key], state, inputs)
     bad = [n for n in fp.STATE_REGS if float_to_bits(got[n]) != float_to_bits(ref.get(n))]
     assert not bad, f"{key}: {len(bad)} registers differ, first {bad[:4]}"
     assert set(want_out) <= set(out)

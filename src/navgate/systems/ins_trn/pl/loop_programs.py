@@ -119,6 +119,7 @@ class LoopProgram:
 
 #: arrays bound to state registers: array -> register names (word order)
 STATE_ARRAYS = {"P": fp.P_REGS, "cP": fp.CP_REGS}
+STATE_WORDS = {n: (a, i) for a, names in STATE_ARRAYS.items() for i, n in enumerate(names)}
 
 
 def run_program(lp: LoopProgram, state: dict, inputs: dict | None = None):
@@ -135,6 +136,7 @@ def run_program(lp: LoopProgram, state: dict, inputs: dict | None = None):
         for i, v in words.items():
             mem[a][i] = v
     outs: dict = {}
+    passed: dict = {}  # segment outputs not written to arrays: read by later segments
     machines = _machines(lp)
     for k, step in enumerate(lp.steps):
         if isinstance(step, LoopNest):
@@ -153,17 +155,24 @@ def run_program(lp: LoopProgram, state: dict, inputs: dict | None = None):
         for name in p.inputs:
             if name in inputs:
                 m.set(name, inputs[name])
+            elif name in passed:
+                m.regs[m.index[name]] = passed[name]
         for name, (a, i) in step.reads.items():
             m.regs[m.index[name]] = mem[a][i]
         out = m.run(p.name)
         for reg in p.commit:
-            regs[reg] = m.get(reg)
+            if reg in STATE_WORDS:
+                a, i = STATE_WORDS[reg]
+                mem[a][i] = m.get(reg)
+            else:
+                regs[reg] = m.get(reg)
         for name, v in out.items():
             if name in step.writes:
                 a, i = step.writes[name]
                 mem[a][i] = v
             else:
                 outs[name] = v
+                passed[name] = v
     for a, names in STATE_ARRAYS.items():
         if a in mem:
             for i, n in enumerate(names):
@@ -329,19 +338,7 @@ def _propagate() -> LoopProgram:
             if i >= 9 and i == j:
                 continue
             m_sums.append((i * N + j, [(pidx(k, j), i * N + k) for k in g_rows[i]]))
-    e_sums = []
-    for i in range(N):
-        for j in range(i, N):
-            if i == j and i >= 9:
-                continue
-            terms = [(i * N + j, F_ONE), (j * N + i, F_ONE)]
-            if j >= 9:
-                terms.append((i * N + j, j * N + j))
-            else:
-                terms += [(i * N + k, j * N + k) for k in g_rows[j]]
-            if i == j and 3 <= i < 9:
-                terms.append((M_ONE, F_QVEL if i < 6 else F_QATT))
-            e_sums.append((pidx(i, j), terms))
+    e_sums = _e_sums(g_rows)
     n = len(P_INDEX)
     kahan = elementwise(
         "cov_kahan", n,
@@ -360,6 +357,144 @@ def _propagate() -> LoopProgram:
     return build
 
 
+#: rows of M = G P formed in the head segment (their G entries are ready early or they are
+#: single products) in the fused variant; the nest forms the others
+HEAD_M_ROWS = (0, 1, 2, 6, 7, 8, 9, 10, 11, 12, 13, 14)
+#: increments E_ij formed by the nest cov_E: those with i or j in these rows (their M rows
+#: come from cov_M); the others in the head (i, j both in HEAD_E_ROWS: single-product rows
+#: of M, ready early) or in the tail
+NEST_E_ROWS = (3, 4, 5)
+HEAD_E_ROWS = (0, 1, 2, 6, 7, 8, 9, 10, 11, 12, 13, 14)
+
+
+def split_segment(prog: Program, head_outputs: dict, head_name: str, tail_name: str):
+    """Split ``prog`` into a head (the ops its ``head_outputs`` need, and the commits of
+    their results) and a tail (every other op and commit): the temporaries of the head that
+    the tail reads become head outputs and tail inputs (passed as registers). Raises if the
+    head would commit a register the tail still reads."""
+    need = set(head_outputs.values())
+    for op in reversed(prog.ops):
+        if op.dst in need:
+            need.update(op.srcs)
+    head_ops = [op for op in prog.ops if op.dst in need]
+    tail_ops = [op for op in prog.ops if op.dst not in need]
+    hd = {op.dst for op in head_ops}
+    imports = list(dict.fromkeys(x for op in tail_ops for x in op.srcs if x in hd))
+    read_by_tail = {x for op in tail_ops for x in op.srcs}
+    # a register the tail still reads keeps its value until the tail commits it (from the
+    # head's result, passed on)
+    late = {r for r, t in prog.commit.items() if t in hd and r in read_by_tail}
+    imports += [t for r, t in prog.commit.items() if r in late and t not in imports]
+    head_commit = {r: t for r, t in prog.commit.items() if t in hd and r not in late}
+    head = Program(head_name, ops=head_ops, inputs=tuple(
+        n for n in prog.inputs if any(n in op.srcs for op in head_ops)),
+        commit=head_commit, outputs=dict(head_outputs) | {t: t for t in imports},
+        registers=prog.registers)
+    tail = Program(tail_name, ops=tail_ops, inputs=tuple(
+        n for n in prog.inputs if any(n in op.srcs for op in tail_ops)) + tuple(imports),
+        commit={r: t for r, t in prog.commit.items() if r not in head_commit},
+        outputs={}, registers=prog.registers)
+    return head, tail
+
+
+def _propagate_fused() -> LoopProgram:
+    """Calibration, mechanization, Phi, the rows HEAD_M_ROWS of M and the bias-diagonal
+    increments in the head segment; nest cov_M (rows 3..5), nest cov_E; the mechanization's
+    tail (velocity and position) and the Kahan step of the 120 elements in the tail segment,
+    where they fill the issue slots the tail's dependency chain leaves free."""
+    ins = ("wg0", "wg1", "wg2", "wa0", "wa1", "wa2")
+    n = len(P_INDEX)
+    b = Builder("propagate", ins + tuple(f"E{k}" for k in range(n)), registers=fp.STATE_REGS)
+    g, a = fp.emit_calibration(b, ins[:3], ins[3:])
+    ft, c_old, f_n, wxyz, ixyz = fp.emit_mechanization(b, g, a, True)
+    phi, _ = fp.emit_phi(b, ft, c_old, f_n, wxyz, ixyz)
+    g_rows = {i: sorted(k for (r, k) in phi if r == i) for i in range(N)}
+    outputs, writes = {}, {}
+
+    def out(name, value, array, word):
+        outputs[name] = value
+        writes[name] = (array, word)
+
+    for (i, k), v in phi.items():
+        if i < 9:
+            out(f"F{i * N + k}", v, "F", i * N + k)
+        else:  # G_jj = -eps for cov_E's bias columns: -(mm eps) = mm (-eps)
+            out(f"F{i * N + k}", b.neg(v), "F", i * N + k)
+    out("Fq_vel", "q_vel", "F", F_QVEL)
+    out("Fq_att", "q_att", "F", F_QATT)
+    b.module = "covariance_propagator"
+    mm = {}
+    for i in HEAD_M_ROWS:  # M rows as the program forms them (emit_covariance_increment)
+        for j in range(N):
+            if i >= 9 and i == j:
+                continue
+            terms = [(1, b.neg(b.mul(phi[i, i], fp.p_reg(i, j))) if i >= 9
+                      else b.mul(phi[i, k], fp.p_reg(k, j))) for k in g_rows[i]]
+            mm[i, j] = b.sum(terms)
+            out(f"M{i * N + j}", mm[i, j], "M", i * N + j)
+    e_val = {k: f"E{k}" for k in range(n)}  # the nest's results, read from array E
+    q = {i: "q_vel" for i in (3, 4, 5)} | {i: "q_att" for i in (6, 7, 8)}
+    for (i, j), k in P_INDEX.items():
+        if i in NEST_E_ROWS or j in NEST_E_ROWS:
+            continue
+        if i == j and i >= 9:
+            qq, e2 = ("q_ba", "e2_a") if i < 12 else ("q_bg", "e2_g")
+            e_val[k] = b.sub(qq, b.mul(e2, fp.p_reg(i, i)))
+            continue
+        terms = [(1, mm[i, j]), (1, mm[j, i])]
+        if j >= 9:
+            terms.append((-1, b.mul(mm[i, j], phi[j, j])))
+        else:
+            terms += [(1, b.mul(mm[i, c], phi[j, c])) for c in g_rows[j]]
+        if i == j and i in q:
+            terms.append((1, q[i]))
+        e_val[k] = b.sum(terms)
+        if set((i, j)) <= set(HEAD_E_ROWS):  # ready early: formed in the head
+            outputs[f"e{k}"] = e_val[k]
+    for k, (i, j) in enumerate(P_INDEX):  # the Kahan step (fp32_program._kahan)
+        pij, cij = fp._kahan(b, fp.p_reg(i, j), "c" + fp.p_reg(i, j), e_val[k])
+        b.prog.commit[fp.p_reg(i, j)] = pij
+        b.prog.commit["c" + fp.p_reg(i, j)] = cij
+    head_p, tail_p = split_segment(b.prog, outputs, "prop_head", "prop_tail")
+    head = Segment(head_p, {}, writes)
+    tail = Segment(tail_p, {f"E{k}": ("E", k) for k in range(n) if e_val[k] == f"E{k}"}, {})
+    arrays = {"P": P_WORDS, "cP": P_WORDS, "F": F_WORDS, "M": M_WORDS, "E": n}
+    rom = {"P": {P_ONE: 1.0}, "F": {F_ONE: 1.0, F_NEGZERO: NEG_ZERO_VALUE},
+           "M": {M_ONE: 1.0, M_NEGZERO: NEG_ZERO_VALUE}}
+    m_sums = [(i * N + j, [(pidx(k, j), i * N + k) for k in g_rows[i]])
+              for i in range(N) if i not in HEAD_M_ROWS for j in range(N)]
+    e_sums = [(k, t) for k, t in _e_sums(g_rows)
+               if e_val[k] == f"E{k}"]
+
+    def build(u):
+        return LoopProgram("propagate", [
+            head,
+            chain_sums("cov_M", m_sums, "P", "F", "M", arrays, (P_ONE, F_NEGZERO), u),
+            chain_sums("cov_E", e_sums, "M", "F", "E", arrays, (M_ONE, F_NEGZERO), u),
+            tail], arrays, rom)
+
+    return build
+
+
+def _e_sums(g_rows) -> list:
+    """The increments E_ij of the stored elements but the bias diagonal, as chained sums
+    over M (A) and F (B): emit_covariance_increment's terms in its order."""
+    e_sums = []
+    for i in range(N):
+        for j in range(i, N):
+            if i == j and i >= 9:
+                continue
+            terms = [(i * N + j, F_ONE), (j * N + i, F_ONE)]
+            if j >= 9:
+                terms.append((i * N + j, j * N + j))
+            else:
+                terms += [(i * N + k, j * N + k) for k in g_rows[j]]
+            if i == j and 3 <= i < 9:
+                terms.append((M_ONE, F_QVEL if i < 6 else F_QATT))
+            e_sums.append((pidx(i, j), terms))
+    return e_sums
+
+
 # ------------------------------------------------------------------ updates
 
 
@@ -367,7 +502,21 @@ def _scalar_arrays(names) -> dict:
     return {"s_" + n: 1 for n in names}
 
 
-def _alt() -> tuple:
+def _with_reset(gate: Program, name: str) -> Program:
+    """The gate program plus the compensation-word reset of the apply half (cP <- cP - cP,
+    fp32_program._joseph), whose 120 subtractions fill the gate's free add slots."""
+    b = Builder(name, gate.inputs, registers=gate.registers)
+    b.prog.ops = list(gate.ops)
+    b._n = max(int(op.dst[1:]) for op in gate.ops)
+    b.module = fp.RESET_MODULE
+    for reg in fp.CP_REGS:
+        b.prog.commit[reg] = b.sub(reg, reg)
+    b.prog.commit.update(gate.commit)
+    b.prog.outputs = dict(gate.outputs)
+    return b.prog
+
+
+def _alt(fused: bool = False) -> tuple:
     gate = fp.altitude_gate_program()
     ops = {op.dst: op for op in gate.ops}
     # the gate's y, s and 1/s (the apply half's, bit for bit: the same ops on the same state)
@@ -381,6 +530,8 @@ def _alt() -> tuple:
     arrays = {"P": P_WORDS, "cP": P_WORDS, "K": N, "C": N, "SK": N, "DX": N} \
         | _scalar_arrays(scal)
     gate_seg = Segment(gate, {}, {k: ("s_" + k, 0) for k in scal})
+    first = Segment(_with_reset(gate, "alt_gate_reset"), {}, gate_seg.writes) if fused \
+        else gate_seg
     idx = range(N)
     vec = elementwise(
         "alt_vec", N,
@@ -396,12 +547,16 @@ def _alt() -> tuple:
          "kj": ("K", [j for _, j in ij]), "ci": ("C", [i for i, _ in ij]),
          "cj": ("C", [j for _, j in ij]), "skj": ("SK", [j for _, j in ij])},
         [("m1", "mul", "ki", "cj"), ("a1", "sub", "p", "m1"), ("m2", "mul", "ci", "kj"),
-         ("a2", "sub", "a1", "m2"), ("m3", "mul", "ki", "skj"), ("a3", "add", "a2", "m3"),
-         ("z", "sub", "cp", "cp")],
-        [("P", range(n), "a3"), ("cP", range(n), "z")], arrays)
+         ("a2", "sub", "a1", "m2"), ("m3", "mul", "ki", "skj"), ("a3", "add", "a2", "m3")]
+        + ([] if fused else [("z", "sub", "cp", "cp")]),
+        [("P", range(n), "a3")] + ([] if fused else [("cP", range(n), "z")]), arrays)
+    if fused:
+        joseph.arrays.pop("cP")
+        joseph.ops = [op for op in joseph.ops if op.dst != "cp"]
+        joseph.tables.pop("t_cp")
     corr = _correction("alt_corr")
     gate_lp = LoopProgram("alt_gate", [gate_seg], arrays)
-    apply_lp = LoopProgram("alt_apply", [gate_seg, vec, joseph, corr], arrays,
+    apply_lp = LoopProgram("alt_apply", [first, vec, joseph, corr], arrays,
                            outputs={f"dx{i}": ("DX", i) for i in idx})
     return gate_lp, apply_lp
 
@@ -414,7 +569,7 @@ def _correction(name: str) -> Segment:
     return Segment(b.prog, {f"dx{i}": ("DX", i) for i in range(N)}, {})
 
 
-def _trn() -> tuple:
+def _trn(fused: bool = False) -> tuple:
     gate = fp.trn_gate_program()
     b = Builder("trn_gate", fp.TRN_INPUTS, registers=fp.STATE_REGS)
     cols, s, det, (i00, i01, i11), nis = fp._trn_common(b)
@@ -426,6 +581,8 @@ def _trn() -> tuple:
             "s11": s[1, 1]}
     prog.outputs |= scal
     gate_seg = Segment(prune(prog), {}, {k: ("s_" + k, 0) for k in scal})
+    first = Segment(_with_reset(gate_seg.prog, "trn_gate_reset"), {}, gate_seg.writes) \
+        if fused else gate_seg
     inputs = ("lag", "y0", "y1")
     arrays = {"P": P_WORDS, "cP": P_WORDS} | {a: N for a in (
         "C0", "C1", "K0", "K1", "SK0", "SK1", "DX")} | _scalar_arrays(tuple(scal) + inputs)
@@ -461,12 +618,16 @@ def _trn() -> tuple:
          ("m3", "mul", "c0i", "k0j"), ("a3", "sub", "a2", "m3"),
          ("m4", "mul", "c1i", "k1j"), ("a4", "sub", "a3", "m4"),
          ("m5", "mul", "k0i", "sk0j"), ("a5", "add", "a4", "m5"),
-         ("m6", "mul", "k1i", "sk1j"), ("a6", "add", "a5", "m6"),
-         ("z", "sub", "cp", "cp")],
-        [("P", range(n), "a6"), ("cP", range(n), "z")], arrays)
+         ("m6", "mul", "k1i", "sk1j"), ("a6", "add", "a5", "m6")]
+        + ([] if fused else [("z", "sub", "cp", "cp")]),
+        [("P", range(n), "a6")] + ([] if fused else [("cP", range(n), "z")]), arrays)
+    if fused:
+        joseph.arrays.pop("cP")
+        joseph.ops = [op for op in joseph.ops if op.dst != "cp"]
+        joseph.tables.pop("t_cp")
     corr = _correction("trn_corr")
     gate_lp = LoopProgram("trn_gate", [gate_seg], arrays)
-    apply_lp = LoopProgram("trn_apply", [in_seg, gate_seg, vec, joseph, corr], arrays,
+    apply_lp = LoopProgram("trn_apply", [in_seg, first, vec, joseph, corr], arrays,
                            outputs={f"dx{i}": ("DX", i) for i in idx})
     return gate_lp, apply_lp
 
@@ -478,13 +639,22 @@ def _input_segment(name: str, inputs) -> Segment:
     return Segment(prog, {}, {k: ("s_" + k, 0) for k in inputs})
 
 
-@lru_cache(maxsize=8)
-def loop_programs(lanes: int = DEFAULT_LANES) -> dict:
+#: the variants: ``plain`` (each part of the programs in a step of its own) and ``fused``
+#: (work moved into the free issue slots of the segments: module docstring)
+VARIANTS = ("plain", "fused")
+
+
+@lru_cache(maxsize=16)
+def loop_programs(lanes: int = DEFAULT_LANES, variant: str = "fused") -> dict:
     """The loop programs of the fp32 engine's five programs; ``lanes`` sets the terms per
     iteration of the chained sums (one per multiplier + adder lane)."""
-    alt_gate, alt_apply = _alt()
-    trn_gate, trn_apply = _trn()
-    return {"propagate": _propagate()(lanes), "alt_gate": alt_gate, "alt_apply": alt_apply,
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown variant {variant!r}; known: {', '.join(VARIANTS)}")
+    fused = variant == "fused"
+    alt_gate, alt_apply = _alt(fused)
+    trn_gate, trn_apply = _trn(fused)
+    prop = (_propagate_fused if fused else _propagate)()(lanes)
+    return {"propagate": prop, "alt_gate": alt_gate, "alt_apply": alt_apply,
             "trn_gate": trn_gate, "trn_apply": trn_apply}
 
 
@@ -512,8 +682,11 @@ def _for_schedule(prog: Program) -> Program:
             v = by[v].srcs[0]
         if v in by:
             outs[k] = v
+    temps = {op.dst for op in prog.ops}
+    # a commit of a value another segment computed is a register copy (not modelled)
+    commit = {r: t for r, t in prog.commit.items() if t in temps}
     return prune(Program(prog.name, ops=list(prog.ops), inputs=prog.inputs,
-                         commit=dict(prog.commit), outputs=outs, registers=prog.registers))
+                         commit=commit, outputs=outs, registers=prog.registers))
 
 
 def segment_cycles(prog: Program, units: BankedUnits) -> int:
