@@ -58,13 +58,22 @@ def test_random_states_give_the_fp32_programs_bits(ref, key):
         _compare(ref, key, *_state(rng, key))
 
 
+@pytest.mark.parametrize("variant", L.VARIANTS)
 @pytest.mark.parametrize("lanes", [1, 2, 4])
-def test_propagate_bits_on_other_lane_counts(ref, lanes):
+def test_bits_on_other_lane_counts_and_variants(ref, lanes, variant):
     """The chained sums are packed differently for each lane count (terms per iteration,
-    tracks, padding): the same bits."""
+    tracks, padding), and the variants split the work differently: the same bits."""
     rng = np.random.default_rng(100 + lanes)
-    for _ in range(4):
-        _compare(ref, "propagate", *_state(rng, "propagate"), lanes=lanes)
+    for key in KEYS:
+        for _ in range(4):
+            _compare(ref, key, *_state(rng, key), lanes=lanes, variant=variant)
+
+
+def test_plain_variant_directed(ref):
+    rng = np.random.default_rng(8)
+    for key in KEYS:
+        for case in ("zero_rows", "huge_tiny", "nan_inf", "zero_all"):
+            _compare(ref, key, *_directed(rng, key, case), variant="plain")
 
 
 def _directed(rng, key, case):
@@ -102,14 +111,15 @@ def test_directed_cases_give_the_fp32_programs_bits(ref, key, case):
 
 
 #: exact cycles of every step on the default lanes (3 multiplier + adder lanes; segments
-#: by opflow's list scheduler, nests by its modulo scheduler)
+#: by opflow's list scheduler, nests by its modulo scheduler), fused variant
 CYCLES = {
-    "propagate": [("prop_head", 520), ("cov_M", 391), ("cov_E", 247), ("cov_kahan", 274)],
+    "propagate": [("prop_head", 422), ("cov_M", 175), ("cov_E", 151), ("prop_tail", 249)],
     "alt_gate": [("alt_gate", 55)],
-    "alt_apply": [("alt_gate", 55), ("alt_vec", 27), ("alt_joseph", 270), ("alt_corr", 186)],
+    "alt_apply": [("alt_gate_reset", 55), ("alt_vec", 27), ("alt_joseph", 151),
+                  ("alt_corr", 186)],
     "trn_gate": [("trn_gate", 144)],
-    "trn_apply": [("trn_inputs", 0), ("trn_gate", 144), ("trn_vec", 102),
-                  ("trn_joseph", 413), ("trn_corr", 186)],
+    "trn_apply": [("trn_inputs", 0), ("trn_gate_reset", 144), ("trn_vec", 102),
+                  ("trn_joseph", 295), ("trn_corr", 186)],
 }
 
 
@@ -159,6 +169,26 @@ def test_chain_sums_keep_the_builders_order_and_signs():
         got = run_nest(nest, {"A": a.astype(float), "B": b.astype(float),
                               "Y": np.zeros(21)})["Y"]
         assert [float_to_bits(v) for v in got] == [want[k] for k in range(21)], u
+
+
+def test_split_segment_passes_values_and_defers_commits():
+    """split_segment: the tail reads the head's temporaries as inputs, and a register the
+    tail still reads is committed by the tail (the head's value passed on)."""
+    b = Builder("p", ("x",), registers=("r", "s"))
+    t1 = b.mul("x", "r")
+    t2 = b.add(t1, "s")
+    b.prog.commit = {"r": t1, "s": b.mul(t2, "r")}
+    b.prog.outputs = {}
+    head, tail = L.split_segment(b.prog, {"h": t1}, "h", "t")
+    assert [op.dst for op in head.ops] == [t1] and head.commit == {}
+    assert t1 in tail.inputs and tail.commit == {"r": t1, "s": b.prog.commit["s"]}
+    for prog in (b.prog, head, tail):
+        assert L.prune(prog).ops == prog.ops  # nothing dead
+
+
+def test_loop_programs_reject_unknown_variant():
+    with pytest.raises(ValueError, match="unknown variant 'x'"):
+        L.loop_programs(3, "x")
 
 
 def test_builders_reject_malformed_tables():
