@@ -96,8 +96,8 @@ def main():
                 for name, kind, cyc, ii in rows:
                     print(f"  {key:10s} {name:16s} {kind:8s} {ii or '':>3} {cyc:7d}")
                 label, target = TARGETS.get(key, (key, None))
-                mark = "" if target is None else (" <= %d met" % target if total <= target
-                                                  else " > %d MISSED" % target)
+                mark = "" if target is None else (f" <= {target} met" if total <= target
+                                                  else f" > {target} MISSED")
                 print(f"  {key:10s} {'= ' + label:16s} {'':8s} {'':>3s} {total:7d}{mark}")
                 run["programs"][key] = {"steps": [{"name": r[0], "kind": r[1], "cycles": r[2],
                                                    "ii": r[3]} for r in rows],

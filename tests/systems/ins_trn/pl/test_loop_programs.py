@@ -69,11 +69,12 @@ def test_bits_on_other_lane_counts_and_variants(ref, lanes, variant):
             _compare(ref, key, *_state(rng, key), lanes=lanes, variant=variant)
 
 
-def test_plain_variant_directed(ref):
+@pytest.mark.parametrize("variant", ["plain", "merged"])
+def test_other_variants_directed(ref, variant):
     rng = np.random.default_rng(8)
     for key in KEYS:
         for case in ("zero_rows", "huge_tiny", "nan_inf", "zero_all"):
-            _compare(ref, key, *_directed(rng, key, case), variant="plain")
+            _compare(ref, key, *_directed(rng, key, case), variant=variant)
 
 
 def _directed(rng, key, case):
@@ -115,11 +116,9 @@ def test_directed_cases_give_the_fp32_programs_bits(ref, key, case):
 CYCLES = {
     "propagate": [("prop_head", 422), ("cov_M", 175), ("cov_E", 151), ("prop_tail", 249)],
     "alt_gate": [("alt_gate", 55)],
-    "alt_apply": [("alt_gate_reset", 55), ("alt_vec", 27), ("alt_joseph", 151),
-                  ("alt_corr", 186)],
+    "alt_apply": [("alt_gate_vec", 69), ("alt_joseph", 151), ("alt_corr", 186)],
     "trn_gate": [("trn_gate", 144)],
-    "trn_apply": [("trn_inputs", 0), ("trn_gate_reset", 144), ("trn_vec", 102),
-                  ("trn_joseph", 295), ("trn_corr", 186)],
+    "trn_apply": [("trn_gate_vec", 189), ("trn_joseph", 295), ("trn_corr", 186)],
 }
 
 

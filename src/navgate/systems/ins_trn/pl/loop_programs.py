@@ -502,17 +502,23 @@ def _scalar_arrays(names) -> dict:
     return {"s_" + n: 1 for n in names}
 
 
+def _extend(prog: Program, name: str) -> Builder:
+    """A builder that continues ``prog`` (its ops, outputs and commits)."""
+    b = Builder(name, prog.inputs, registers=prog.registers)
+    b.prog.ops = list(prog.ops)
+    b._n = max(int(op.dst[1:]) for op in prog.ops)
+    b.prog.commit = dict(prog.commit)
+    b.prog.outputs = dict(prog.outputs)
+    return b
+
+
 def _with_reset(gate: Program, name: str) -> Program:
     """The gate program plus the compensation-word reset of the apply half (cP <- cP - cP,
     fp32_program._joseph), whose 120 subtractions fill the gate's free add slots."""
-    b = Builder(name, gate.inputs, registers=gate.registers)
-    b.prog.ops = list(gate.ops)
-    b._n = max(int(op.dst[1:]) for op in gate.ops)
+    b = _extend(gate, name)
     b.module = fp.RESET_MODULE
     for reg in fp.CP_REGS:
         b.prog.commit[reg] = b.sub(reg, reg)
-    b.prog.commit.update(gate.commit)
-    b.prog.outputs = dict(gate.outputs)
     return b.prog
 
 
@@ -530,9 +536,18 @@ def _alt(fused: bool = False) -> tuple:
     arrays = {"P": P_WORDS, "cP": P_WORDS, "K": N, "C": N, "SK": N, "DX": N} \
         | _scalar_arrays(scal)
     gate_seg = Segment(gate, {}, {k: ("s_" + k, 0) for k in scal})
-    first = Segment(_with_reset(gate, "alt_gate_reset"), {}, gate_seg.writes) if fused \
-        else gate_seg
     idx = range(N)
+    if fused:  # the vector work (C, K, S K, dx) and the reset in the gate's free slots
+        b = _extend(_with_reset(gate, "alt_gate_vec"), "alt_gate_vec")
+        b.module = "kalman_update_engine"
+        writes = {}
+        for i in idx:
+            col = fp.p_reg(i, 2)
+            k = b.mul(col, div.dst)
+            for arr, v in (("K", k), ("SK", b.mul(s, k)), ("DX", b.mul(k, y)), ("C", col)):
+                b.prog.outputs[f"{arr}{i}"] = v
+                writes[f"{arr}{i}"] = (arr, i)
+        first = Segment(b.prog, {}, writes)
     vec = elementwise(
         "alt_vec", N,
         {"col": ("P", [pidx(i, 2) for i in idx]), "inv": ("s_inv", [0] * N),
@@ -556,7 +571,8 @@ def _alt(fused: bool = False) -> tuple:
         joseph.tables.pop("t_cp")
     corr = _correction("alt_corr")
     gate_lp = LoopProgram("alt_gate", [gate_seg], arrays)
-    apply_lp = LoopProgram("alt_apply", [first, vec, joseph, corr], arrays,
+    apply_lp = LoopProgram("alt_apply", [first, joseph, corr] if fused else
+                           [gate_seg, vec, joseph, corr], arrays,
                            outputs={f"dx{i}": ("DX", i) for i in idx})
     return gate_lp, apply_lp
 
@@ -581,8 +597,27 @@ def _trn(fused: bool = False) -> tuple:
             "s11": s[1, 1]}
     prog.outputs |= scal
     gate_seg = Segment(prune(prog), {}, {k: ("s_" + k, 0) for k in scal})
-    first = Segment(_with_reset(gate_seg.prog, "trn_gate_reset"), {}, gate_seg.writes) \
-        if fused else gate_seg
+    if fused:  # C, K, S K, dx (as trn_apply_program) and the reset in the gate's free slots
+        b2 = _extend(prog, "trn_gate_vec")
+        b2.module = "kalman_update_engine"
+        k = [[b2.add(b2.mul(cols[0][i], i00), b2.mul(cols[1][i], i01)) for i in range(N)],
+             [b2.add(b2.mul(cols[0][i], i01), b2.mul(cols[1][i], i11)) for i in range(N)]]
+        writes = {}
+
+        def put(arr, i, v):
+            b2.prog.outputs[f"{arr}{i}"] = v
+            writes[f"{arr}{i}"] = (arr, i)
+
+        for i in range(N):
+            for r in range(2):
+                put(f"C{r}", i, cols[r][i])
+                put(f"K{r}", i, k[r][i])
+                put(f"SK{r}", i, b2.sum([(1, b2.mul(s[min(r, c), max(r, c)], k[c][i]))
+                                         for c in range(2)]))
+            put("DX", i, b2.add(b2.mul(k[0][i], "y0"), b2.mul(k[1][i], "y1")))
+        for nm in scal:
+            b2.prog.outputs.pop(nm)
+        first = Segment(prune(_with_reset(b2.prog, "trn_gate_vec")), {}, writes)
     inputs = ("lag", "y0", "y1")
     arrays = {"P": P_WORDS, "cP": P_WORDS} | {a: N for a in (
         "C0", "C1", "K0", "K1", "SK0", "SK1", "DX")} | _scalar_arrays(tuple(scal) + inputs)
@@ -627,7 +662,8 @@ def _trn(fused: bool = False) -> tuple:
         joseph.tables.pop("t_cp")
     corr = _correction("trn_corr")
     gate_lp = LoopProgram("trn_gate", [gate_seg], arrays)
-    apply_lp = LoopProgram("trn_apply", [in_seg, first, vec, joseph, corr], arrays,
+    apply_lp = LoopProgram("trn_apply", [first, joseph, corr] if fused else
+                           [in_seg, gate_seg, vec, joseph, corr], arrays,
                            outputs={f"dx{i}": ("DX", i) for i in idx})
     return gate_lp, apply_lp
 
@@ -639,9 +675,40 @@ def _input_segment(name: str, inputs) -> Segment:
     return Segment(prog, {}, {k: ("s_" + k, 0) for k in inputs})
 
 
-#: the variants: ``plain`` (each part of the programs in a step of its own) and ``fused``
-#: (work moved into the free issue slots of the segments: module docstring)
-VARIANTS = ("plain", "fused")
+#: the variants: ``plain`` (each part of the programs in a step of its own), ``fused`` (work
+#: moved into the free issue slots of the segments: module docstring) and ``merged`` (fused,
+#: with each update one straight-line segment: gate and apply with their common ops once)
+VARIANTS = ("plain", "fused", "merged")
+
+
+def fuse_programs(first: Program, second: Program, name: str) -> Program:
+    """``first`` then ``second`` as one program when both read the same state and inputs and
+    nothing is written between them: ``second``'s ops that repeat an op of ``first`` (same
+    kind and operands after renaming) read ``first``'s result; outputs of both, commits of
+    ``second`` (``first`` must commit nothing)."""
+    if first.commit:
+        raise ValueError(f"{first.name} commits registers: it cannot be fused before "
+                         f"{second.name}")
+    sig = {(op.kind, op.srcs): op.dst for op in first.ops}
+    taken = {op.dst for op in first.ops}
+    ren: dict = {}
+    ops = list(first.ops)
+    for op in second.ops:
+        srcs = tuple(ren.get(x, x) for x in op.srcs)
+        hit = sig.get((op.kind, srcs))
+        if hit is not None:
+            ren[op.dst] = hit
+            continue
+        dst = op.dst if op.dst not in taken else f"{op.dst}b"
+        ren[op.dst] = dst
+        taken.add(dst)
+        sig[(op.kind, srcs)] = dst
+        ops.append(type(op)(dst, op.kind, srcs, op.module))
+    return Program(name, ops=ops, inputs=tuple(dict.fromkeys(first.inputs + second.inputs)),
+                   commit={r: ren.get(t, t) for r, t in second.commit.items()},
+                   outputs=dict(first.outputs) | {k: ren.get(v, v)
+                                                   for k, v in second.outputs.items()},
+                   registers=first.registers)
 
 
 @lru_cache(maxsize=16)
@@ -650,9 +717,17 @@ def loop_programs(lanes: int = DEFAULT_LANES, variant: str = "fused") -> dict:
     iteration of the chained sums (one per multiplier + adder lane)."""
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; known: {', '.join(VARIANTS)}")
-    fused = variant == "fused"
+    fused = variant != "plain"
     alt_gate, alt_apply = _alt(fused)
     trn_gate, trn_apply = _trn(fused)
+    if variant == "merged":
+        progs = fp.programs()
+        alt_apply = LoopProgram("alt_apply", [Segment(fuse_programs(
+            progs["alt_gate"], progs["alt_apply"], "alt_update"))],
+            {"P": P_WORDS, "cP": P_WORDS})
+        trn_apply = LoopProgram("trn_apply", [Segment(fuse_programs(
+            progs["trn_gate"], progs["trn_apply"], "trn_update"))],
+            {"P": P_WORDS, "cP": P_WORDS})
     prop = (_propagate_fused if fused else _propagate)()(lanes)
     return {"propagate": prop, "alt_gate": alt_gate, "alt_apply": alt_apply,
             "trn_gate": trn_gate, "trn_apply": trn_apply}
