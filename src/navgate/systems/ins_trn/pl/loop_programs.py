@@ -9,20 +9,35 @@ loop-nest IR, executor and modulo scheduler of :mod:`navgate.opflow.loops`; the 
 scheduler of :mod:`navgate.opflow.schedule` for the segments. docs/seed000-loop-programs.md
 describes the decomposition, the exactness arguments and the cycle figures.
 
-Programs (:func:`loop_programs`)
---------------------------------
-* ``propagate``: segment ``prop_head`` (calibration, mechanization, Phi, the six bias-diagonal
-  increments), nest ``cov_M`` (M = G P over G's non-zeros, G = Phi - I), nest ``cov_E`` (the
-  increments E_ij of the 120 stored elements), nest ``cov_kahan`` (P and cP by the Kahan
-  step);
-* ``alt_gate`` / ``trn_gate``: the gate programs (dead ops removed) writing the scalars the
-  apply half reuses; ``alt_apply`` / ``trn_apply``: nest ``*_vec`` (C = P H', K, S K, dx per
-  state), nest ``*_joseph`` (the Joseph update of the 120 elements and the compensation-word
-  reset), segment ``*_corr`` (the state correction).
+Programs (:func:`loop_programs`, variant ``fused``, the default)
+-----------------------------------------------------------------
+* ``propagate``: segment ``prop_head`` (calibration, mechanization, Phi's entries into array
+  ``F``; the rows of M = G P (G = Phi - I) whose G entries are ready early or are single
+  products, into array ``M``; the increments E_ij that need no other rows of M), nest
+  ``cov_M`` (M's rows 3..5: chained sums over ``P`` x ``F``), nest ``cov_E`` (the increments
+  that involve states 3..5: chained sums over ``M`` x ``F``), segment ``prop_tail`` (the
+  velocity and position half of the mechanization, and the Kahan step of P and cP for the
+  120 elements: its adds fill the slots the tail's dependency chain leaves free);
+* ``alt_gate`` / ``trn_gate``: the gate programs (``trn_gate`` without its dead ops);
+* ``alt_apply`` / ``trn_apply`` (gate and apply fused, run when the sequencer applies an
+  update): segment ``*_gate_vec`` (the gate, C = P H', K, S K, dx, and the
+  compensation-word reset cP <- cP - cP, into arrays), nest ``*_joseph`` (the Joseph update
+  of the 120 elements, one element per iteration), segment ``*_corr`` (the state
+  correction from dx).
+
+Variant ``plain``: each part in a step of its own (head, cov_M over every row, cov_E over
+every element, a Kahan nest; gate, a vector nest, a Joseph nest with the reset, the
+correction). Variant ``merged``: ``fused``, but each update one straight-line segment (gate
+and apply with their common ops once, :func:`fuse_programs`), the comparison that shows
+what the sequential step model costs (docs/seed000-loop-programs.md).
+
+Segments pass values to later steps through arrays (``writes``/``reads``) or as registers
+(outputs that are not written to arrays; :func:`split_segment`); their commits to P and cP
+go to those arrays.
 
 Exactness
 ---------
-Every sum keeps the fp32 program's left-to-right order. Three identities carry the rest, each
+Every sum keeps the fp32 program's left-to-right order. These identities carry the rest, each
 exact in float32 with round to nearest even (and in :mod:`navgate.numerics.fp32`):
 ``(-0) + x = x`` for every x (so a chain starts from -0 and adds its first term),
 ``x * 1 = x`` (a term that is a value, not a product), ``a - b = a + (-b)`` and
