@@ -195,3 +195,53 @@ def test_builders_reject_malformed_tables():
         L.elementwise("x", 4, {"v": ("A", [0, 1, 2])}, [], [], {"A": 4})
     with pytest.raises(ValueError, match="no terms"):
         L.chain_sums("x", [(0, [])], "A", "B", "Y", {"A": 2, "B": 2, "Y": 1}, (0, 1))
+
+
+def _machine_runner(lanes, seen):
+    """Run each nest on opflow's loop machine in Amaranth's simulator (its modulo schedule
+    on ``lanes`` lanes); records (cycles start -> done, the schedule's cycles)."""
+    from navgate.opflow.loopmachine import simulate
+    from navgate.opflow.loops import modulo_schedule
+
+    units = L.lane_units(lanes)[1]
+
+    def run(nest, mems):
+        s = modulo_schedule(nest, units)
+        (got, n), = simulate(s, mems)
+        seen[nest.name] = (n, s.cycles)
+        return {a: w.view(np.float32).astype(np.float64) for a, w in got.items()}
+
+    return run
+
+
+def _on_machine(ref, keys, variant, lanes, seed):
+    rng = np.random.default_rng(seed)
+    seen: dict = {}
+    for key in keys:
+        state, inputs = _state(rng, key)
+        for n, v in state.items():
+            ref.set(n, v)
+        want_out = ref.run(key, **inputs)
+        got, out = L.run_program(L.loop_programs(lanes, variant)[key], state, inputs,
+                                 _machine_runner(lanes, seen))
+        assert all(float_to_bits(got[n]) == float_to_bits(ref.get(n)) for n in fp.STATE_REGS)
+        assert all(float_to_bits(out[k]) == float_to_bits(v) for k, v in want_out.items())
+    return seen
+
+
+def test_nests_on_the_loop_machine_bit_exact(ref):
+    """The default propagate and 1-D update with their nests run by opflow's loop machine
+    (Amaranth simulation, 3 lanes): the fp32 programs' bits, done one cycle after the
+    schedule's cycles."""
+    seen = _on_machine(ref, ("propagate", "alt_apply"), "fused", L.DEFAULT_LANES, 11)
+    assert seen == {"cov_M": (176, 175), "cov_E": (152, 151), "alt_joseph": (152, 151)}
+
+
+@pytest.mark.slow
+def test_more_nests_on_the_loop_machine_bit_exact(ref):
+    """The 2-D update's Joseph nest (3 lanes), and every nest of the plain variant on 2
+    lanes (the Kahan and vector nests, one-word scalar arrays)."""
+    seen = _on_machine(ref, ("trn_apply",), "fused", L.DEFAULT_LANES, 13)
+    assert seen == {"trn_joseph": (296, 295)}
+    seen = _on_machine(ref, ("propagate", "alt_apply", "trn_apply"), "plain", 2, 12)
+    assert all(n == c + 1 for n, c in seen.values()) and len(seen) == 7

@@ -137,10 +137,13 @@ STATE_ARRAYS = {"P": fp.P_REGS, "cP": fp.CP_REGS}
 STATE_WORDS = {n: (a, i) for a, names in STATE_ARRAYS.items() for i, n in enumerate(names)}
 
 
-def run_program(lp: LoopProgram, state: dict, inputs: dict | None = None):
+def run_program(lp: LoopProgram, state: dict, inputs: dict | None = None, nest_runner=None):
     """Run ``lp`` from ``state`` (register name -> float32 value as float; every register of
     fp32_program.STATE_REGS) and ``inputs``; returns (new state, outputs: segment outputs
-    that are not written to arrays, and ``lp.outputs``)."""
+    that are not written to arrays, and ``lp.outputs``). ``nest_runner(nest, memories)``
+    runs the nests (default :func:`navgate.opflow.loops.run_nest`; e.g. the loop machine in
+    simulation)."""
+    nest_runner = nest_runner or run_nest
     inputs = dict(inputs or {})
     regs = {k: to_f32(v) for k, v in state.items()}
     mem = {a: np.zeros(w) for a, w in lp.arrays.items()}
@@ -155,8 +158,8 @@ def run_program(lp: LoopProgram, state: dict, inputs: dict | None = None):
     machines = _machines(lp)
     for k, step in enumerate(lp.steps):
         if isinstance(step, LoopNest):
-            got = run_nest(step, {a: mem[a] for a in step.arrays})
-            mem.update(got)
+            got = nest_runner(step, {a: mem[a].copy() for a in step.arrays})
+            mem.update({a: np.asarray(v, np.float64) for a, v in got.items()})
             continue
         m = machines[k]
         p = step.prog
