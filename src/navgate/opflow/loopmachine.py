@@ -40,7 +40,13 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Mul
 from navgate.numerics import fp32 as F
-from navgate.opflow.loops import ADDR_READY, LoopSchedule, addresses, iteration_indices
+from navgate.opflow.loops import (
+    ADDR_READY,
+    LoopError,
+    LoopSchedule,
+    addresses,
+    iteration_indices,
+)
 
 __all__ = ["LoopMachine", "to_bits", "simulate"]
 
@@ -61,6 +67,10 @@ class LoopMachine(wiring.Component):
     def __init__(self, schedule: LoopSchedule, init: dict | None = None):
         self.schedule = schedule
         nest = schedule.nest
+        other = sorted({op.kind for op in nest.ops} - {"load", "add", "sub", "mul"})
+        if other:
+            raise LoopError(f"{nest.name}: the one-nest LoopMachine runs load/add/sub/mul only, "
+                            f"not {other}: use navgate.opflow.sequence.SequenceMachine")
         init = init or {}
         self.memories = {name: Memory(shape=unsigned(32), depth=words,
                                       init=to_bits(init.get(name, np.zeros(words, np.uint32))))
