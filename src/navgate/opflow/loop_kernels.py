@@ -19,7 +19,12 @@ kernels used to prove the loop toolchain (executor, modulo scheduler, loop machi
   root and sign flips;
 * :func:`sym_rank1_update_loaded`: ``P <- P + (g v) v^T`` with the scale ``g`` read from a
   memory word (written by an earlier segment of a sequence);
-* :func:`diag_compare`: ``lt``/``le`` of a symmetric matrix's diagonal against a vector.
+* :func:`diag_compare`: ``lt``/``le`` of a symmetric matrix's diagonal against a vector;
+* :func:`vector_sqrt_div`: ``z_i <- sqrt(x_i) / y_i`` (the iterative units once per
+  iteration: II is the divider's interval);
+* :func:`chain_program`: a :class:`~navgate.opflow.sequence.SequenceProgram` of these
+  segments over shared memories, with several entry points (a straight-line scalar segment
+  feeding a sparse mat-vec feeding a rank-1 update, then a compare).
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ from navgate.opflow.loops import Acc, Addr, Cond, LoopNest, LOp, Store
 
 __all__ = ["upper_index", "sym_rank1_update", "sparse_matvec", "dense_matvec",
            "dense_matvec_interleaved", "scalar_div_sqrt", "sym_rank1_update_loaded",
-           "diag_compare"]
+           "diag_compare", "vector_sqrt_div", "chain_program"]
 
 
 def upper_index(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -154,3 +159,31 @@ def diag_compare(n: int, matrix: str = "P", vector: str = "y", out: str = "c") -
     return LoopNest(f"diag_compare_{n}", (n,), {matrix: len(rows), vector: n, out: 2 * n},
                     {"diag": diag}, ops, [],
                     [Store(out, Addr(None, (1,)), "a"), Store(out, Addr(None, (1,), n), "b")])
+
+
+def vector_sqrt_div(n: int, num: str = "x", den: str = "y", out: str = "z") -> LoopNest:
+    """``out[i] <- sqrt(num[i]) / den[i]``."""
+    ops = [LOp("u", "load", (num,), Addr(None, (1,))),
+           LOp("v", "load", (den,), Addr(None, (1,))),
+           LOp("r", "sqrt", ("u",)), LOp("q", "div", ("r", "v"))]
+    return LoopNest(f"vector_sqrt_div_{n}", (n,), {num: n, den: n, out: n}, {}, ops, [],
+                    [Store(out, Addr(None, (1,)), "q")])
+
+
+def chain_program(n: int, rows, cols):
+    """Segments ``prep`` (:func:`scalar_div_sqrt` on ``s``), ``spmv`` (``y <- A x``, the
+    sparse pattern ``rows``/``cols``), ``rank1`` (``P <- P + (s[3] y) y^T``), ``cmp``
+    (:func:`diag_compare` of P against y into ``c``) and ``norm`` (``z <- sqrt(x) / y``);
+    entries ``all`` (prep, spmv, rank1, cmp), ``update`` (rank1, cmp), ``norm`` and
+    ``prep``."""
+    from navgate.opflow.sequence import SequenceProgram
+
+    segs = {"prep": scalar_div_sqrt(), "spmv": sparse_matvec(rows, cols, n, n),
+            "rank1": sym_rank1_update_loaded(n), "cmp": diag_compare(n),
+            "norm": vector_sqrt_div(n)}
+    arrays: dict = {}
+    for nest in segs.values():
+        arrays.update(nest.arrays)
+    return SequenceProgram(f"chain_{n}", arrays, segs,
+                           {"all": ("prep", "spmv", "rank1", "cmp"), "update": ("rank1", "cmp"),
+                            "norm": ("norm",), "prep": ("prep",)})

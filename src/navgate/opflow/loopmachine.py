@@ -69,6 +69,7 @@ class LoopMachine(wiring.Component):
         nest = schedule.nest
         other = sorted({op.kind for op in nest.ops} - {"load", "add", "sub", "mul"})
         if other:
+            self._MustUse__silence = True  # never elaborated: no "unused" warning
             raise LoopError(f"{nest.name}: the one-nest LoopMachine runs load/add/sub/mul only, "
                             f"not {other}: use navgate.opflow.sequence.SequenceMachine")
         init = init or {}

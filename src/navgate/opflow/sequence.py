@@ -43,7 +43,9 @@ datapath:
   them) and flag generators (level conditions, ROM flag tables); each segment's iteration
   valid bits clear at its start, so no write of one segment can fire in another;
 * **host port** as the loop machine's: while idle, read port 0 and the write port of each
-  memory serve ``host_addr`` (array number << ``array_bits`` | word).
+  memory serve ``host_addr`` (array number << ``array_bits`` | word); written words are
+  flushed (a subnormal becomes the zero of its sign), as :func:`run_sequence` reads its
+  memories, so a word written and never computed on reads back as the executor's.
 
 Handshake: ``start`` (one cycle, while ``busy`` is low; ``entry`` = the entry's number,
 :meth:`SequenceMachine.entry_index`; an unknown number is ignored) runs the entry; segment
@@ -581,6 +583,11 @@ class SequenceMachine(wiring.Component):
         ab = self.array_bits
         host_sel = Signal.like(self.host_addr[ab:], name="host_sel")
         m.d.sync += host_sel.eq(self.host_addr[ab:])
+        # host words are flushed on the way in (a subnormal -> the zero of its sign), as
+        # run_sequence reads its memories
+        host_flushed = Signal(32)
+        hw = self.host_wdata
+        m.d.comb += host_flushed.eq(Mux(hw[23:31] == 0, Cat(Const(0, 31), hw[31]), hw))
         for k, name in enumerate(self.arrays):
             for key, rp in read_ports.items():
                 if key[0] == ("read", name):
@@ -598,7 +605,7 @@ class SequenceMachine(wiring.Component):
                 drive(("wdata", name), wp.data)
             with m.Else():
                 m.d.comb += [wp.en.eq(self.host_we & (self.host_addr[ab:] == k)),
-                             wp.addr.eq(self.host_addr[:ab]), wp.data.eq(self.host_wdata)]
+                             wp.addr.eq(self.host_addr[:ab]), wp.data.eq(host_flushed)]
 
         # ---- segment loading (last: it overrides the counters' updates) -----------------
         with m.If(load):
@@ -612,24 +619,30 @@ class SequenceMachine(wiring.Component):
 def simulate_sequence(schedule: SequenceSchedule, memories: dict, entries: list,
                       init: dict | None = None, vcd: str | None = None):
     """Run the sequence machine in Amaranth's simulator: write ``memories`` through the host
-    port, then for each entry in ``entries`` start it, count the cycles from the start cycle
-    to ``done`` and read every array back. Returns one (array -> uint32 words, cycles) per
-    entry run."""
+    port, then for each item of ``entries`` (an entry name, or (entry, memories to write
+    first or None)) start it, count the cycles from the start cycle to ``done`` and read
+    every array back. Returns one (array -> uint32 words, cycles) per entry run."""
     from amaranth.sim import Simulator
 
     dut = SequenceMachine(schedule, init)
     prog = schedule.program
     out: list = []
 
-    async def bench(ctx):
-        for name, values in memories.items():
+    async def write(ctx, mems):
+        for name, values in mems.items():
             for i, w in enumerate(to_bits(values)):
                 ctx.set(dut.host_we, 1)
                 ctx.set(dut.host_addr, dut.host_address(name, i))
                 ctx.set(dut.host_wdata, w)
                 await ctx.tick()
         ctx.set(dut.host_we, 0)
-        for entry in entries:
+
+    async def bench(ctx):
+        await write(ctx, memories)
+        for item in entries:
+            entry, mems = (item, None) if isinstance(item, str) else item
+            if mems:
+                await write(ctx, mems)
             ctx.set(dut.entry, dut.entry_index(entry))
             ctx.set(dut.start, 1)
             await ctx.tick()

@@ -1,0 +1,163 @@
+"""Sequences of loop nests (navgate.opflow.sequence) and the new loop-body kinds (div, sqrt,
+neg, lt, le): the executor against the bit-true interpreter and numpy float32, the modulo
+scheduler with the non-pipelined iterative units, and the sequence machine in Amaranth's
+simulator, bit-exact against the executor with exact cycle counts, at 1 and 2 lanes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32DivIter, Fp32Mul, Fp32SqrtIter
+from navgate.numerics.fp32 import floats_to_bits
+from navgate.opflow import loop_kernels as K
+from navgate.opflow.execute import run_bittrue
+from navgate.opflow.loopmachine import LoopMachine
+from navgate.opflow.loops import LoopError, LoopUnits, modulo_schedule, run_nest, unroll
+from navgate.opflow.sequence import (
+    SequenceProgram,
+    run_sequence,
+    schedule_sequence,
+    simulate_sequence,
+)
+
+from .conftest import SPECIAL, memories
+
+ROWS, COLS = [0, 0, 2, 2, 2, 3, 5, 5], [1, 4, 0, 2, 3, 4, 0, 5]
+DIV_I, SQRT_I = Fp32DivIter.INTERVAL, Fp32SqrtIter.INTERVAL
+
+
+def new_kind_nests():
+    return [K.scalar_div_sqrt(), K.diag_compare(5), K.vector_sqrt_div(4),
+            K.sym_rank1_update_loaded(4)]
+
+
+@pytest.mark.parametrize("special", [False, True])
+def test_new_kinds_executor_equals_bittrue_interpreter(special):
+    rng = np.random.default_rng(21 + special)
+    for nest in new_kind_nests():
+        for _ in range(4):
+            mems = memories(nest, rng, special)
+            got = run_nest(nest, mems)
+            prog, regs = unroll(nest)
+            state = {r: floats_to_bits([mems[a][i]])[0] for r, (a, i) in regs.items()}
+            new, _, _ = run_bittrue(prog, state, {})
+            for r, (a, i) in regs.items():
+                assert int(new[r][0]) == int(floats_to_bits([got[a][i]])[0]), (nest.name, r)
+
+
+def test_new_kinds_against_numpy_float32():
+    f = np.float32
+    got = run_nest(K.scalar_div_sqrt(), {"s": np.array([3.0, 7.0, 2.0, 0, 0, 0])})["s"]
+    q, r = f(3.0) / f(7.0), np.sqrt(f(2.0))
+    assert np.array_equal(floats_to_bits(got[3:]), floats_to_bits([-q * r, -r, q + r]))
+    # directed: x/0 = -inf (sign of x), sqrt(-0) = -0 (its negation +0), sqrt(-1) = NaN,
+    # a subnormal dividend is flushed to zero
+    got = run_nest(K.scalar_div_sqrt(), {"s": np.array([-1.0, 0.0, -0.0, 0, 0, 0])})["s"]
+    assert np.isnan(got[3])  # q = -inf, r = -0: (-q) r = inf * -0 = NaN
+    assert got[4] == 0.0 and not np.signbit(got[4]) and got[5] == -np.inf
+    got = run_nest(K.scalar_div_sqrt(), {"s": np.array([1e-40, 2.0, -4.0, 0, 0, 0])})["s"]
+    assert np.isnan(got[3]) and np.isnan(got[4]) and np.isnan(got[5])
+    got = run_nest(K.scalar_div_sqrt(), {"s": np.array([1e-40, 2.0, 4.0, 0, 0, 0])})["s"]
+    assert got[3] == 0.0 and np.signbit(got[3]) and got[4] == -2.0 and got[5] == 2.0
+    nest = K.diag_compare(3)
+    p = np.array([1.0, 9, 9, 2.0, 9, np.nan])  # diagonal 1, 2, NaN
+    got = run_nest(nest, {"P": p, "y": np.array([2.0, -2.0, 0.0]), "c": np.zeros(6)})["c"]
+    # 1 < 2, not 2 < -2, NaN unordered; -2 <= 1, 2 <= 2, NaN unordered
+    assert list(got) == [1.0, 0.0, 0.0, 1.0, 1.0, 0.0]
+
+
+def test_scheduler_blocks_the_iterative_units_for_their_interval():
+    s = modulo_schedule(K.vector_sqrt_div(5))
+    assert (s.ii, s.res_mii) == (DIV_I, DIV_I)  # one divide per iteration: II = interval
+    assert s.depth == 1 + 1 + Fp32SqrtIter.LATENCY + Fp32DivIter.LATENCY + 1
+    assert s.cycles == 4 * DIV_I + s.depth
+    # a straight line is list-scheduled: div and sqrt overlap on their own units, II = depth
+    s = modulo_schedule(K.scalar_div_sqrt())
+    assert s.ii == s.depth == s.cycles
+    assert s.time["q"] == 2 and s.time["r"] == 3  # the second load port serves z a cycle late
+    assert s.time["g"] == s.ready["q"] == 2 + Fp32DivIter.LATENCY  # neg costs nothing
+    # compare: pipelined, latency of Fp32Compare
+    s = modulo_schedule(K.diag_compare(4))
+    assert s.ready["a"] == s.time["a"] + Fp32Compare.LATENCY
+    assert LoopUnits().latency("mul") == Fp32Mul.LATENCY
+    assert LoopUnits().occupancy("add") == 1 and LoopUnits().occupancy("sqrt") == SQRT_I
+
+
+def _chain_memories(prog, rng, special=False):
+    mems = {}
+    for name, words in prog.arrays.items():
+        v = rng.standard_normal(words) * np.exp(rng.uniform(-3, 3, words))
+        if special:
+            v = rng.choice(SPECIAL, words)
+        v = v.astype(np.float32).astype(np.float64)
+        v[np.abs(v) < 2.0**-126] *= 0.0
+        mems[name] = v
+    mems["x"] = np.abs(mems["x"])
+    return mems
+
+
+@pytest.mark.parametrize("lanes", [1, 2])
+def test_sequence_machine_bit_exact_with_exact_cycles(lanes):
+    """Entries run one after another on the same memories: all (scalar div/sqrt -> sparse
+    mat-vec -> rank-1 update with the scalar -> compares), update, norm (sqrt/div per
+    iteration), then prep again on directed edge cases written between runs."""
+    prog = K.chain_program(6, ROWS, COLS)
+    sch = schedule_sequence(prog, lanes)
+    rank1 = sch.schedules["rank1"]
+    assert rank1.ii == (2 if lanes == 1 else 1)  # two multiplies per stored element
+    assert sch.schedules["spmv"].ii == Fp32Add.LATENCY
+    assert sch.schedules["norm"].ii == DIV_I
+    rng = np.random.default_rng(5 + lanes)
+    mems = _chain_memories(prog, rng)
+    edge = [np.array([-1.0, 0.0, -0.0, 0, 0, 0]), np.array([1e-40, 2.0, -4.0, 0, 0, 0]),
+            np.array([np.inf, np.inf, np.inf, 0, 0, 0])]
+    runs = [("all", None), ("update", None), ("norm", None)] + [("prep", {"s": e})
+                                                               for e in edge]
+    got = simulate_sequence(sch, mems, runs)
+    want = mems
+    for (entry, write), (words, cycles) in zip(runs, got, strict=True):
+        if write:
+            want = {**want, **write}
+        want = run_sequence(prog, want, entry)
+        assert cycles == sch.cycles(entry), entry
+        for name in prog.arrays:
+            assert np.array_equal(words[name], floats_to_bits(want[name])), (entry, name)
+    assert sch.cycles("update") == sum(sch.schedules[s].cycles + 1 for s in ("rank1", "cmp"))
+
+
+def test_sequence_machine_special_values():
+    prog = K.chain_program(6, ROWS, COLS)
+    sch = schedule_sequence(prog, 1)
+    mems = _chain_memories(prog, np.random.default_rng(9), special=True)
+    runs = [("all", None), ("norm", None)]
+    want = mems
+    for (entry, _), (words, cycles) in zip(runs, simulate_sequence(sch, mems, runs),
+                                           strict=True):
+        want = run_sequence(prog, want, entry)
+        assert cycles == sch.cycles(entry)
+        for name in prog.arrays:
+            assert np.array_equal(words[name], floats_to_bits(want[name])), (entry, name)
+
+
+def test_bad_programs_and_inputs_are_rejected():
+    prog = K.chain_program(4, [0, 1, 3], [1, 2, 0])
+    with pytest.raises(LoopError, match="unknown entry"):
+        run_sequence(prog, {}, "nope")
+    with pytest.raises(LoopError, match="lanes must be"):
+        schedule_sequence(prog, 5)
+    with pytest.raises(LoopError, match="lanes must be"):
+        schedule_sequence(prog, 0)
+    with pytest.raises(LoopError, match="needs 6 words"):
+        run_sequence(prog, {"s": np.zeros(5)}, "prep")
+    bad = SequenceProgram("bad", {**prog.arrays, "y": 3}, prog.segments, prog.entries)
+    with pytest.raises(LoopError, match="array y of 4 words"):
+        schedule_sequence(bad)
+    bad = SequenceProgram("bad", prog.arrays, prog.segments, {"e": ("prep", "nope")})
+    with pytest.raises(LoopError, match="unknown segment nope"):
+        schedule_sequence(bad)
+    bad = SequenceProgram("bad", prog.arrays, prog.segments, {"e": ()})
+    with pytest.raises(LoopError, match="runs no segment"):
+        schedule_sequence(bad)
+    with pytest.raises(LoopError, match="SequenceMachine"):
+        LoopMachine(modulo_schedule(K.vector_sqrt_div(3)))
