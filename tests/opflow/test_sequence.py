@@ -97,16 +97,16 @@ def _chain_memories(prog, rng, special=False):
     return mems
 
 
-@pytest.mark.parametrize("lanes", [1, 2])
-def test_sequence_machine_bit_exact_with_exact_cycles(lanes):
+@pytest.mark.parametrize("lanes, registered", [(1, True), (2, True), (1, False)])
+def test_sequence_machine_bit_exact_with_exact_cycles(lanes, registered):
     """Entries run one after another on the same memories: all (scalar div/sqrt -> sparse
     mat-vec -> rank-1 update with the scalar -> compares), update, norm (sqrt/div per
     iteration), then prep again on directed edge cases written between runs."""
     prog = K.chain_program(6, ROWS, COLS)
-    sch = schedule_sequence(prog, lanes)
+    sch = schedule_sequence(prog, lanes, registered=registered)
     rank1 = sch.schedules["rank1"]
     assert rank1.ii == (2 if lanes == 1 else 1)  # two multiplies per stored element
-    assert sch.schedules["spmv"].ii == Fp32Add.LATENCY
+    assert sch.schedules["spmv"].ii == Fp32Add.LATENCY + registered  # the recurrence
     assert sch.schedules["norm"].ii == DIV_I
     rng = np.random.default_rng(5 + lanes)
     mems = _chain_memories(prog, rng)
@@ -161,3 +161,5 @@ def test_bad_programs_and_inputs_are_rejected():
         schedule_sequence(bad)
     with pytest.raises(LoopError, match="SequenceMachine"):
         LoopMachine(modulo_schedule(K.vector_sqrt_div(3)))
+    with pytest.raises(LoopError, match="load_latency 1"):
+        LoopMachine(modulo_schedule(K.sym_rank1_update(3), LoopUnits(load_latency=2)))

@@ -67,6 +67,11 @@ class LoopMachine(wiring.Component):
     def __init__(self, schedule: LoopSchedule, init: dict | None = None):
         self.schedule = schedule
         nest = schedule.nest
+        u = schedule.units
+        if u.load_latency != 1 or u.operand_stage != 0:
+            self._MustUse__silence = True  # never elaborated: no "unused" warning
+            raise LoopError(f"{nest.name}: the one-nest LoopMachine needs load_latency 1 and "
+                            "no operand stage: use navgate.opflow.sequence.SequenceMachine")
         other = sorted({op.kind for op in nest.ops} - {"load", "add", "sub", "mul"})
         if other:
             self._MustUse__silence = True  # never elaborated: no "unused" warning

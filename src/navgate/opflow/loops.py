@@ -457,12 +457,20 @@ class LoopUnits:
     div: int = 1
     sqrt: int = 1
     cmp: int = 1
+    #: cycles from a load's address to its word (2: the memory's output registered)
+    load_latency: int = LOAD_LATENCY
+    #: register stages between the operand multiplexers and every unit's input (0 or 1)
+    operand_stage: int = 0
 
     def latency(self, kind: str) -> int:
-        return {"load": LOAD_LATENCY, "mul": Fp32Mul.LATENCY, "add": Fp32Add.LATENCY,
-                "sub": Fp32Add.LATENCY, "div": Fp32DivIter.LATENCY,
-                "sqrt": Fp32SqrtIter.LATENCY, "lt": Fp32Compare.LATENCY,
-                "le": Fp32Compare.LATENCY, "neg": 0}[kind]
+        if kind == "load":
+            return self.load_latency
+        if kind == "neg":
+            return 0
+        return self.operand_stage + {
+            "mul": Fp32Mul.LATENCY, "add": Fp32Add.LATENCY, "sub": Fp32Add.LATENCY,
+            "div": Fp32DivIter.LATENCY, "sqrt": Fp32SqrtIter.LATENCY,
+            "lt": Fp32Compare.LATENCY, "le": Fp32Compare.LATENCY}[kind]
 
     def occupancy(self, kind: str) -> int:
         """Cycles an op blocks its unit instance (1 on a pipelined unit)."""

@@ -18,7 +18,9 @@ read ports per memory.
 an engine; its timing rules are those of :mod:`navgate.opflow.loops`) runs any entry on ONE
 datapath:
 
-* **units**, built once: ``lanes`` x (:class:`~navgate.gateware.fp32.Fp32Mul`,
+* **units**, built once (by default, :func:`schedule_sequence` ``registered``, behind a
+  register stage that holds their operands, and the memories' words registered once):
+  ``lanes`` x (:class:`~navgate.gateware.fp32.Fp32Mul`,
   :class:`~navgate.gateware.fp32.Fp32Add`), and where a segment uses them
   :class:`~navgate.gateware.fp32.Fp32DivIter`, :class:`~navgate.gateware.fp32.Fp32SqrtIter`
   (started only by an issued iteration: ``i.valid`` is the iteration's valid bit) and
@@ -165,13 +167,17 @@ class SequenceSchedule:
         return sum(s.ii for s in self.schedules.values())
 
 
-def schedule_sequence(prog: SequenceProgram, lanes: int = 1,
-                      read_ports: int = 2) -> SequenceSchedule:
-    """Modulo-schedule every segment on ``lanes`` multipliers and adders (module docstring)."""
+def schedule_sequence(prog: SequenceProgram, lanes: int = 1, read_ports: int = 2,
+                      registered: bool = True) -> SequenceSchedule:
+    """Modulo-schedule every segment on ``lanes`` multipliers and adders (module docstring);
+    ``registered``: memory words registered after the read (load latency 2) and one register
+    stage between the operand multiplexers and the units (every unit one cycle longer), which
+    keep block-RAM outputs and multiplexers off the units' first stages."""
     if type(lanes) is not int or not 1 <= lanes <= MAX_LANES:
         raise LoopError(f"lanes must be an integer from 1 to {MAX_LANES}, got {lanes!r}")
     check_sequence(prog)
-    units = LoopUnits(mul=lanes, add=lanes, read_ports=read_ports)
+    units = LoopUnits(mul=lanes, add=lanes, read_ports=read_ports,
+                      load_latency=2 if registered else 1, operand_stage=int(registered))
     return SequenceSchedule(prog, lanes, units,
                             {n: modulo_schedule(nest, units) for n, nest in
                              prog.segments.items()})
@@ -506,6 +512,8 @@ class SequenceMachine(wiring.Component):
                     return ("neg", opnd(op.srcs[0], t))
                 d = t - s.ready[src]
                 assert d >= 0, (src, t)
+                if op.kind == "load":  # the read port's word is valid 1 cycle after issue
+                    d += s.units.load_latency - 1
                 if op.kind in ("lt", "le"):
                     return ("cmp", s.resource[src], d, int(op.kind == "le"))
                 return ("tap", s.resource[src], d)
@@ -571,13 +579,20 @@ class SequenceMachine(wiring.Component):
 
         for key, core in cores.items():
             p = core.i.payload
-            drive(("a", key), p.a)
+            inputs = [("a", p.a)]
             if key[0][0] != "sqrt":
-                drive(("b", key), p.b)
+                inputs.append(("b", p.b))
             if key[0][0] == "add":
-                drive(("sub", key), p.sub)
+                inputs.append(("sub", p.sub))
             if key[0][0] in ("div", "sqrt"):
-                drive(("go", key), core.i.valid)
+                inputs.append(("go", core.i.valid))
+            for point, target in inputs:
+                if sch.units.operand_stage:  # the operand register stage
+                    mux = Signal(len(target), name=f"{point}_{key[0][0]}{key[1]}")
+                    drive((point, key), mux)
+                    m.d.sync += target.eq(mux)
+                else:
+                    drive((point, key), target)
 
         # the host port: while idle, read port 0 and the write port of every array
         ab = self.array_bits
