@@ -13,7 +13,16 @@ from navgate.numerics.fp32 import floats_to_bits
 from navgate.opflow import loop_kernels as K
 from navgate.opflow.execute import run_bittrue
 from navgate.opflow.loopmachine import LoopMachine
-from navgate.opflow.loops import LoopError, LoopUnits, modulo_schedule, run_nest, unroll
+from navgate.opflow.loops import (
+    LoopError,
+    LoopNest,
+    LoopUnits,
+    LOp,
+    Store,
+    modulo_schedule,
+    run_nest,
+    unroll,
+)
 from navgate.opflow.sequence import (
     SequenceProgram,
     run_sequence,
@@ -77,6 +86,15 @@ def test_scheduler_blocks_the_iterative_units_for_their_interval():
     assert s.ii == s.depth == s.cycles
     assert s.time["q"] == 2 and s.time["r"] == 3  # the second load port serves z a cycle late
     assert s.time["g"] == s.ready["q"] == 2 + Fp32DivIter.LATENCY  # neg costs nothing
+    # two divides per iteration on the one divider: ResMII counts both intervals
+    nest = K.vector_sqrt_div(3)
+    two = LoopNest(nest.name + "_2", nest.trips, nest.arrays, {},
+                   nest.ops + [LOp("q2", "div", ("q", "v"))], [],
+                   [Store("z", nest.stores[0].addr, "q2")])
+    s = modulo_schedule(two)
+    assert (s.ii, s.res_mii) == (2 * DIV_I, 2 * DIV_I)
+    assert s.time["q2"] >= s.time["q"] + DIV_I  # the divider is busy for its interval
+    assert modulo_schedule(two, LoopUnits(div=2)).ii == DIV_I
     # compare: pipelined, latency of Fp32Compare
     s = modulo_schedule(K.diag_compare(4))
     assert s.ready["a"] == s.time["a"] + Fp32Compare.LATENCY
@@ -163,6 +181,43 @@ def test_bad_programs_and_inputs_are_rejected():
         LoopMachine(modulo_schedule(K.vector_sqrt_div(3)))
     with pytest.raises(LoopError, match="load_latency 1"):
         LoopMachine(modulo_schedule(K.sym_rank1_update(3), LoopUnits(load_latency=2)))
+
+
+def test_unknown_entry_number_is_ignored_and_control_grows_with_the_text():
+    """``start`` with an entry number past the last does nothing (busy stays low); the
+    control store has one row per segment phase, the sum of the segments' IIs."""
+    from amaranth.sim import Simulator
+
+    from navgate.opflow.sequence import SequenceMachine
+
+    full = K.chain_program(4, [0, 1, 3], [1, 2, 0])
+    prog = SequenceProgram(full.name, full.arrays, full.segments,
+                           {k: full.entries[k] for k in ("all", "norm", "prep")})
+    sch = schedule_sequence(prog, 1)
+    dut = SequenceMachine(sch)
+    assert len(dut.entry) == 2
+    seen = []
+
+    async def bench(ctx):
+        ctx.set(dut.entry, 3)  # three entries: number 3 names none
+        ctx.set(dut.start, 1)
+        await ctx.tick()
+        ctx.set(dut.start, 0)
+        for _ in range(5):
+            seen.append((ctx.get(dut.busy), ctx.get(dut.done)))
+            await ctx.tick()
+        ctx.set(dut.entry, dut.entry_index("prep"))
+        ctx.set(dut.start, 1)
+        await ctx.tick()
+        ctx.set(dut.start, 0)
+        seen.append((ctx.get(dut.busy), ctx.get(dut.done)))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    assert seen == [(0, 0)] * 5 + [(1, 0)]
+    assert dut.control_rows == sch.control_rows == sum(s.ii for s in sch.schedules.values())
 
 
 @pytest.mark.slow
