@@ -199,8 +199,8 @@ def _neg(m, v):
 
 
 def _padded(nest: LoopNest, levels: int):
-    """(pad, trips, stride function) of a nest seen with ``levels`` levels, outer ones of
-    trip 1 added."""
+    """(pad, trips) of a nest seen with ``levels`` levels: ``pad`` outer levels of trip 1
+    added."""
     pad = levels - len(nest.trips)
     return pad, (1,) * pad + tuple(nest.trips)
 
