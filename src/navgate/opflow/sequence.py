@@ -465,7 +465,8 @@ class SequenceMachine(wiring.Component):
                 v = tap(key[1], key[2])
             elif kind == "cmp":
                 h = tap(key[1], key[2])
-                v = Mux(h[0] | (h[1] & key[3]), ONE, 0)
+                # 32 bits wide: a sign flip of a comparison's result reads bit 31
+                v = Mux(h[0] | (h[1] & key[3]), Const(ONE, 32), Const(0, 32))
             elif kind == "neg":
                 v = _neg(m, val(key[1]))
             elif kind == "acc":

@@ -157,7 +157,7 @@ def loop_engine(lanes: int = DEFAULT_LANES) -> LoopEngine:
                     if o not in writes and (o in readers or o in want):
                         writes[o] = xword(o)
                         passed.add(o)
-                pending.append((key, p, pl, writes))
+                pending.append((p, pl, writes))
                 nest = None
             steps.append(step.name)
             if nest is not None:
@@ -168,7 +168,7 @@ def loop_engine(lanes: int = DEFAULT_LANES) -> LoopEngine:
         outputs[key] = {o: lp.outputs[o] if o in lp.outputs else xword(o)
                         for o in fps[key].outputs}
     arrays |= {"S": len(S_REGS), "IN": len(IN_REGS), "X": len(xw)}
-    for key, p, pl, writes in pending:
+    for p, pl, writes in pending:
         if p.name in segments:
             raise LoopError(f"two segments named {p.name}")
         segments[p.name] = segment_nest(p, pl, arrays, writes)
