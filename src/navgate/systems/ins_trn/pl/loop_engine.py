@@ -89,6 +89,15 @@ class LoopEngine:
     def read_outputs(self, entry: str, mem: dict) -> dict:
         return {k: _word(mem, a, w) for k, (a, w) in self.outputs[entry].items()}
 
+    def restricted(self, entries) -> SequenceProgram:
+        """The sequence program with only ``entries`` (their segments, the arrays those
+        touch, sizes unchanged): a smaller machine for one entry."""
+        segs = {s: self.program.segments[s] for e in entries for s in self.program.entries[e]}
+        used = {a for n in segs.values() for a in n.arrays}
+        return SequenceProgram(f"{self.program.name}_{'_'.join(entries)}",
+                               {a: w for a, w in self.program.arrays.items() if a in used},
+                               segs, {e: self.program.entries[e] for e in entries})
+
     def run(self, entry: str, state: dict, inputs: dict | None = None,
             compiled: dict | None = None) -> tuple[dict, dict]:
         """Run ``entry`` with :func:`~navgate.opflow.sequence.run_sequence`: (new state,
