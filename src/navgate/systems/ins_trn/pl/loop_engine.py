@@ -35,6 +35,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from navgate.gateware.fp32 import Fp32Add
 from navgate.opflow.execute import to_f32
 from navgate.opflow.loops import LoopError, LoopNest
 from navgate.opflow.segments import named_reads, segment_nest
@@ -56,6 +57,10 @@ IN_REGS = tuple(dict.fromkeys(n for k in ENTRIES for n in fp.programs()[k].input
 #: the default lane count (float32 multiplier + adder pairs): chosen against issue 29's cycle
 #: targets and its 6 DSP48E1 (docs/seed000-loop-engine.md)
 DEFAULT_LANES = 3
+#: the compensation words of P are dealt over this many arrays (word k in array k mod
+#: CP_BANKS): only segments touch them, and the 120 stores of a segment's Kahan step or
+#: reset would otherwise queue on one write port
+CP_BANKS = 4
 
 
 @dataclass
@@ -113,10 +118,39 @@ def _word(mem, a, w):
     return float(v[w])
 
 
+#: the pad words (a product of -0) of loop_programs' chained sums, by their A array
+_PADS = {"P": (L.P_ONE, L.F_NEGZERO), "M": (L.M_ONE, L.F_NEGZERO)}
+
+
+def retrack(nest: LoopNest, tracks: int) -> LoopNest:
+    """A chained-sum nest of :func:`loop_programs.chain_sums` rebuilt with ``tracks``
+    interleaved sums: its sums (each term in its order, padding terms kept: they add -0,
+    which changes no sum) read back from its tables. loop_programs deals them over ``u``
+    adder latencies of tracks; the sequence machine's registered operands make each add one
+    cycle longer, and the recurrence then needs more tracks for II = 1."""
+    u = sum(op.kind == "mul" for op in nest.ops)
+    d = nest.accs[0].distance
+    t = nest.tables
+    sums, cur = [], None
+    for tr in range(d):
+        for s in range(nest.iterations // d):
+            it = s * d + tr
+            if t["reset"][it]:
+                cur = []
+            cur += [(int(t[f"ta{q}"][it]), int(t[f"tb{q}"][it])) for q in range(u)]
+            if t["last"][it]:
+                sums.append((int(t["dest"][it]), cur))
+    loads = [op.srcs[0] for op in nest.ops if op.kind == "load"]
+    out = nest.stores[0].array
+    sums.sort(key=lambda x: x[0])
+    return L.chain_sums(nest.name, sums, loads[0], loads[1], out, nest.arrays,
+                        _PADS[loads[0]], u, tracks)
+
+
 @lru_cache(maxsize=8)
-def loop_engine(lanes: int = DEFAULT_LANES) -> LoopEngine:
+def loop_engine(lanes: int = DEFAULT_LANES, cp_banks: int = CP_BANKS) -> LoopEngine:
     """The seed-000 sequence program whose chained sums carry ``lanes`` terms per iteration
-    (loop_programs' ``fused`` variant)."""
+    (loop_programs' ``fused`` variant), the compensation words in ``cp_banks`` arrays."""
     lps = L.loop_programs(lanes, "fused")
     fps = fp.programs()
     arrays: dict = {}
@@ -124,8 +158,17 @@ def loop_engine(lanes: int = DEFAULT_LANES) -> LoopEngine:
         for a, w in lp.arrays.items():
             if arrays.setdefault(a, w) != w:
                 raise LoopError(f"array {a} has {w} and {arrays[a]} words")
+    if any("cP" in s.arrays for lp in lps.values() for s in lp.steps
+           if isinstance(s, LoopNest)):
+        raise LoopError("a nest reads cP: it cannot be banked")
     places = {n: ("S", k) for k, n in enumerate(S_REGS)}
-    places |= L.STATE_WORDS
+    places |= {n: ("P", k) for k, n in enumerate(fp.P_REGS)}
+    if type(cp_banks) is not int or cp_banks < 1:
+        raise LoopError(f"cp_banks must be a positive integer, got {cp_banks!r}")
+    del arrays["cP"]
+    for b in range(cp_banks):
+        arrays[f"cP{b}"] = -(-len(fp.CP_REGS) // cp_banks)
+    places |= {n: (f"cP{k % cp_banks}", k // cp_banks) for k, n in enumerate(fp.CP_REGS)}
     places |= {n: ("IN", k) for k, n in enumerate(IN_REGS)}
     xw: dict = {}  # X words by name
 
@@ -146,6 +189,9 @@ def loop_engine(lanes: int = DEFAULT_LANES) -> LoopEngine:
         for k, step in enumerate(lp.steps):
             if isinstance(step, LoopNest):
                 nest = step
+                if step.name in ("cov_M", "cov_E"):
+                    u = sum(op.kind == "mul" for op in step.ops)
+                    nest = retrack(step, u * (Fp32Add.LATENCY + 1))
             else:
                 p = step.prog
                 pl = {}
@@ -191,7 +237,11 @@ def loop_engine(lanes: int = DEFAULT_LANES) -> LoopEngine:
 
 
 @lru_cache(maxsize=8)
-def engine_schedule(lanes: int = DEFAULT_LANES) -> SequenceSchedule:
+def engine_schedule(lanes: int = DEFAULT_LANES, cp_banks: int = CP_BANKS,
+                    registered: bool = True, read_ports: int | None = None) -> SequenceSchedule:
     """The sequence machine's schedule of :func:`loop_engine` on ``lanes`` lanes
-    (registered operands and memory words, two read ports per array)."""
-    return schedule_sequence(loop_engine(lanes).program, lanes)
+    (``read_ports`` per array, default max(2, lanes): a chained sum loads ``lanes`` words of
+    each of its arrays per iteration; ``registered``: operands and memory words
+    registered)."""
+    return schedule_sequence(loop_engine(lanes, cp_banks).program, lanes,
+                             read_ports=read_ports or max(2, lanes), registered=registered)
