@@ -293,3 +293,35 @@ def test_more_nests_on_the_loop_machine_bit_exact(ref):
     assert seen == {"trn_joseph": (296, 295)}
     seen = _on_machine(ref, ("propagate", "alt_apply", "trn_apply"), "plain", 2, 12)
     assert all(n == c + 1 for n, c in seen.values()) and len(seen) == 7
+
+
+def _on_sequence_machine(keys, seed):
+    """The entries ``keys`` of the sequence form on opflow's SequenceMachine in Amaranth's
+    simulation (3 lanes, registered): every array word as run_sequence leaves it (which the
+    test above holds to the fp32 programs' bits), in exactly the scheduled cycles."""
+    from navgate.opflow.sequence import run_sequence, schedule_sequence, simulate_sequence
+
+    lps = {k: L.loop_programs(L.DEFAULT_LANES)[k] for k in keys}
+    prog, ri = L.to_sequence(lps)
+    sched = schedule_sequence(prog, L.DEFAULT_LANES, read_ports=L.DEFAULT_LANES)
+    rng = np.random.default_rng(seed)
+    key = keys[-1]
+    state, inputs = _state(rng, key)
+    mem = L.sequence_memories(lps, ri, state, inputs)
+    want = run_sequence(prog, mem, key)
+    (got, cycles), = simulate_sequence(sched, mem, [key])
+    for a in prog.arrays:
+        assert [float_to_bits(v) for v in want[a]] == [int(w) for w in got[a]], (key, a)
+    return cycles
+
+
+@pytest.mark.slow
+def test_updates_on_the_sequence_machine():
+    assert _on_sequence_machine(("alt_gate", "alt_apply"), 21) == 389
+    assert _on_sequence_machine(("trn_gate", "trn_apply"), 22) == 635
+
+
+@pytest.mark.slow
+def test_propagate_on_the_sequence_machine():
+    """About 4 minutes (the head segment is a one-iteration nest of 1,445 ops)."""
+    assert _on_sequence_machine(("propagate",), 23) == 968
