@@ -20,10 +20,10 @@ Programs (:func:`loop_programs`, variant ``fused``, the default)
   120 elements: its adds fill the slots the tail's dependency chain leaves free);
 * ``alt_gate`` / ``trn_gate``: the gate programs (``trn_gate`` without its dead ops);
 * ``alt_apply`` / ``trn_apply`` (gate and apply fused, run when the sequencer applies an
-  update): segment ``*_gate_vec`` (the gate, C = P H', K, S K, dx, and the
-  compensation-word reset cP <- cP - cP, into arrays), nest ``*_joseph`` (the Joseph update
-  of the 120 elements, one element per iteration), segment ``*_corr`` (the state
-  correction from dx).
+  update): segment ``*_gate_vec`` (the gate, C = P H', K, S K, dx, into arrays), nest
+  ``*_joseph`` (the Joseph update of the 120 elements, one element per iteration), segment
+  ``*_corr`` (the state correction from dx, and the compensation-word reset
+  cP <- cP - cP in its free slots).
 
 Variant ``plain``: each part in a step of its own (head, cov_M over every row, cov_E over
 every element, a Kahan nest; gate, a vector nest, a Joseph nest with the reset, the
@@ -34,6 +34,13 @@ what the sequential step model costs (docs/seed000-loop-programs.md).
 Segments pass values to later steps through arrays (``writes``/``reads``) or as registers
 (outputs that are not written to arrays; :func:`split_segment`); their commits to P and cP
 go to those arrays.
+
+Runs and cycles: :func:`run_program` (segments by :mod:`navgate.opflow.execute`, nests by
+:func:`navgate.opflow.loops.run_nest` or any nest runner, e.g. the loop machine in
+simulation); :func:`program_cycles` (segments by the list scheduler, nests by the modulo
+scheduler); :func:`to_sequence` / :func:`sequence_cycles`: the programs as one
+:class:`navgate.opflow.sequence.SequenceProgram` (every segment a one-iteration nest over a
+register array ``R``), for opflow's sequence machine.
 
 Exactness
 ---------
