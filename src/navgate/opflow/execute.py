@@ -165,12 +165,15 @@ def _cvt_bits(x: np.ndarray) -> np.ndarray:
     return np.asarray(F._round_f64(x), np.uint32)
 
 
-def run_bittrue(prog: Program, state: dict, inputs: dict, lanes: int = 1):
+def run_bittrue(prog: Program, state: dict, inputs: dict, lanes: int = 1,
+                kinds: dict | None = None):
     """Run ``prog`` with :mod:`navgate.numerics.fp32` on bit patterns.
 
     ``state``: register name -> uint32 bit patterns (scalar or (lanes,)); ``inputs``: name ->
     values: float64 numbers for registers read by ``cvt`` (IMU words), otherwise uint32 bit
-    patterns. Returns (new state dict, outputs dict, every temporary dict)."""
+    patterns; ``kinds``: a client's own op kinds -> their bit-true function (uint32 arrays
+    in, uint32 array out). Returns (new state dict, outputs dict, every temporary dict)."""
+    kinds = kinds or {}
     regs: dict = {}
     for k, v in state.items():
         regs[k] = np.broadcast_to(np.asarray(v, np.uint32), (lanes,)).copy()
@@ -189,7 +192,9 @@ def run_bittrue(prog: Program, state: dict, inputs: dict, lanes: int = 1):
 
     for op in prog.ops:
         k = op.kind
-        if k == "cvt":
+        if k in kinds:
+            r = kinds[k](*(get(s) for s in op.srcs))
+        elif k == "cvt":
             src = op.srcs[0]
             r = _cvt_bits(raw[src]) if src in raw else F.flush_subnormal(get(src))
         elif k in ("add", "sub", "mul", "div"):
@@ -199,10 +204,12 @@ def run_bittrue(prog: Program, state: dict, inputs: dict, lanes: int = 1):
             r = F.fp32_sqrt(get(op.srcs[0]))
         elif k == "neg":
             r = F.fp32_neg(get(op.srcs[0]))
-        else:
+        elif k in ("le", "lt"):
             cmp = F.fp32_compare(get(op.srcs[0]), get(op.srcs[1]))
             flag = cmp["lt"] | cmp["eq"] if k == "le" else cmp["lt"]
             r = np.where(flag, np.uint32(0x3F800000), np.uint32(0)).astype(np.uint32)
+        else:
+            raise ValueError(f"{prog.name}: op {op.dst} has unknown kind {k!r}")
         regs[op.dst] = np.asarray(r, np.uint32).reshape(lanes)
     outputs = {k: regs[v] for k, v in prog.outputs.items()}
     new_state = {k: regs[k] for k in state}

@@ -128,12 +128,12 @@ class CompiledSolve:
         self.p = params
         prog = solve_program()
         names = list(SENSORS) + list(STATE) + ["kp", "ki", "dt"] + list(CONSTANTS)
-        names += [o.name for o in prog]
+        names += [o.dst for o in prog.ops]
         self.index = {n: i for i, n in enumerate(names)}
-        self.ops = np.array([[_CODE[o.kind], self.index[o.name], self.index[o.args[0]],
-                              self.index[o.args[1]] if len(o.args) > 1 else 0] for o in prog],
-                            dtype=np.int64)
-        self.commit = np.array([[self.index[s], self.index[f"{s}_n"]] for s in STATE],
+        self.ops = np.array([[_CODE[o.kind], self.index[o.dst], self.index[o.srcs[0]],
+                              self.index[o.srcs[1]] if len(o.srcs) > 1 else 0]
+                             for o in prog.ops], dtype=np.int64)
+        self.commit = np.array([[self.index[s], self.index[t]] for s, t in prog.commit.items()],
                                dtype=np.int64)
         self.regs = np.zeros(len(names))
         consts = dict(CONSTANTS)
