@@ -14,8 +14,9 @@ One :class:`PhasedDatapath` runs one program:
 * control: a ROM of one word per program cycle (issue bits, the client's op-select fields
   (:class:`Control`), operand selects and bank addresses, bank write enables/addresses/
   sources, sink write enables), read two cycles ahead into a register. ``start`` (one
-  cycle) begins program cycle 0 in the next cycle; ``last`` is high in the final program
-  cycle, at whose end the last results are written.
+  cycle, at least two cycles after reset: the word of cycle 0 is read while idle) begins
+  program cycle 0 in the next cycle; ``last`` is high in the final program cycle, at whose
+  end the last results are written.
 * flags: one-bit outputs raised by a unit's result (``flags``: port -> (unit, payload
   field), sampled while the unit's output is valid).
 """

@@ -266,8 +266,8 @@ def test_on_the_fp32_engine_states_of_a_flight():
     more than one ulp (the reason they are not inputs), the formatter raises no flag, and its
     angles are within the bound of the reference on the same words."""
     from navgate.systems.ins_trn.ps import flight
+    from navgate.systems.ins_trn.ps.flight import flight_stream
     from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
-    from navgate.systems.ins_trn.ps.navigation import flight_stream
     from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
     from navgate.trn.dem import Dem
 

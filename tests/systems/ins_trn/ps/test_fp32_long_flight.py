@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from navgate.systems.ins_trn.ps import flight
+from navgate.systems.ins_trn.ps.flight import flight_stream
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
-from navgate.systems.ins_trn.ps.navigation import flight_stream
 from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
 from navgate.trn.dem import Dem
 
