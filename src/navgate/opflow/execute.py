@@ -31,7 +31,8 @@ from numba import njit
 from navgate.numerics import fp32 as F
 from navgate.opflow.ir import OPCODE, Program, const_value
 
-__all__ = ["round_fp32", "execute", "commit", "Compiled", "Machine", "to_f32", "run_bittrue"]
+__all__ = ["round_fp32", "apply_op", "execute", "commit", "Compiled", "Machine", "to_f32",
+           "run_bittrue"]
 
 _MIN_NORMAL = 2.0**-126
 _ZERO_BELOW = 2.0**-126 - 2.0**-151  #: magnitudes that round (24 bits) to below 2^-126
@@ -49,31 +50,38 @@ def round_fp32(r):
     return np.float64(np.float32(r))
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def apply_op(k, regs, ia, ib):
+    """One float32 op of opcode ``k`` (:data:`navgate.opflow.ir.OPCODE`) on the registers at
+    ``ia`` and ``ib`` (``ib`` is not read by a one-operand kind), rounded by
+    :func:`round_fp32`. A client's kernel with kinds of its own calls it for these kinds."""
+    a = regs[ia]
+    if k == 2:
+        r = a * regs[ib]
+    elif k == 0:
+        r = a + regs[ib]
+    elif k == 1:
+        r = a - regs[ib]
+    elif k == 3:
+        r = a / regs[ib]
+    elif k == 4:
+        r = math.sqrt(a) if a >= 0.0 or a != a else (a if a == 0.0 else math.nan)
+    elif k == 5:
+        r = -a
+    elif k == 6:
+        r = a
+    elif k == 7:
+        r = 1.0 if a <= regs[ib] else 0.0
+    else:
+        r = 1.0 if a < regs[ib] else 0.0
+    return round_fp32(r)
+
+
 @njit(cache=True, error_model="numpy")
 def execute(regs, ops):
     """Run an op table (rows: opcode, dst, src a, src b) on the register file."""
     for n in range(ops.shape[0]):
-        k = ops[n, 0]
-        a = regs[ops[n, 2]]
-        if k == 2:
-            r = a * regs[ops[n, 3]]
-        elif k == 0:
-            r = a + regs[ops[n, 3]]
-        elif k == 1:
-            r = a - regs[ops[n, 3]]
-        elif k == 3:
-            r = a / regs[ops[n, 3]]
-        elif k == 4:
-            r = math.sqrt(a) if a >= 0.0 or a != a else (a if a == 0.0 else math.nan)
-        elif k == 5:
-            r = -a
-        elif k == 6:
-            r = a
-        elif k == 7:
-            r = 1.0 if a <= regs[ops[n, 3]] else 0.0
-        else:
-            r = 1.0 if a < regs[ops[n, 3]] else 0.0
-        regs[ops[n, 1]] = round_fp32(r)
+        regs[ops[n, 1]] = apply_op(ops[n, 0], regs, ops[n, 2], ops[n, 3])
 
 
 @njit(cache=True)
