@@ -40,7 +40,13 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Mul
 from navgate.numerics import fp32 as F
-from navgate.opflow.loops import ADDR_READY, LoopSchedule, addresses, iteration_indices
+from navgate.opflow.loops import (
+    ADDR_READY,
+    LoopError,
+    LoopSchedule,
+    addresses,
+    iteration_indices,
+)
 
 __all__ = ["LoopMachine", "to_bits", "simulate"]
 
@@ -61,6 +67,16 @@ class LoopMachine(wiring.Component):
     def __init__(self, schedule: LoopSchedule, init: dict | None = None):
         self.schedule = schedule
         nest = schedule.nest
+        u = schedule.units
+        if u.load_latency != 1 or u.operand_stage != 0:
+            self._MustUse__silence = True  # never elaborated: no "unused" warning
+            raise LoopError(f"{nest.name}: the one-nest LoopMachine needs load_latency 1 and "
+                            "no operand stage: use navgate.opflow.sequence.SequenceMachine")
+        other = sorted({op.kind for op in nest.ops} - {"load", "add", "sub", "mul"})
+        if other:
+            self._MustUse__silence = True  # never elaborated: no "unused" warning
+            raise LoopError(f"{nest.name}: the one-nest LoopMachine runs load/add/sub/mul only, "
+                            f"not {other}: use navgate.opflow.sequence.SequenceMachine")
         init = init or {}
         self.memories = {name: Memory(shape=unsigned(32), depth=words,
                                       init=to_bits(init.get(name, np.zeros(words, np.uint32))))
