@@ -149,6 +149,40 @@ def test_opflow_names_no_system():
     assert not offenders, "opflow names a client:\n" + "\n".join(offenders)
 
 
+#: opflow's clients and the toolchain modules each builds on (its program on opflow's IR and
+#: executor, its machine from opflow's scheduler and generator)
+OPFLOW_CLIENTS = {
+    "navgate.systems.ins_trn.pl.fp32_program": {"navgate.opflow.ir"},
+    "navgate.systems.ins_trn.pl.nav_engines": {"navgate.opflow.schedule",
+                                               "navgate.opflow.machine"},
+    "navgate.systems.attitude.program": {"navgate.opflow.ir", "navgate.opflow.execute"},
+    "navgate.systems.attitude.datapath": {"navgate.opflow.phased",
+                                          "navgate.opflow.phased_machine"},
+}
+#: the generic parts that live in opflow: a client package must not define them again
+OPFLOW_GENERIC = {"Schedule", "ScheduledProgram", "Placed", "ScheduleError", "Builder",
+                  "build_schedule", "schedule_banked", "run_bittrue", "PhasedDatapath",
+                  "ScheduledMachine"}
+
+
+def test_opflow_clients_build_on_it():
+    """Seed 000's engines and seed 003's circuit take their IR, executor, scheduler and
+    machine from opflow (their programs, unit choices and tops stay in systems/), and their
+    packages define none of opflow's generic parts again."""
+    graph = import_graph()
+    missing = sorted(f"{client} -> {target}" for client, targets in OPFLOW_CLIENTS.items()
+                     for target in targets - graph.get(client, set()))
+    assert not missing, "opflow client without its toolchain import:\n" + "\n".join(missing)
+    offenders = []
+    for package in ("ins_trn", "attitude"):
+        for path in sorted((PACKAGE_ROOT / "systems" / package).rglob("*.py")):
+            for node in ast.parse(path.read_text()).body:
+                if (isinstance(node, (ast.ClassDef, ast.FunctionDef))
+                        and node.name in OPFLOW_GENERIC):
+                    offenders.append(f"{path.relative_to(PACKAGE_ROOT)}: {node.name}")
+    assert not offenders, "a client defines opflow's generic parts:\n" + "\n".join(offenders)
+
+
 def find_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     """Strongly connected components of more than one module (Tarjan): the import cycles."""
     index: dict[str, int] = {}
