@@ -260,3 +260,12 @@ def test_seed000_is_arranged_by_computer():
             if there and there != here and there not in SEED000_FLOORS[here]:
                 offenders.append(f"{module} -> {target}")
     assert not offenders, "seed 000 part imports a part it must not:\n" + "\n".join(offenders)
+
+
+def test_amaranths_private_unused_switch_has_one_user():
+    """Amaranth has no public way to mark an elaboratable as intentionally unused; the package
+    uses its private switch in one place only (a component whose Verilog came from the cache),
+    and refuses bad parameters before a component exists elsewhere (CheckedParameters)."""
+    users = sorted(str(p.relative_to(PACKAGE_ROOT)) for p in PACKAGE_ROOT.rglob("*.py")
+                   if "_MustUse__silence" in p.read_text(encoding="utf-8"))
+    assert users == ["gateware/verify.py"]
