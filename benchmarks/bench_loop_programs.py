@@ -114,6 +114,17 @@ def main():
                 run["bits_differing"] = bad
                 print(f"  bits: {args.checks} random states per program against the fp32 "
                       f"programs: {bad} registers/outputs differ")
+            seq = L.sequence_cycles(lanes, variant)
+            run["sequence_machine"] = seq
+            print("  on opflow's sequence machine (registered; segment II, cycles + 1):")
+            for key in lps:
+                steps = " + ".join(f"{n} {c} (II {ii})" for n, ii, c in seq[key]["steps"])
+                label, target = TARGETS.get(key, (key, None))
+                mark = "" if target is None else (f" <= {target} met"
+                                                  if seq[key]["cycles"] <= target
+                                                  else f" > {target} MISSED")
+                print(f"    {label:11s} {seq[key]['cycles']:5d}{mark}: {steps}")
+            print(f"    control rows (sum of IIs): {seq['control_rows']}")
             run["seconds"] = round(time.perf_counter() - t0, 2)
             summary["runs"][f"{variant}/{lanes}"] = run
     Path(args.json).write_text(json.dumps(summary, indent=1) + "\n")

@@ -39,6 +39,7 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Mul
+from navgate.gateware.parameters import CheckedParameters
 from navgate.numerics import fp32 as F
 from navgate.opflow.loops import (
     ADDR_READY,
@@ -61,22 +62,25 @@ def _bits(n: int) -> int:
     return max(1, int(n - 1).bit_length())
 
 
-class LoopMachine(wiring.Component):
+class LoopMachine(CheckedParameters, wiring.Component):
     """The machine of one modulo-scheduled loop nest (module docstring)."""
 
-    def __init__(self, schedule: LoopSchedule, init: dict | None = None):
-        self.schedule = schedule
+    @classmethod
+    def check_parameters(cls, schedule: LoopSchedule, init: dict | None = None) -> None:
+        """Refuse, before the component exists, a schedule this one-nest machine cannot run."""
         nest = schedule.nest
         u = schedule.units
         if u.load_latency != 1 or u.operand_stage != 0:
-            self._MustUse__silence = True  # never elaborated: no "unused" warning
             raise LoopError(f"{nest.name}: the one-nest LoopMachine needs load_latency 1 and "
                             "no operand stage: use navgate.opflow.sequence.SequenceMachine")
         other = sorted({op.kind for op in nest.ops} - {"load", "add", "sub", "mul"})
         if other:
-            self._MustUse__silence = True  # never elaborated: no "unused" warning
             raise LoopError(f"{nest.name}: the one-nest LoopMachine runs load/add/sub/mul only, "
                             f"not {other}: use navgate.opflow.sequence.SequenceMachine")
+
+    def __init__(self, schedule: LoopSchedule, init: dict | None = None):
+        self.schedule = schedule
+        nest = schedule.nest
         init = init or {}
         self.memories = {name: Memory(shape=unsigned(32), depth=words,
                                       init=to_bits(init.get(name, np.zeros(words, np.uint32))))

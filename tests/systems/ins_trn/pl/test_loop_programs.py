@@ -114,12 +114,60 @@ def test_directed_cases_give_the_fp32_programs_bits(ref, key, case):
 #: exact cycles of every step on the default lanes (3 multiplier + adder lanes; segments
 #: by opflow's list scheduler, nests by its modulo scheduler), fused variant
 CYCLES = {
-    "propagate": [("prop_head", 422), ("cov_M", 175), ("cov_E", 151), ("prop_tail", 249)],
+    "propagate": [("prop_head", 422), ("cov_M", 193), ("cov_E", 139), ("prop_tail", 249)],
     "alt_gate": [("alt_gate", 55)],
-    "alt_apply": [("alt_gate_vec", 69), ("alt_joseph", 151), ("alt_corr", 186)],
+    "alt_apply": [("alt_gate_vec", 67), ("alt_joseph", 151), ("alt_corr", 186)],
     "trn_gate": [("trn_gate", 144)],
-    "trn_apply": [("trn_gate_vec", 189), ("trn_joseph", 295), ("trn_corr", 186)],
+    "trn_apply": [("trn_gate_vec", 184), ("trn_joseph", 295), ("trn_corr", 186)],
 }
+#: on opflow's sequence machine (registered, 3 lanes): per entry (segment, II, cycles + 1)
+#: and the cycles from start to done
+SEQ_CYCLES = {
+    "propagate": ([("prop_head", 410, 411), ("cov_M", 1, 199), ("cov_E", 1, 145),
+                   ("prop_tail", 212, 213)], 968),
+    "alt_gate": ([("alt_gate", 52, 53)], 53),
+    "alt_apply": ([("alt_gate_vec", 69, 70), ("alt_joseph", 1, 157), ("alt_corr", 161, 162)],
+                  389),
+    "trn_gate": ([("trn_gate", 123, 124)], 124),
+    "trn_apply": ([("trn_gate_vec", 169, 170), ("trn_joseph", 2, 303), ("trn_corr", 161, 162)],
+                  635),
+}
+
+
+def test_sequence_machine_cycles_of_the_default_lanes_exact():
+    got = L.sequence_cycles(L.DEFAULT_LANES)
+    assert got.pop("control_rows") == 1362
+    assert {k: (v["steps"], v["cycles"]) for k, v in got.items()} == SEQ_CYCLES
+    assert SEQ_CYCLES["propagate"][1] <= 1000  # issue 29's IMU-sample target
+
+
+def _run_sequence_form(ref, key, state, inputs, variant):
+    from navgate.opflow.sequence import run_sequence
+
+    lps = L.loop_programs(L.DEFAULT_LANES, variant)
+    prog, ri = L.to_sequence(lps)
+    for n, v in state.items():
+        ref.set(n, v)
+    want = ref.run(key, **inputs)
+    got = run_sequence(prog, L.sequence_memories(lps, ri, state, inputs), key)
+    for n in fp.STATE_REGS:
+        a, i = L.STATE_WORDS.get(n) or (L.REG_ARRAY, ri[n])
+        assert float_to_bits(got[a][i]) == float_to_bits(ref.get(n)), (key, n)
+    for k, v in want.items():
+        a, i = (L.REG_ARRAY, ri[k]) if k in ri else ("DX", int(k[2:]))
+        assert float_to_bits(got[a][i]) == float_to_bits(v), (key, k)
+
+
+@pytest.mark.parametrize("variant", ["plain", "fused"])
+def test_sequence_form_gives_the_fp32_programs_bits(ref, variant):
+    """Every segment a one-iteration nest of opflow.sequence, the programs its entries, run
+    by its executor (run_sequence): the fp32 programs' bits, random and directed states."""
+    rng = np.random.default_rng(41)
+    for key in KEYS:
+        for _ in range(6):
+            _run_sequence_form(ref, key, *_state(rng, key), variant)
+        for case in ("zero_rows", "huge_tiny", "nan_inf", "zero_all"):
+            _run_sequence_form(ref, key, *_directed(rng, key, case), variant)
 
 
 def test_cycles_of_the_default_lanes_exact():
@@ -234,7 +282,7 @@ def test_nests_on_the_loop_machine_bit_exact(ref):
     (Amaranth simulation, 3 lanes): the fp32 programs' bits, done one cycle after the
     schedule's cycles."""
     seen = _on_machine(ref, ("propagate", "alt_apply"), "fused", L.DEFAULT_LANES, 11)
-    assert seen == {"cov_M": (176, 175), "cov_E": (152, 151), "alt_joseph": (152, 151)}
+    assert seen == {"cov_M": (194, 193), "cov_E": (140, 139), "alt_joseph": (152, 151)}
 
 
 @pytest.mark.slow
@@ -245,3 +293,35 @@ def test_more_nests_on_the_loop_machine_bit_exact(ref):
     assert seen == {"trn_joseph": (296, 295)}
     seen = _on_machine(ref, ("propagate", "alt_apply", "trn_apply"), "plain", 2, 12)
     assert all(n == c + 1 for n, c in seen.values()) and len(seen) == 7
+
+
+def _on_sequence_machine(keys, seed):
+    """The entries ``keys`` of the sequence form on opflow's SequenceMachine in Amaranth's
+    simulation (3 lanes, registered): every array word as run_sequence leaves it (which the
+    test above holds to the fp32 programs' bits), in exactly the scheduled cycles."""
+    from navgate.opflow.sequence import run_sequence, schedule_sequence, simulate_sequence
+
+    lps = {k: L.loop_programs(L.DEFAULT_LANES)[k] for k in keys}
+    prog, ri = L.to_sequence(lps)
+    sched = schedule_sequence(prog, L.DEFAULT_LANES, read_ports=L.DEFAULT_LANES)
+    rng = np.random.default_rng(seed)
+    key = keys[-1]
+    state, inputs = _state(rng, key)
+    mem = L.sequence_memories(lps, ri, state, inputs)
+    want = run_sequence(prog, mem, key)
+    (got, cycles), = simulate_sequence(sched, mem, [key])
+    for a in prog.arrays:
+        assert [float_to_bits(v) for v in want[a]] == [int(w) for w in got[a]], (key, a)
+    return cycles
+
+
+@pytest.mark.slow
+def test_updates_on_the_sequence_machine():
+    assert _on_sequence_machine(("alt_gate", "alt_apply"), 21) == 389
+    assert _on_sequence_machine(("trn_gate", "trn_apply"), 22) == 635
+
+
+@pytest.mark.slow
+def test_propagate_on_the_sequence_machine():
+    """About 4 minutes (the head segment is a one-iteration nest of 1,445 ops)."""
+    assert _on_sequence_machine(("propagate",), 23) == 968

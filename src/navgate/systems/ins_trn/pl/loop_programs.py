@@ -20,10 +20,10 @@ Programs (:func:`loop_programs`, variant ``fused``, the default)
   120 elements: its adds fill the slots the tail's dependency chain leaves free);
 * ``alt_gate`` / ``trn_gate``: the gate programs (``trn_gate`` without its dead ops);
 * ``alt_apply`` / ``trn_apply`` (gate and apply fused, run when the sequencer applies an
-  update): segment ``*_gate_vec`` (the gate, C = P H', K, S K, dx, and the
-  compensation-word reset cP <- cP - cP, into arrays), nest ``*_joseph`` (the Joseph update
-  of the 120 elements, one element per iteration), segment ``*_corr`` (the state
-  correction from dx).
+  update): segment ``*_gate_vec`` (the gate, C = P H', K, S K, dx, into arrays), nest
+  ``*_joseph`` (the Joseph update of the 120 elements, one element per iteration), segment
+  ``*_corr`` (the state correction from dx, and the compensation-word reset
+  cP <- cP - cP in its free slots).
 
 Variant ``plain``: each part in a step of its own (head, cov_M over every row, cov_E over
 every element, a Kahan nest; gate, a vector nest, a Joseph nest with the reset, the
@@ -34,6 +34,13 @@ what the sequential step model costs (docs/seed000-loop-programs.md).
 Segments pass values to later steps through arrays (``writes``/``reads``) or as registers
 (outputs that are not written to arrays; :func:`split_segment`); their commits to P and cP
 go to those arrays.
+
+Runs and cycles: :func:`run_program` (segments by :mod:`navgate.opflow.execute`, nests by
+:func:`navgate.opflow.loops.run_nest` or any nest runner, e.g. the loop machine in
+simulation); :func:`program_cycles` (segments by the list scheduler, nests by the modulo
+scheduler); :func:`to_sequence` / :func:`sequence_cycles`: the programs as one
+:class:`navgate.opflow.sequence.SequenceProgram` (every segment a one-iteration nest over a
+register array ``R``), for opflow's sequence machine.
 
 Exactness
 ---------
@@ -236,7 +243,7 @@ def chain_sums(name: str, sums: list, a_array: str, b_array: str, out_array: str
     ``out_array[dest]`` (module docstring). ``sums``: list of (dest, [(a, b), ...]);
     ``pad``: (a, b) words whose product is -0 (1.0 and -0.0); ``u`` terms per iteration;
     ``tracks`` interleaved sums (default: enough for II = 1, ``u`` adder latencies)."""
-    d = tracks or u * Fp32Add.LATENCY
+    d = tracks or u * (Fp32Add.LATENCY + 1)  # + 1: the machine's operand register stage
     if any(not terms for _, terms in sums):
         raise ValueError(f"{name}: a sum with no terms")
     steps = [max(1, math.ceil(len(t) / u)) for _, t in sums]
@@ -556,7 +563,7 @@ def _alt(fused: bool = False) -> tuple:
     gate_seg = Segment(gate, {}, {k: ("s_" + k, 0) for k in scal})
     idx = range(N)
     if fused:  # the vector work (C, K, S K, dx) and the reset in the gate's free slots
-        b = _extend(_with_reset(gate, "alt_gate_vec"), "alt_gate_vec")
+        b = _extend(gate, "alt_gate_vec")
         b.module = "kalman_update_engine"
         writes = {}
         for i in idx:
@@ -587,7 +594,7 @@ def _alt(fused: bool = False) -> tuple:
         joseph.arrays.pop("cP")
         joseph.ops = [op for op in joseph.ops if op.dst != "cp"]
         joseph.tables.pop("t_cp")
-    corr = _correction("alt_corr")
+    corr = _correction("alt_corr", fused)
     gate_lp = LoopProgram("alt_gate", [gate_seg], arrays)
     apply_lp = LoopProgram("alt_apply", [first, joseph, corr] if fused else
                            [gate_seg, vec, joseph, corr], arrays,
@@ -595,12 +602,15 @@ def _alt(fused: bool = False) -> tuple:
     return gate_lp, apply_lp
 
 
-def _correction(name: str) -> Segment:
+def _correction(name: str, reset: bool = False) -> Segment:
+    """The state correction from dx (array DX); with ``reset`` also the compensation-word
+    reset, whose 120 subtractions and cP writes fill the correction chain's free slots."""
     dx = tuple(f"dx{i}" for i in range(N))
     b = Builder(name, dx, registers=fp.STATE_REGS)
     fp.emit_correction(b, list(dx))
     b.prog.outputs = {}
-    return Segment(b.prog, {f"dx{i}": ("DX", i) for i in range(N)}, {})
+    prog = _with_reset(b.prog, name) if reset else b.prog
+    return Segment(prog, {f"dx{i}": ("DX", i) for i in range(N)}, {})
 
 
 def _trn(fused: bool = False) -> tuple:
@@ -635,7 +645,8 @@ def _trn(fused: bool = False) -> tuple:
             put("DX", i, b2.add(b2.mul(k[0][i], "y0"), b2.mul(k[1][i], "y1")))
         for nm in scal:
             b2.prog.outputs.pop(nm)
-        first = Segment(prune(_with_reset(b2.prog, "trn_gate_vec")), {}, writes)
+        b2.prog.name = "trn_gate_vec"
+        first = Segment(prune(b2.prog), {}, writes)
     inputs = ("lag", "y0", "y1")
     arrays = {"P": P_WORDS, "cP": P_WORDS} | {a: N for a in (
         "C0", "C1", "K0", "K1", "SK0", "SK1", "DX")} | _scalar_arrays(tuple(scal) + inputs)
@@ -678,7 +689,7 @@ def _trn(fused: bool = False) -> tuple:
         joseph.arrays.pop("cP")
         joseph.ops = [op for op in joseph.ops if op.dst != "cp"]
         joseph.tables.pop("t_cp")
-    corr = _correction("trn_corr")
+    corr = _correction("trn_corr", fused)
     gate_lp = LoopProgram("trn_gate", [gate_seg], arrays)
     apply_lp = LoopProgram("trn_apply", [first, joseph, corr] if fused else
                            [in_seg, gate_seg, vec, joseph, corr], arrays,
@@ -809,3 +820,134 @@ def program_cycles(lp: LoopProgram, lanes: int) -> list:
         else:
             rows.append((step.name, "segment", segment_cycles(step.prog, seg_units), None))
     return rows
+
+
+# ------------------------------------------------------------------ on opflow's sequence machine
+
+
+#: the register-file array of the sequence form: every register a segment reads or writes
+#: that is not a word of another array (state, configuration, inputs, passed values)
+REG_ARRAY = "R"
+
+
+def _segment_nest(seg: Segment, reg_index: dict, arrays: dict, imu_floats: bool) -> LoopNest:
+    """A segment as a one-iteration nest of :mod:`navgate.opflow.sequence`: a load per
+    register it reads (array ``R``, the arrays of P/cP and its ``reads``), its ops, a store
+    per commit and per output. ``cvt`` of an IMU word reads the word as a float32 (exact for
+    int16; ``imu_floats``): loop bodies have no conversion."""
+    p = seg.prog
+    temps = {op.dst for op in p.ops}
+    home = {}  # register -> (array, word)
+    for name in p.names() + list(p.outputs.values()):
+        if name in temps or name.startswith("c:"):
+            continue
+        home[name] = seg.reads.get(name) or STATE_WORDS.get(name) or (REG_ARRAY,
+                                                                       reg_index[name])
+    body, loaded, used = [], {}, []
+
+    def src(name):
+        if name in temps or name.startswith("c:"):
+            return name
+        if name not in loaded:
+            a, i = home[name]
+            loaded[name] = f"ld_{len(loaded)}"
+            body.append(LOp(loaded[name], "load", (a,), Addr(None, (), i)))
+            used.append(a)
+        return loaded[name]
+
+    alias = {}
+    for op in p.ops:
+        if op.kind == "cvt":
+            if not imu_floats:
+                raise ValueError(f"{p.name}: cvt has no loop-body form")
+            alias[op.dst] = src(op.srcs[0])
+            continue
+        body.append(LOp(op.dst, op.kind, tuple(alias.get(x) or src(x) for x in op.srcs)))
+    stores = []
+
+    def store(array, word, value):
+        stores.append(Store(array, Addr(None, (), word), alias.get(value) or src(value)))
+        used.append(array)
+
+    for reg, t in p.commit.items():
+        store(*(STATE_WORDS.get(reg) or (REG_ARRAY, reg_index[reg])), t)
+    for name, t in p.outputs.items():
+        store(*(seg.writes.get(name) or (REG_ARRAY, reg_index[name])), t)
+    return LoopNest(p.name, (), {a: arrays[a] for a in dict.fromkeys(used)}, {}, body, [],
+                    stores)
+
+
+def to_sequence(lps: dict, imu_floats: bool = True):
+    """The loop programs as one :class:`navgate.opflow.sequence.SequenceProgram`: every
+    segment a one-iteration nest, every nest as it is, the programs its entries; returns
+    (program, register index of array ``R``)."""
+    from navgate.opflow.sequence import SequenceProgram
+
+    names: list = []
+    for lp in lps.values():
+        for step in lp.steps:
+            if isinstance(step, Segment):
+                p = step.prog
+                temps = {op.dst for op in p.ops}
+                for n in p.names() + list(p.commit) + list(p.outputs) + list(
+                        p.outputs.values()):
+                    if (n not in temps and not n.startswith("c:") and n not in STATE_WORDS
+                            and n not in step.reads and n not in step.writes):
+                        names.append(n)
+    reg_index = {n: i for i, n in enumerate(dict.fromkeys(names))}
+    arrays = {REG_ARRAY: len(reg_index)}
+    for lp in lps.values():
+        arrays.update(lp.arrays)
+    segments, entries = {}, {}
+    for key, lp in lps.items():
+        seq = []
+        for step in lp.steps:
+            if isinstance(step, Segment):
+                if not (step.prog.ops or step.prog.commit or step.prog.outputs):
+                    continue
+                nest = _segment_nest(step, reg_index, arrays, imu_floats)
+            else:
+                nest = step
+            nest.arrays = {a: arrays[a] for a in nest.arrays}
+            segments[nest.name] = nest
+            seq.append(nest.name)
+        entries[key] = tuple(seq)
+    return SequenceProgram("seed000", arrays, segments, entries), reg_index
+
+
+def sequence_memories(lps: dict, reg_index: dict, state: dict, inputs: dict) -> dict:
+    """The memories of the sequence form for a run from ``state`` and ``inputs``: P, cP,
+    the ROM words, the register array (IMU words as float32)."""
+    mem = {}
+    for lp in lps.values():
+        for a, w in lp.arrays.items():
+            mem.setdefault(a, np.zeros(w))
+        for a, words in lp.rom.items():
+            for i, v in words.items():
+                mem[a][i] = v
+    for a, names in STATE_ARRAYS.items():
+        mem[a][:len(names)] = [to_f32(state[n]) for n in names]
+    regs = np.zeros(len(reg_index))
+    for n, i in reg_index.items():
+        if n in state:
+            regs[i] = to_f32(state[n])
+        elif n in inputs:
+            regs[i] = to_f32(inputs[n])
+    mem[REG_ARRAY] = regs
+    return mem
+
+
+def sequence_cycles(lanes: int = DEFAULT_LANES, variant: str = "fused",
+                    registered: bool = True) -> dict:
+    """Cycles on opflow's sequence machine (:func:`navgate.opflow.sequence.
+    schedule_sequence` of :func:`to_sequence`, every array readable by every lane): entry ->
+    {"steps": [(segment, II, cycles + 1)], "cycles": start to done}, and "control_rows"."""
+    from navgate.opflow.sequence import schedule_sequence
+
+    prog, _ = to_sequence(loop_programs(lanes, variant))
+    s = schedule_sequence(prog, lanes, read_ports=max(2, lanes), registered=registered)
+    out: dict = {e: {"steps": [(n, s.schedules[n].ii, s.schedules[n].cycles + 1)
+                               for n in segs], "cycles": s.cycles(e)}
+                 for e, segs in prog.entries.items()}
+    out["control_rows"] = s.control_rows
+    return out
