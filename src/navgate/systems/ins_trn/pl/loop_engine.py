@@ -35,7 +35,6 @@ from functools import lru_cache
 
 import numpy as np
 
-from navgate.gateware.fp32 import Fp32Add
 from navgate.opflow.execute import to_f32
 from navgate.opflow.loops import LoopError, LoopNest
 from navgate.opflow.segments import named_reads, segment_nest
@@ -118,35 +117,6 @@ def _word(mem, a, w):
     return float(v[w])
 
 
-#: the pad words (a product of -0) of loop_programs' chained sums, by their A array
-_PADS = {"P": (L.P_ONE, L.F_NEGZERO), "M": (L.M_ONE, L.F_NEGZERO)}
-
-
-def retrack(nest: LoopNest, tracks: int) -> LoopNest:
-    """A chained-sum nest of :func:`loop_programs.chain_sums` rebuilt with ``tracks``
-    interleaved sums: its sums (each term in its order, padding terms kept: they add -0,
-    which changes no sum) read back from its tables. loop_programs deals them over ``u``
-    adder latencies of tracks; the sequence machine's registered operands make each add one
-    cycle longer, and the recurrence then needs more tracks for II = 1."""
-    u = sum(op.kind == "mul" for op in nest.ops)
-    d = nest.accs[0].distance
-    t = nest.tables
-    sums, cur = [], None
-    for tr in range(d):
-        for s in range(nest.iterations // d):
-            it = s * d + tr
-            if t["reset"][it]:
-                cur = []
-            cur += [(int(t[f"ta{q}"][it]), int(t[f"tb{q}"][it])) for q in range(u)]
-            if t["last"][it]:
-                sums.append((int(t["dest"][it]), cur))
-    loads = [op.srcs[0] for op in nest.ops if op.kind == "load"]
-    out = nest.stores[0].array
-    sums.sort(key=lambda x: x[0])
-    return L.chain_sums(nest.name, sums, loads[0], loads[1], out, nest.arrays,
-                        _PADS[loads[0]], u, tracks)
-
-
 @lru_cache(maxsize=8)
 def loop_engine(lanes: int = DEFAULT_LANES, cp_banks: int = CP_BANKS) -> LoopEngine:
     """The seed-000 sequence program whose chained sums carry ``lanes`` terms per iteration
@@ -189,9 +159,6 @@ def loop_engine(lanes: int = DEFAULT_LANES, cp_banks: int = CP_BANKS) -> LoopEng
         for k, step in enumerate(lp.steps):
             if isinstance(step, LoopNest):
                 nest = step
-                if step.name in ("cov_M", "cov_E"):
-                    u = sum(op.kind == "mul" for op in step.ops)
-                    nest = retrack(step, u * (Fp32Add.LATENCY + 1))
             else:
                 p = step.prog
                 pl = {}
