@@ -137,6 +137,8 @@ def test_layout_and_bad_inputs():
     state, inputs = _state(np.random.default_rng(0), "alt_gate")
     with pytest.raises(LoopError, match="unknown input 'h_mes'"):
         e.run("alt_gate", state, {"h_mes": 1.0})
+    with pytest.raises(LoopError, match="state lacks 1 register.*'dt'"):
+        e.run("alt_gate", {k: v for k, v in state.items() if k != "dt"}, inputs)
     with pytest.raises(LoopError, match="unknown entry 'alt'"):
         e.run("alt", state, inputs)
 

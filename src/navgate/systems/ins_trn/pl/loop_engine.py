@@ -75,6 +75,9 @@ class LoopEngine:
     def memories(self, state: dict, inputs: dict | None = None) -> dict:
         """Arrays holding ``state`` (every register of ``fp32_program.STATE_REGS``) and
         ``inputs`` (IMU words as numbers: written as their float32, the boundary's cvt)."""
+        missing = [n for n in fp.STATE_REGS if n not in state]
+        if missing:
+            raise LoopError(f"state lacks {len(missing)} register(s), first {missing[0]!r}")
         mem = {a: v.copy() for a, v in self.init.items()}
         for n in fp.STATE_REGS:
             a, w = self.places[n]
