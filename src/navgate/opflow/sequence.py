@@ -42,7 +42,9 @@ datapath:
   levels, padded on the outside with trips of 1, control-store base), shared level counters,
   address generators (slot ``k`` of a segment is its ``k``-th distinct address; strength
   reduced index registers with per-segment offsets and increments, or ROM tables indexed by
-  them) and flag generators (level conditions, ROM flag tables); each segment's iteration
+  them; an address that is the same in every iteration, as every address of a straight-line
+  segment, is a constant source of its read or write port instead) and flag generators
+  (level conditions, ROM flag tables); each segment's iteration
   valid bits clear at its start, so no write of one segment can fire in another;
 * **host port** as the loop machine's: while idle, read port 0 and the write port of each
   memory serve ``host_addr`` (array number << ``array_bits`` | word); written words are
@@ -198,6 +200,12 @@ def _neg(m, v):
     return out
 
 
+def _fixed(ad: Addr) -> bool:
+    """The address is the same in every iteration (no table, no stride): e.g. every address
+    of a straight-line segment."""
+    return ad.table is None and not any(ad.strides)
+
+
 def _padded(nest: LoopNest, levels: int):
     """(pad, trips) of a nest seen with ``levels`` levels: ``pad`` outer levels of trip 1
     added."""
@@ -320,10 +328,11 @@ class SequenceMachine(wiring.Component):
         for n in nests:
             a: dict = {}
             for op in n.ops:
-                if op.kind == "load":
+                if op.kind == "load" and not _fixed(op.addr):
                     a.setdefault(op.addr, len(a))
             for st in n.stores:
-                a.setdefault(st.addr, len(a))
+                if not _fixed(st.addr):
+                    a.setdefault(st.addr, len(a))
             addr_slot.append(a)
             f: dict = {}
             for acc in n.accs:
@@ -488,6 +497,11 @@ class SequenceMachine(wiring.Component):
         fields: dict = {}  # control point -> {source key: index}; index 0: nothing
         rows: list = []  # per (segment, phase): {control point: index}
 
+        def addr_src(si, ad, t):
+            """A fixed address is a constant of the control store (no generator, no delay
+            line); the others are their slot's generator, delayed to ``t``."""
+            return ("const", ad.offset) if _fixed(ad) else ("addr", addr_slot[si][ad], t)
+
         for si, (s, n) in enumerate(zip(scheds, nests, strict=True)):
             accs = n.acc_names()
             by_dst = {op.dst: op for op in n.ops}
@@ -525,7 +539,7 @@ class SequenceMachine(wiring.Component):
                 t = s.time[op.dst]
                 key = s.resource[op.dst]
                 if op.kind == "load":
-                    put(t, ("raddr", key), ("addr", addr_slot[si][op.addr], t))
+                    put(t, ("raddr", key), addr_src(si, op.addr, t))
                     continue
                 put(t, ("a", key), opnd(op.srcs[0], t))
                 if len(op.srcs) > 1:
@@ -538,7 +552,7 @@ class SequenceMachine(wiring.Component):
                 t = s.time[("store", k)]
                 flag = None if st.when is None else ("flag", flag_slot[si][st.when], t)
                 put(t, ("wen", st.array), ("en", t, flag))
-                put(t, ("waddr", st.array), ("addr", addr_slot[si][st.addr], t))
+                put(t, ("waddr", st.array), addr_src(si, st.addr, t))
                 put(t, ("wdata", st.array), opnd(st.src, t))
 
         points = list(fields)
