@@ -61,7 +61,22 @@ def structure(sch) -> dict:
                     d += s.units.load_latency - 1
                 key = s.resource[x]
                 age[key] = max(age.get(key, 0), d)
+    # address generators: slot k of a segment is its k-th distinct address that moves from
+    # iteration to iteration (a fixed one is a control-store constant), delayed to its use
+    slots: dict = {}
+    for s in sch.schedules.values():
+        uses: dict = {}
+        for op in s.nest.ops:
+            if op.kind == "load" and (op.addr.table or any(op.addr.strides)):
+                uses.setdefault(op.addr, []).append(s.time[op.dst])
+        for k, st in enumerate(s.nest.stores):
+            if st.addr.table or any(st.addr.strides):
+                uses.setdefault(st.addr, []).append(s.time[("store", k)])
+        for k, ts in enumerate(uses.values()):
+            slots[k] = max(slots.get(k, 0), max(ts))
     return {"delay_line_bits": 32 * sum(age.values()),
+            "address_slots": len(slots),
+            "address_delay_stages": sum(max(0, t - 1) for t in slots.values()),
             "longest_line": max(age.values()),
             "unit_input_sources": max(len(v) for v in srcs.values())}
 
@@ -86,7 +101,7 @@ def main():
         st = structure(sch)
         print(f"{lanes:5d} " + " ".join(f"{cyc[k]:11d}" for k in E.ENTRIES)
               + f" {sch.control_rows:5d} {st['delay_line_bits']:10d} {st['longest_line']:7d} "
-              f"{st['unit_input_sources']:5d}")
+              f"{st['unit_input_sources']:5d} {st['address_slots']:10d}")
         summary["lanes"][lanes] = {
             "cycles": cyc, "control_rows": sch.control_rows, **st,
             "segments": {n: {"iterations": s.nest.iterations, "ii": s.ii, "depth": s.depth,
@@ -95,7 +110,8 @@ def main():
     print("targets: " + ", ".join(f"{lab} <= {c}" for lab, c in TARGETS.values())
           + " cycles")
     print("(rows: control-store rows = the sum of the segments' II; delay bits: 32-bit "
-          "delay-line stages; srcs: most distinct sources of one unit input)")
+          "delay-line stages; srcs: most distinct sources of one unit input; addr slots: "
+          "address generators, for the addresses that move from iteration to iteration)")
     sch = E.engine_schedule()
     print(f"\ndefault machine ({E.DEFAULT_LANES} lanes), segments:")
     print(f"{'segment':14s} {'iters':>6s} {'II':>4s} {'depth':>5s} {'cycles':>7s}")
