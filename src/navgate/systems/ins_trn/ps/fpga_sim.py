@@ -266,8 +266,3 @@ class FpgaSimEngine(RegisterEngine):
     @property
     def cycles(self) -> int:
         return self.sim.cycles
-
-    def hardware_stats(self) -> dict:
-        stats = super().hardware_stats()
-        stats["cycles_per_imu_sample"] = stats["simulated_cycles"] / max(self.samples, 1)
-        return stats

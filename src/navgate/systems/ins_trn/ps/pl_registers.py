@@ -389,12 +389,15 @@ class RegisterEngine(Fp32Engine):
         return p
 
     def hardware_stats(self) -> dict:
-        return {"update_interrupts": self.interrupts,
-                "profile_dmas": self.profile.fifo.dmas,
-                "profile_entries_pushed": self.profile.pushes,
-                "baro_samples_through_pins": self.baro_samples,
-                "ranger_frames_through_pins": self.lidar_frames,
-                **self.fabric.stats()}
+        stats = {"update_interrupts": self.interrupts,
+                 "profile_dmas": self.profile.fifo.dmas,
+                 "profile_entries_pushed": self.profile.pushes,
+                 "baro_samples_through_pins": self.baro_samples,
+                 "ranger_frames_through_pins": self.lidar_frames,
+                 **self.fabric.stats()}
+        if "simulated_cycles" in stats:
+            stats["cycles_per_imu_sample"] = stats["simulated_cycles"] / max(self.samples, 1)
+        return stats
 
     def close(self):
         self._finalizer()
