@@ -246,6 +246,45 @@ def test_unloaded_pl_no_permission_bus_error_and_stall_are_board_errors(tmp_path
         B.open_board(B.BoardSettings(mem=str(mem)))
 
 
+class _Counting:
+    """A bus whose ENG_STATUS counts on by itself (live sensors): +3 samples per read."""
+
+    def __init__(self, start: int, busy: int = 0):
+        self.value, self.busy, self.reads = start, busy, 0
+
+    def read(self, offset):
+        assert offset == register_map()["ENG_STATUS"].offset
+        self.reads += 1
+        self.value = (self.value + 3) & 0xFFFFFF
+        return self.value << 8 | self.busy
+
+    def write(self, offset, value):
+        raise AssertionError("no writes")
+
+
+def test_live_sensors_count_past_the_sample_the_ps_waits_for():
+    from navgate.hw.regmap import Registers, RegisterTimeout
+    from navgate.systems.ins_trn.ps.pl_registers import wait_count
+
+    # the fabric passes 100 without ever showing it: reached or passed ends the wait
+    bus = _Counting(90)
+    got = wait_count(Registers(register_map(), bus), "ENG_STATUS", "propagations", 100, True,
+                     limit=50, busy=0)
+    assert got.value >> 8 == 102 and bus.reads == 4
+    # across the 24-bit wrap: 0xFFFFFC, 0xFFFFFF (not yet), then 2
+    bus = _Counting(0xFFFFFC)
+    got = wait_count(Registers(register_map(), bus), "ENG_STATUS", "propagations", 2, True,
+                     limit=50, busy=0)
+    assert got.value >> 8 == 2 and bus.reads == 2
+    # the engine still busy: bounded, then a timeout naming the counter
+    bus = _Counting(90, busy=1)
+    with pytest.raises(RegisterTimeout, match="ENG_STATUS.propagations did not reach 100 "
+                                              "in 20 reads"):
+        wait_count(Registers(register_map(), bus), "ENG_STATUS", "propagations", 100, True,
+                   limit=20, busy=0)
+    assert bus.reads == 20
+
+
 def test_replay_refuses_the_board_and_the_board_has_its_hardware_line(tmp_path, capsys):
     from navgate.cli.console import hardware_line
 

@@ -372,6 +372,7 @@ class BoardFabric(Fabric):
         self.board, self.owned = board, owned
         self.dma_address = board.dma.address
         self.lidar_baud_div = board.lidar_baud_div
+        self.live = board.standin is None  # the stand-in's emulators stop at each sample
         self.polls = 0  #: IRQ_STATUS reads while waiting for an interrupt
 
     def feed_imu(self, w) -> None:
