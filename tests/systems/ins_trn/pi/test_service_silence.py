@@ -5,6 +5,7 @@ loopback, with bounded waits."""
 
 from __future__ import annotations
 
+import os
 import socket
 import time
 
@@ -53,7 +54,13 @@ def test_a_silent_ps_is_dropped_and_counted_and_the_next_one_connects():
             first.send(messages.HEARTBEAT, seq, {"time": 0.0})
             assert first.recv(2.0).kind == messages.HEARTBEAT
             time.sleep(PERIOD)
+        # garbage every period for 0.5 s (bad frames, counted): something, so not silence
+        bad = service.counters["bad_frames"]
+        for _ in range(10):
+            os.write(first.fd, b"\x13\x37 not a frame\x00")
+            assert first.recv(PERIOD) is None
         assert service.counters["silent_clients_dropped"] == 0
+        assert service.counters["bad_frames"] >= bad + 5
         # silent: dropped once the limit (0.2 s) has passed, within one poll of the service
         waited = _closed_within(first, 3.0)
         assert waited is not None and PERIOD * PERIODS - 0.05 <= waited <= 1.0, waited

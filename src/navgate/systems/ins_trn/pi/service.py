@@ -21,9 +21,10 @@ logged, and the count when the client goes.
 
 A silent PS: a PS whose hello gives its heartbeat period (``heartbeat_s``; it sends
 something at least that often) and then sends nothing for ``silent_periods`` of them (default
-5) is dropped, counted (``silent_clients_dropped``) and logged, so that the next client can
-connect (TCP) or say hello (a serial line, served on). A PS without heartbeats (0, or an older
-PS that does not say) is never dropped for silence.
+5; the bytes of a bad frame count as something; the silence counts from when the service
+listens again after an answer) is dropped, counted (``silent_clients_dropped``) and logged,
+so that the next client can connect (TCP) or say hello (a serial line, served on). A PS
+without heartbeats (0, or an older PS that does not say) is never dropped for silence.
 """
 
 from __future__ import annotations
@@ -208,6 +209,7 @@ class TrnService:
         self._client_heartbeats = 0
         self._silence_s = None  # until the client's hello gives its heartbeat period
         heard = time.monotonic()
+        got_bytes = getattr(link, "received_bytes", 0)
         self._reassembly = messages.Reassembly()  # until the client's hello names its session
         bad_base = self.counters["bad_frames"] - sum(link.decoder.bad.values())
         try:
@@ -223,6 +225,9 @@ class TrnService:
                 finally:  # counted as they happen, so a status request sees them
                     self.counters["bad_frames"] = bad_base + sum(link.decoder.bad.values())
                 now = time.monotonic()
+                got = getattr(link, "received_bytes", 0)
+                if got != got_bytes:  # any byte, even of a frame that was bad, is not silence
+                    heard, got_bytes = now, got
                 if frame is None:
                     if self._silence_s is not None and now - heard > self._silence_s:
                         self.counters["silent_clients_dropped"] += 1
