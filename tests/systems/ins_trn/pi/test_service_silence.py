@@ -98,3 +98,12 @@ def test_silent_periods_zero_never_drops_and_negative_is_refused():
     assert service.counters["silent_clients_dropped"] == 0
     with pytest.raises(ValueError, match="silent_periods"):
         TrnService(Dem.default(), silent_periods=-1)
+
+
+def test_trn_serve_silent_periods_out_of_range_is_one_line(capsys):
+    from navgate.cli import main
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["trn-serve", "--silent-periods", "-1", "--listen", "tcp://127.0.0.1:0"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exit_.value.code == 2 and len(err) == 1 and "--silent-periods" in err[0], err
