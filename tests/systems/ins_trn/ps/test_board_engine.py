@@ -215,6 +215,15 @@ def test_unloaded_pl_no_permission_bus_error_and_stall_are_board_errors(tmp_path
     with B.open_board(B.BoardSettings(mem=str(mem), fpga_state=str(state))) as board:
         assert board.regs.read("ID") == ID_VALUE
         assert board.dma.address == B.DMA_ADDRESS
+    # memory that ends before the DMA buffer (a kernel that refuses to map it does the same)
+    small = tmp_path / "small"
+    with open(small, "wb") as f:
+        f.truncate(BASE_ADDRESS + 0x1000)
+        f.seek(BASE_ADDRESS + ID_OFFSET)
+        f.write(ID_VALUE.to_bytes(4, "little"))
+    with pytest.raises(B.BoardError, match="cannot map the profile DMA's buffer at --board-dma "
+                                           "0x40001000"):
+        B.open_board(B.BoardSettings(mem=str(small), dma=BASE_ADDRESS + 0x1000))
     # a read on a map whose memory went away: SIGBUS in the probe's child, not here
     gone = tmp_path / "gone"
     gone.write_bytes(bytes(0x2000))

@@ -330,8 +330,17 @@ class Board:
                 factory = lambda: DevMemBus(s.base, 0x1000, s.mem)  # noqa: E731
             _fpga_configured(s.fpga_state)
             self._check_id(_probe_id(factory, s.base))
-            self.bus = factory()
-            self.dma = _PynqDma() if s.bus == "pynq" else _DevMemDma(s)
+            try:
+                self.bus = factory()
+            except (OSError, ValueError) as error:
+                raise BoardError(f"cannot map the register bank at 0x{s.base:08X}: "
+                                 f"{getattr(error, 'strerror', None) or error}") from None
+            try:
+                self.dma = _PynqDma() if s.bus == "pynq" else _DevMemDma(s)
+            except (OSError, ValueError) as error:
+                raise BoardError(f"cannot map the profile DMA's buffer at --board-dma "
+                                 f"0x{s.dma:08X}: {getattr(error, 'strerror', None) or error} "
+                                 "(keep Linux off it: mem=1023M)") from None
             self.lidar_baud_div = TFLUNA_BAUD_DIV
         if s.irq != "poll":
             self.irq = _UioInterrupt(s.irq)
