@@ -71,8 +71,9 @@ def _positive_float(ctx, param, value):
                    "ins_engines gateware in Verilator, or the whole FPGA (ins_trn_top, IMU on "
                    "its SPI pins, the PS through AXI registers) in Verilator; rtl and "
                    "fpga-sim equal fp32 bit for bit; fp32-plain is fp32 without its float32 "
-                   "remedies (an ablation, docs/seed000-navigator.md). With any engine but "
-                   "reference the reference "
+                   "remedies (an ablation, docs/seed000-navigator.md); board flies the real "
+                   "ins_trn_top in the Zynq's PL from its PS (the --board-* options, "
+                   "docs/deploy.md). With any engine but reference the reference "
                    "flies too, for the comparison in summary.json.")
 @click.option("--board-bus", type=click.Choice(["devmem", "pynq", "verilator"]), default=None,
               help="With --engine board: the way to the register bank. devmem (the default) "
