@@ -294,6 +294,34 @@ def test_live_sensors_count_past_the_sample_the_ps_waits_for():
     assert bus.reads == 20
 
 
+def test_uio_interrupt_unmasks_waits_and_acknowledges(monkeypatch):
+    """The UIO protocol (Linux's uio driver): write 1 to unmask, the interrupt makes the
+    device readable, read the 4-byte count; here a pseudo-terminal in raw mode stands for
+    /dev/uioN, its master side for the kernel."""
+    import threading
+    import tty
+
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    path = os.ttyname(slave)
+    monkeypatch.setattr(B, "UIO_SECONDS", 0.3)
+    irq = B._UioInterrupt(path)
+    try:
+        raiser = threading.Timer(0.1, os.write, (master, (7).to_bytes(4, "little")))
+        raiser.start()
+        start = time.monotonic()
+        irq.wait()
+        assert 0.05 < time.monotonic() - start < 0.3
+        assert os.read(master, 16) == b"\x01\0\0\0"  # unmasked before waiting
+        with pytest.raises(B.BoardError, match=f"no interrupt on {path} within 0.3 s"):
+            irq.wait()  # nothing comes: bounded
+        raiser.join()
+    finally:
+        irq.close()
+        os.close(slave)
+        os.close(master)
+
+
 def test_replay_refuses_the_board_and_the_board_has_its_hardware_line(tmp_path, capsys):
     from navgate.cli.console import hardware_line
 
