@@ -125,7 +125,12 @@ def test_straight_line_is_list_scheduled_by_critical_path(registered):
     from navgate.opflow.loops import _place
 
     nest = _critical_path_nest()
-    prog = SequenceProgram("cp", nest.arrays, {"seg": nest}, {"run": ("seg",)})
+    # then, back to back: o[3] (written in seg's last cycle) read at offset 1, doubled
+    twice = LoopNest("twice", (), nest.arrays, {}, [
+        LOp("w", "load", ("o",), Addr(None, (), 3)), LOp("d", "add", ("w", "w"))], [],
+        [Store("a", Addr(None, (), 0), "d")])
+    prog = SequenceProgram("cp", nest.arrays, {"seg": nest, "twice": twice},
+                           {"run": ("seg",), "both": ("seg", "twice")})
     sch = schedule_sequence(prog, 1, registered=registered)
     s = sch.schedules["seg"]
     ld, mul = s.units.latency("load"), s.units.latency("mul")
@@ -141,11 +146,16 @@ def test_straight_line_is_list_scheduled_by_critical_path(registered):
     assert greedy == 4 + ld + 3 * mul + 1 > s.depth
     rng = np.random.default_rng(3)
     mems = {"a": rng.standard_normal(4), "o": np.zeros(4)}
-    (words, cycles), = simulate_sequence(sch, mems, ["run"])
-    want = run_sequence(prog, mems, "run")
-    assert cycles == sch.cycles("run") == s.depth + 1
-    for name in prog.arrays:
-        assert np.array_equal(words[name], floats_to_bits(want[name])), name
+    t = sch.schedules["twice"]
+    assert t.time["w"] == 1
+    runs = simulate_sequence(sch, mems, ["run", ("both", mems)])
+    for entry, (words, cycles), n in zip(("run", "both"), runs, (s.depth + 1,
+                                                              s.depth + t.depth + 1),
+                                         strict=True):
+        want = run_sequence(prog, mems, entry)
+        assert cycles == sch.cycles(entry) == n, entry
+        for name in prog.arrays:
+            assert np.array_equal(words[name], floats_to_bits(want[name])), (entry, name)
 
 
 def _chain_memories(prog, rng, special=False):
@@ -187,7 +197,8 @@ def test_sequence_machine_bit_exact_with_exact_cycles(lanes, registered):
         assert cycles == sch.cycles(entry), entry
         for name in prog.arrays:
             assert np.array_equal(words[name], floats_to_bits(want[name])), (entry, name)
-    assert sch.cycles("update") == sum(sch.schedules[s].cycles + 1 for s in ("rank1", "cmp"))
+    # segments back to back: cmp issues in the cycle after rank1's last write
+    assert sch.cycles("update") == sum(sch.schedules[s].cycles for s in ("rank1", "cmp")) + 1
 
 
 def test_sequence_machine_special_values():

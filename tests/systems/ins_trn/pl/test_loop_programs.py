@@ -121,16 +121,18 @@ CYCLES = {
     "trn_apply": [("trn_gate_vec", 184), ("trn_joseph", 295), ("trn_corr", 186)],
 }
 #: on opflow's sequence machine (registered, 3 lanes): per entry (segment, II, cycles + 1)
-#: and the cycles from start to done (straight-line segments list-scheduled by critical path)
+#: and the cycles from start to done (straight-line segments list-scheduled by critical path;
+#: segments back to back, so the total is the sum of the cycles + 1, one less per segment
+#: after the first than the sum of the steps' figures)
 SEQ_CYCLES = {
     "propagate": ([("prop_head", 376, 377), ("cov_M", 1, 199), ("cov_E", 1, 145),
-                   ("prop_tail", 194, 195)], 916),
+                   ("prop_tail", 194, 195)], 913),
     "alt_gate": ([("alt_gate", 51, 52)], 52),
     "alt_apply": ([("alt_gate_vec", 68, 69), ("alt_joseph", 1, 157), ("alt_corr", 161, 162)],
-                  388),
+                  386),
     "trn_gate": ([("trn_gate", 120, 121)], 121),
     "trn_apply": ([("trn_gate_vec", 158, 159), ("trn_joseph", 2, 303), ("trn_corr", 161, 162)],
-                  624),
+                  622),
 }
 #: the merged variant's updates (each one straight-line segment), same machine
 SEQ_MERGED = {"alt_apply": ([("alt_update", 208, 209)], 209),
