@@ -227,63 +227,213 @@ def test_hostile_outputs(name, option, tmp_path, navgate_run):
     assert not [p for p in tmp_path.rglob("*navgate-tmp*")]
 
 
-def _disk_full(*args, **kwargs):
-    """A writer that leaves a truncated file and then finds the disk full."""
-    import errno
-
-    target = next(a for a in args if isinstance(a, (str, Path)))
-    Path(target).write_text("truncated,")
-    raise OSError(errno.ENOSPC, "No space left on device", str(target))
+# ---------------------------------------------------------------------------------------------
+# a full disk or a Ctrl-C late in a complete run, for every command that writes a file
 
 
-def _interrupt(*args, **kwargs):
-    raise KeyboardInterrupt
+@dataclass
+class Run:
+    """A complete, cheap run of one command: its arguments (without ``--out``), its ``--out``
+    kind, the files it writes there (planted beforehand as the "previous results"), and the
+    output that finds the disk full (``full``) and the one the Ctrl-C arrives at (``stop``):
+    a name in the output directory, or ``"--out"`` / ``"--record"`` for an output file."""
+
+    args: list
+    kind: str
+    writes: list
+    full: str
+    stop: str
+    record: bool = False
 
 
-# command -> (its case, "module:function" that writes one output late in the run, the
-# outputs planted as previous results: (option, names in the directory or None for a file))
-LATE_WRITERS = {
-    "tinykalman run": ("navgate.cli.tinykalman:_write_roll_pitch",
-                       ["mpu6500_words.csv", "uart.bin", "roll_pitch.csv", "summary.json"]),
-    "tinykalman decode": ("navgate.cli.tinykalman:_write_roll_pitch",
-                          ["roll_pitch.csv", "summary.json"]),
-    "fly": ("navgate.systems.ins_trn.ps.records:write_log", None),
-}
+def _short_log(d: Path) -> Path:
+    """A 2 s INS-only record log written by the library (what ``fly --record`` writes)."""
+    from navgate.cli import main
+
+    log = d / "flight.log"
+    try:
+        main(["fly", "--duration", "2", "--no-trn", "--quiet", "--record", str(log),
+              "--out", str(d / "fly-for-log")])
+    except SystemExit as exit_:
+        assert exit_.code == 0
+    return log
 
 
-@pytest.mark.parametrize("name", sorted(LATE_WRITERS))
-@pytest.mark.parametrize("failure", ["disk full", "interrupt"])
+def _fast_campaign(monkeypatch):
+    """The campaign's LocalCluster with threads, not processes (the write is the same)."""
+    import dask.distributed
+
+    real = dask.distributed.LocalCluster
+    monkeypatch.setattr(dask.distributed, "LocalCluster",
+                        lambda **k: real(**{**k, "processes": False}))
+
+
+def _short_gpsins(monkeypatch):
+    """gpsins simulates 60 s of its (at least 250 s) flight: the writing is the same."""
+    import dataclasses
+
+    from navgate.systems.gpsins import scenario
+
+    real = scenario.simulate
+    monkeypatch.setattr(scenario, "simulate", lambda cfg, progress=None: real(
+        dataclasses.replace(cfg, duration_s=60.0, outage_start_s=40.0, outage_s=10.0),
+        progress))
+
+
+def _canned_report(monkeypatch):
+    """report's table without synthesising 48 blocks (minutes): the file write is the same."""
+    from navgate.cli import build
+
+    monkeypatch.setattr(build, "report_markdown", lambda *a, **k: "| block |\n|---|\n" * 2000)
+
+
+def make_run(name: str, d: Path, monkeypatch) -> Run:
+    if name == "fly":
+        return Run(["fly", "--dem", _dem(d / "dem.tif"), "--duration", 2, "--no-trn",
+                    "--quiet"], "dir", ["summary.json", "trajectory.csv", "trn_fixes.csv",
+                                        "track.png", "errors.png"], "track.png", "--record",
+                   record=True)
+    if name == "replay":
+        return Run(["replay", _short_log(d), "--no-trn", "--quiet"], "dir",
+                   ["summary.json", "trajectory.csv", "track.png", "errors.png"],
+                   "trajectory.csv", "summary.json")
+    if name == "campaign":
+        _fast_campaign(monkeypatch)
+        return Run(["campaign", "--seeds", "0", "--duration", 2, "--dem", _dem(d / "dem.tif"),
+                    "--workers", 1, "--quiet"], "dir",
+                   ["results.csv", "error_cdf.png", "nees_hist.png", "summary.json"],
+                   "nees_hist.png", "results.csv")
+    if name == "ahrs":
+        return Run(["ahrs", _imu_csv(d / "imu.csv"), "--quiet"], "file", [], "--out", "--out")
+    if name == "gpsins":
+        _short_gpsins(monkeypatch)
+        return Run(["gpsins", "--duration", 250, "--outage-start", 200, "--filter", "seed",
+                    "--rate", 20, "--quiet"], "dir",
+                   ["trajectory.csv", "gps.csv", "errors.png", "summary.json"], "errors.png",
+                   "summary.json")
+    if name == "kf2x2":
+        return Run(["kf2x2", "--frames", 200], "dir", ["summary.json", "frames.csv", "rlc.png"],
+                   "rlc.png", "frames.csv")
+    if name == "build":
+        return Run(["build", "fixed_mul"], "dir",
+                   ["fixed_mul.v", "fixed_mul.json", "fixed_mul.utilization.json"],
+                   "fixed_mul.v", "fixed_mul.utilization.json")
+    if name == "report":
+        _canned_report(monkeypatch)
+        return Run(["report"], "file", [], "--out", "--out")
+    if name == "tinykalman run":
+        return Run(["tinykalman", "run", _imu_csv(d / "imu.csv"), "--quiet"], "dir",
+                   ["mpu6500_words.csv", "uart.bin", "roll_pitch.csv", "summary.json"],
+                   "mpu6500_words.csv", "roll_pitch.csv")
+    if name == "tinykalman decode":
+        capture = d / "uart.bin"
+        capture.write_bytes(bytes(range(256)))
+        return Run(["tinykalman", "decode", capture, "--quiet"], "dir",
+                   ["roll_pitch.csv", "summary.json"], "roll_pitch.csv", "summary.json")
+    if name == "tiles split":
+        return Run(["tiles", "split", _dem(d / "dem.tif"), "--into", "1x2", "--quiet"], "dir",
+                   ["tile_r0_c0.tif", "tile_r0_c1.tif", "tiles.json"], "tile_r0_c1.tif",
+                   "tiles.json")
+    if name == "tiles info":
+        tiles = d / "tiles"
+        tiles.mkdir()
+        _dem(tiles / "a.tif")
+        return Run(["tiles", "info", tiles, "--quiet"], "dir", ["tiles.json"], "tiles.json",
+                   "tiles.json")
+    raise KeyError(name)
+
+
+def _full_disk_at(monkeypatch, target: str, final: Path):
+    """The staging of ``final`` (the output directory, or one output file) has its file
+    ``target`` on a full disk: a symbolic link to /dev/full, planted in the staging directory
+    as it is made, so that the command's own writer (csv, numpy, matplotlib, GDAL, json)
+    opens it and the kernel answers ENOSPC."""
+    from navgate.cli import outputs
+
+    real = outputs._stage_beside
+
+    def stage(path, directory):
+        staged = real(path, directory)
+        if Path(path) == final:
+            if directory:
+                (staged / target).symlink_to("/dev/full")
+            else:
+                staged.unlink()
+                staged.symlink_to("/dev/full")
+        return staged
+
+    monkeypatch.setattr(outputs, "_stage_beside", stage)
+
+
+def _ctrl_c_at(monkeypatch, target: str | None, final: Path):
+    """A real SIGINT (the command's own handler catches it) just after the command opens the
+    staged ``target`` (a name in the staged output directory, or None for the staged output
+    file ``final``): the run is interrupted in the middle of writing it."""
+    import builtins
+    import io
+    import signal
+
+    real = builtins.open
+
+    def hit(file) -> bool:
+        if not isinstance(file, (str, Path)):
+            return False
+        p = Path(file)
+        if target is None:
+            return p.name.startswith(f".{final.name}.navgate-tmp-")
+        return p.name == target and p.parent.name.startswith(f".{final.name}.navgate-tmp-")
+
+    def opened(file, *args, **kwargs):
+        handle = real(file, *args, **kwargs)
+        if hit(file):
+            signal.raise_signal(signal.SIGINT)
+        return handle
+
+    monkeypatch.setattr(builtins, "open", opened)
+    monkeypatch.setattr(io, "open", opened)
+
+
+WRITERS = [n for n in COVERED]
+
+
+@pytest.mark.parametrize("failure", ["disk full", "ctrl-c"])
+@pytest.mark.parametrize("name", WRITERS)
 def test_failed_run_leaves_previous_results(name, failure, tmp_path, navgate_run,
                                             monkeypatch):
-    """A full disk or a Ctrl-C late in the run: exit 2 / 130, every previous output
-    byte for byte as it was (the 13.5 MB words file once left at 33 bytes, the record
-    log at 3.7 KB), no staging left."""
-    import importlib
-
-    case = make_case(tuple(name.split()), tmp_path)
-    target, names = LATE_WRITERS[name]
-    out = tmp_path / "out"
-    out.mkdir()
-    planted = [out / n for n in (names or ["summary.json", "trajectory.csv"])]
-    args = [*case.args, "--out", out]
-    if name == "fly":
-        record = tmp_path / "flight.log"
-        planted.append(record)
-        args += ["--record", record]
+    """A full disk or a Ctrl-C late in a complete run of every command: one line, exit 2
+    ("No space left on device", naming the final path, not the staging) or 130, every
+    previous output byte for byte as it was (an old 13.5 MB words file was once left at 33
+    bytes, a record log at 3.7 KB), nothing new in the output directory, no staging left."""
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full to stand for a full disk")
+    run = make_run(name, tmp_path, monkeypatch)
+    out = tmp_path / ("out" if run.kind == "dir" else "out.txt")
+    planted = [out / n for n in run.writes] if run.kind == "dir" else [out]
+    args = [*run.args, "--out", out]
+    finals = {"--out": out}
+    if run.record:
+        finals["--record"] = tmp_path / "flight.log"
+        planted.append(finals["--record"])
+        args += ["--record", finals["--record"]]
     for p in planted:
+        p.parent.mkdir(exist_ok=True)
         p.write_text(f"previous {p.name}\n")
     before = _snapshot(planted)
-    module, attr = target.split(":")
-    monkeypatch.setattr(importlib.import_module(module), attr,
-                        _disk_full if failure == "disk full" else _interrupt)
+    target = run.full if failure == "disk full" else run.stop
+    final = finals.get(target, out)
+    if failure == "disk full":
+        _full_disk_at(monkeypatch, None if target in finals else target, final)
+    else:
+        _ctrl_c_at(monkeypatch, None if target in finals else target, final)
     code, _, err = navgate_run(args)
     line = navgate_run.one_line(err)
     if failure == "disk full":
         assert code == 2 and "No space left on device" in line, line
-        assert "navgate-tmp" not in line  # named by its final path, not the staging path
+        # named by its final path, not the staging path
+        assert str(final) in line and "navgate-tmp" not in line, line
     else:
         assert code == 130 and "interrupted" in line, line
     assert _snapshot(planted) == before
-    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in planted
-                                                          if p.parent == out)
+    if run.kind == "dir":
+        assert sorted(p.name for p in out.iterdir()) == sorted(run.writes)
     assert not [p for p in tmp_path.rglob("*navgate-tmp*")]

@@ -90,7 +90,9 @@ def _parse_seeds(text: str, option: str = "--ecp5-seeds") -> tuple[int, ...]:
 def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Progress, task,
                keep_work: bool = False, ecp5_seeds: tuple[int, ...] = (1,),
                nexus_seeds: tuple[int, ...] = (1,), asic: str | None = None,
-               liberty: Path | None = None):
+               liberty: Path | None = None, shown_as: Path | None = None):
+    """Build one block into ``out_dir``; an OSError is one line naming ``shown_as`` (the
+    final output directory when ``out_dir`` is its staging directory) in place of it."""
     from navgate.hw.flow import build_block
     from navgate.hw.synth import SynthesisError
 
@@ -104,7 +106,12 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
     except SynthesisError as error:
         raise CliError(str(error)) from None
     except OSError as error:
-        raise CliError(f"cannot write build outputs in {out_dir}: {error.strerror}") from None
+        shown = Path(shown_as) if shown_as is not None else Path(out_dir)
+        reason = error.strerror or str(error)
+        name = str(error.filename or "")
+        if name.startswith(str(out_dir)):  # a file of the staging: named by its final path
+            raise CliError(f"cannot write {shown}{name[len(str(out_dir)):]}: {reason}") from None
+        raise CliError(f"cannot write build outputs in {shown}: {reason}") from None
 
 
 @click.command()
@@ -160,7 +167,7 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
             console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
         task = progress.add_task(block, total=1)
         built = _run_build(block, stage, target, timing, progress, task, keep_work, seeds,
-                           nx_seeds, asic, liberty_path)
+                           nx_seeds, asic, liberty_path, shown_as=out_dir)
         progress.advance(task)
     use = built["utilization"]
     click.echo(

@@ -235,6 +235,9 @@ def staged_outputs(out: str | Path | None = None, files: Iterable[str | Path] = 
             for final, path in ((out, stage), *((f, p) for f, p in staged.items())):
                 if path is not None and str(error.filename or "").startswith(str(path)):
                     raise _translate(error, path, final) from None
+            if not error.filename:  # a failed flush or close: name what was being written
+                targets = [str(t) for t in (out, *staged) if t is not None]
+                error.filename = " or ".join(targets) if targets else None
             raise CliError(os_error_message(error)) from None
         moves = []
         if stage is not None:
