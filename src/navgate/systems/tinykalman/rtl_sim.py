@@ -38,6 +38,7 @@ from navgate.devices.mpu6500 import (
     Mpu6500Bus,
     SpiTiming,
 )
+from navgate.nav import validate
 from navgate.systems.tinykalman.model import PACKET_LEN, TinyKalman
 from navgate.systems.tinykalman.top import TT_MODULE_NAME, TinyKalmanTop, min_sample_period
 
@@ -151,6 +152,10 @@ def run_amaranth(samples, n_samples: int, config: SimConfig = FAST, *,
                  max_cycles: int | None = None) -> RtlRun:
     """Run ``n_samples`` sample periods of the chip in Amaranth's simulator."""
     from amaranth.sim import Simulator
+
+    n_samples = validate.positive_int("n_samples", n_samples)
+    if max_cycles is not None:
+        max_cycles = validate.positive_int("max_cycles", max_cycles)
 
     top = config.top()
     dev = _device(samples, timing)
@@ -269,12 +274,14 @@ def run_verilator(samples, n_samples: int, config: SimConfig = FAST, *,
 
     from navgate.gateware.verify import VerifyError, _verilator_path
 
+    n_samples = validate.positive_int("n_samples", n_samples)
     build_dir = build_verilator(config)
     cleanup = work_dir is None
     work = Path(work_dir) if work_dir is not None else Path(tempfile.mkdtemp(prefix="tk-vl-"))
     work.mkdir(parents=True, exist_ok=True)
     try:
-        words = np.asarray([list(s) for s in samples], dtype=np.int64).reshape(-1, 7)
+        words = validate.int_words("samples", [list(s) for s in samples], 16,
+                                   shape=(-1, 7))
         np.savetxt(work / "samples.txt", words, fmt="%d")
         job = {
             "samples": str(work / "samples.txt"), "n_samples": int(n_samples),
@@ -338,7 +345,14 @@ def datapath_inputs(words, ok=None) -> dict:
     """Input arrays of the data path block from :class:`~.run.Words`."""
     n = len(words)
     d = {k: words.column(k) for k in ("ax", "ay", "az", "gx", "gy")}
-    d["ok"] = np.ones(n, np.int64) if ok is None else np.asarray(ok, np.int64)
+    if ok is None:
+        d["ok"] = np.ones(n, np.int64)
+    else:
+        ok = np.asarray(ok)
+        d["ok"] = (ok.astype(np.int64) if ok.dtype == np.bool_
+                   else validate.int_words("ok", ok, 1, signed=False))
+        if d["ok"].shape != (n,):
+            raise ValueError(f"ok: shape {d['ok'].shape} differs from the words' {(n,)}")
     return d
 
 
