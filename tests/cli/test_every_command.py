@@ -437,3 +437,127 @@ def test_failed_run_leaves_previous_results(name, failure, tmp_path, navgate_run
     if run.kind == "dir":
         assert sorted(p.name for p in out.iterdir()) == sorted(run.writes)
     assert not [p for p in tmp_path.rglob("*navgate-tmp*")]
+
+
+# ---------------------------------------------------------------------------------------------
+# absurd numbers in every numeric option of every command
+
+
+ABSURD = {"float": ["inf", "-inf", "nan", "1e300", "-1e300"],
+          "integer": [str(10**30), str(-10**30)]}
+#: options that carry numbers in text
+ABSURD_TEXT = {"--seeds": ["0-1e300", f"0-{10**30}", "1e300"],
+               "--ecp5-seeds": [str(2**31), str(10**30), ",".join(["1"] * 65)],
+               "--nexus-seeds": [str(2**31), str(10**30)],
+               "--into": [f"{10**30}x1", "infxinf", "1e300x2"]}
+
+#: (command, option, value) that are accepted, with the reason (they are not run here)
+ACCEPTED = {
+    **{(c, "--seed", str(10**30)): "any non-negative integer seeds NumPy's generator"
+       for c in ("fly", "gpsins", "kf2x2")},
+    ("tinykalman run", "--limit", str(10**30)): "a limit beyond the log reads all of it",
+    ("trn-serve", "--cache-mb", "1e300"): "a cache larger than the tiles holds them all",
+    ("trn-serve", "--max-requests", str(10**30)): "a service answers until it is stopped",
+}
+
+
+def _absurd_bases(d: Path) -> dict:
+    """Runs that would succeed, so that the value under test is what a refusal is about."""
+    dem = _dem(d / "dem.tif")
+    tiles = d / "tiles"
+    tiles.mkdir()
+    _dem(tiles / "a.tif")
+    return {
+        "fly": ["fly", "--dem", dem, "--duration", 2, "--no-trn", "--quiet"],
+        "replay": ["replay", _record_log(d / "flight.log"), "--no-trn", "--quiet"],
+        "campaign": ["campaign", "--seeds", "0", "--duration", 2, "--dem", dem, "--quiet",
+                     "--workers", 1],
+        "ahrs": ["ahrs", _imu_csv(d / "imu.csv"), "--quiet"],
+        "gpsins": ["gpsins", "--duration", 250, "--outage-start", 200, "--rate", 20,
+                   "--filter", "seed", "--quiet"],
+        "kf2x2": ["kf2x2", "--frames", 10],
+        "build": ["build", "fixed_mul", "--timing"],
+        "report": ["report", "--asic", "sg13g2", "--liberty", _liberty(d / "cells.lib")],
+        "tinykalman run": ["tinykalman", "run", _imu_csv(d / "imu.csv"), "--quiet"],
+        "tinykalman decode": ["tinykalman", "decode", "--serial", "loop://", "--seconds", 1,
+                              "--quiet"],
+        "tiles split": ["tiles", "split", dem, "--into", "1x2", "--quiet"],
+        "tiles info": ["tiles", "info", tiles, "--quiet"],
+        "trn-serve": ["trn-serve", "--tiles", tiles, "--listen", "tcp://127.0.0.1:0"],
+        "cache info": ["cache", "info"],
+        "cache clear": ["cache", "clear"],
+    }
+
+
+def _numeric_options(path: tuple) -> list[tuple[str, str]]:
+    found = []
+    for p in command_of(path).params:
+        if not isinstance(p, click.Option):
+            continue
+        opt = max(p.opts, key=len)
+        kind = p.type.name.split()[0]
+        for value in ABSURD_TEXT.get(opt, ABSURD.get(kind, [])):
+            found.append((opt, value))
+    return found
+
+
+@pytest.mark.parametrize("path", leaves(), ids=" ".join)
+def test_absurd_numbers_are_one_line(path, tmp_path, navgate_run):
+    """inf, nan, 1e300, 10^30 in every numeric option of every command (discovered from
+    the click group): one line naming the option (or the value), exit 2, before the long
+    run; never an internal error (--trn-timeout 1e10 and trn-serve --fd 10^30 overflowed
+    C types; --ecp5-seeds 10^30 reached nextpnr)."""
+    import signal
+
+    name = " ".join(path)
+    base = [str(a) for a in _absurd_bases(tmp_path)[name]]
+    cases = [(o, v) for o, v in _numeric_options(path) if (name, o, v) not in ACCEPTED]
+    if name == "trn-serve":  # --fd and --serial are other ways to serve than --listen
+        cases = [(o, v) for o, v in cases if o != "--fd"] + [("--fd", str(10**30))]
+
+    def hang(*_):
+        raise TimeoutError("no answer within 60 s")
+
+    previous = signal.signal(signal.SIGALRM, hang)
+    try:
+        for opt, value in cases:
+            args = list(base)
+            if opt in args:  # replace the base's value
+                i = args.index(opt)
+                del args[i:i + 2]
+            if name == "trn-serve" and opt == "--fd":
+                args = args[:args.index("--listen")]
+            signal.alarm(60)
+            code, _, err = navgate_run([*args, f"{opt}={value}"])
+            signal.alarm(0)
+            line = navgate_run.one_line(err)
+            assert code == 2, (opt, value, line)
+            try:
+                shown = f"{float(value):g}"
+            except ValueError:
+                shown = value
+            # (an option whose value is optional, fly --realtime [SPEED], takes "-inf" for
+            # another option: click's own one-line refusal)
+            optional = value.startswith("-") and "No such option" in line
+            assert opt in line or shown in line or value in line or optional, (opt, value,
+                                                                               line)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def test_inputs_that_are_not_regular_files_are_named(tmp_path, navgate_run):
+    """A Liberty file or a tile directory that is a device or a FIFO: "not a regular
+    file" / "not a tile directory", not "not found" (it exists)."""
+    import os
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    for bad in ("/dev/zero", fifo, tmp_path):
+        code, _, err = navgate_run(["build", "fixed_mul", "--asic", "sg13g2", "--liberty", bad])
+        assert code == 2 and "not a regular file" in navgate_run.one_line(err), err
+        code, _, err = navgate_run(["report", "--asic", "sg13g2", "--liberty", bad])
+        assert code == 2 and "not a regular file" in navgate_run.one_line(err), err
+    for bad in ("/dev/zero", fifo):
+        code, _, err = navgate_run(["tiles", "info", bad])
+        assert code == 2 and "not a tile directory" in navgate_run.one_line(err), err

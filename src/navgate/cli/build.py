@@ -77,6 +77,11 @@ def _progress(console: Console) -> Progress:
     )
 
 
+#: the largest placer seed (nextpnr's --seed is a C int) and the most seeds one build runs
+MAX_SEED = 2**31 - 1
+MAX_SEEDS = 64
+
+
 def _parse_seeds(text: str, option: str = "--ecp5-seeds") -> tuple[int, ...]:
     try:
         seeds = tuple(int(part) for part in text.split(",") if part.strip())
@@ -84,6 +89,10 @@ def _parse_seeds(text: str, option: str = "--ecp5-seeds") -> tuple[int, ...]:
         raise CliError(f"{option} must be comma-separated integers, got {text!r}") from None
     if not seeds or any(seed < 0 for seed in seeds):
         raise CliError(f"{option} must name at least one non-negative seed, got {text!r}")
+    if any(seed > MAX_SEED for seed in seeds):  # nextpnr reads --seed into a C int
+        raise CliError(f"{option}: a seed is at most {MAX_SEED}, got {max(seeds)}")
+    if len(seeds) > MAX_SEEDS:  # each seed is a full place and route
+        raise CliError(f"{option}: at most {MAX_SEEDS} seeds, got {len(seeds)}")
     return seeds
 
 
@@ -208,6 +217,8 @@ def _check_asic(asic: str | None, liberty: str | None) -> Path | None:
     if asic not in ASIC_TECHS:
         raise CliError(f"unknown ASIC technology {asic!r}; known: {', '.join(ASIC_TECHS)}")
     path = Path(liberty) if liberty is not None else default_liberty()
+    if path.exists() and not path.is_file():  # a directory, a device, a FIFO
+        raise CliError(f"cannot read the Liberty file {path}: not a regular file")
     if not path.is_file():
         raise CliError(f"Liberty file not found: {path} (give its path with --liberty)")
     return path.resolve()

@@ -231,6 +231,8 @@ def _read_serial(port: str, baud: int, seconds: float) -> bytes:
     return bytes(data)
 
 
+#: the fastest UART --baud names (as trn-serve's --baud)
+MAX_BAUD = 12_000_000
 #: the longest --serial capture (a day) and the largest captured stream read (at 9600 baud a
 #: TinyKalman sends about 1 kB/s: 64 MiB is some 18 hours)
 MAX_CAPTURE_S = 86_400.0
@@ -257,6 +259,8 @@ def decode(file, port, baud, seconds, out, quiet):
         raise CliError("give exactly one of FILE or --serial PORT")
     if baud <= 0 or not seconds > 0:
         raise CliError("--baud and --seconds must be positive")
+    if baud > MAX_BAUD:
+        raise CliError(f"--baud must be at most {MAX_BAUD:,} (a UART), got {baud}")
     if not seconds <= MAX_CAPTURE_S:  # also NaN
         raise CliError(f"--seconds must be at most {MAX_CAPTURE_S:g} s "
                        f"({MAX_CAPTURE_S / 3600:g} h), got {seconds:g}")

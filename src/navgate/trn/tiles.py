@@ -91,6 +91,8 @@ class TileStore:
 
     def __init__(self, directory, cache_mb: float | None = None, priority: str = "check"):
         directory = Path(directory)
+        if directory.exists() and not directory.is_dir():
+            raise DemError(f"not a tile directory: {directory} (a file, a device or a FIFO)")
         if not directory.is_dir():
             raise DemError(f"tile directory not found: {directory}")
         if priority not in PRIORITIES:
