@@ -10,6 +10,14 @@ For every output option of every command (``--out``, and ``fly --record``):
 - ``OPT FILE/sub`` (the output under a regular file) is one line, exit 2;
 - never a traceback, never an "internal error".
 
+Late failures (:func:`test_failed_run_leaves_previous_results`): a full disk (a ``/dev/full``
+file planted in the staging, so the command's own writer meets a real ENOSPC) and a real
+SIGINT in the middle of writing an output, for every command that writes: one line, exit 2 or
+130, every previous output byte for byte as it was, no staging left.
+
+Absurd numbers (:func:`test_absurd_numbers_are_one_line`): inf, nan, 1e300, 10^30 in every
+numeric option discovered from the group: one line naming the option, exit 2.
+
 A command that writes nothing is listed in :data:`NO_OUTPUTS` with the reason; a command with
 no input file says so in :data:`CASES` (``inputs`` empty). The invocations are the cheapest
 that reach the check (every check fails before the long part of a run).
@@ -393,7 +401,8 @@ def _ctrl_c_at(monkeypatch, target: str | None, final: Path):
     monkeypatch.setattr(io, "open", opened)
 
 
-WRITERS = [n for n in COVERED]
+#: every command that writes a file (a new one needs a :func:`make_run`)
+WRITERS = list(COVERED)
 
 
 @pytest.mark.parametrize("failure", ["disk full", "ctrl-c"])
