@@ -570,3 +570,18 @@ def test_inputs_that_are_not_regular_files_are_named(tmp_path, navgate_run):
     for bad in ("/dev/zero", fifo):
         code, _, err = navgate_run(["tiles", "info", bad])
         assert code == 2 and "not a tile directory" in navgate_run.one_line(err), err
+
+
+def test_no_output_inside_an_input_directory(tmp_path, navgate_run):
+    """README: no output may be "a file inside an input directory" (a tile directory that a
+    later run reads); tiles info --out TILES/sub and fly --record TILES/f.log wrote there."""
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    _dem(tiles / "a.tif")
+    for args in (["tiles", "info", tiles, "--out", tiles / "sub"],
+                 ["fly", "--dem", tiles, "--duration", 2, "--no-trn", "--out", tiles / "x"],
+                 ["fly", "--dem", tiles, "--duration", 2, "--no-trn", "--out", tmp_path / "o",
+                  "--record", tiles / "f.log"]):
+        code, _, err = navgate_run(args)
+        assert code == 2 and "inside the input directory" in navgate_run.one_line(err), err
+    assert sorted(p.name for p in tiles.iterdir()) == ["a.tif"]

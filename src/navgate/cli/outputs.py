@@ -55,7 +55,8 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def check_not_input(path: str | Path, inputs: Iterable[str | Path | None]) -> None:
-    """Raise CliError if writing ``path`` would overwrite one of ``inputs``."""
+    """Raise CliError if writing ``path`` would overwrite one of ``inputs``, or would put a
+    file inside an input directory (a tile directory: a later run would read it)."""
     p = Path(path)
     for item in inputs:
         if item is None:
@@ -63,6 +64,9 @@ def check_not_input(path: str | Path, inputs: Iterable[str | Path | None]) -> No
         q = Path(item)
         if _same_file(p, q) or p.resolve() == q.resolve():
             raise CliError(f"output {p} is the input {q}; refusing to overwrite an input")
+        if q.is_dir() and p.resolve().is_relative_to(q.resolve()):
+            raise CliError(f"output {p} is inside the input directory {q}; refusing to "
+                           "write into an input")
 
 
 def _set_mode(stage: Path, path: Path) -> None:
