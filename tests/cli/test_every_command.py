@@ -585,3 +585,25 @@ def test_no_output_inside_an_input_directory(tmp_path, navgate_run):
         code, _, err = navgate_run(args)
         assert code == 2 and "inside the input directory" in navgate_run.one_line(err), err
     assert sorted(p.name for p in tiles.iterdir()) == ["a.tif"]
+
+
+@pytest.mark.parametrize("name", WRITERS)
+def test_results_on_stdout_notes_on_stderr(name, tmp_path, navgate_run, monkeypatch):
+    """README: results (tables) go to stdout; progress, notes and "wrote ..." lines to stderr
+    (`navgate CMD > run.log` captures the results). A complete run of every command that
+    writes, which also writes every file it declares (tinykalman printed its table on
+    stderr)."""
+    run = make_run(name, tmp_path, monkeypatch)
+    out = tmp_path / ("out" if run.kind == "dir" else "out.txt")
+    args = [*(a for a in run.args if a != "--quiet"), "--out", out]
+    if run.record:
+        args += ["--record", tmp_path / "flight.log"]
+    code, stdout, stderr = navgate_run(args)
+    assert code == 0, stderr
+    assert stdout.strip(), "no result on stdout"
+    assert "wrote" in stderr and "wrote" not in stdout, (stdout, stderr)
+    assert "┏" not in stderr and "Traceback" not in stderr
+    if run.kind == "dir":
+        assert set(run.writes) <= {p.name for p in out.iterdir()}
+    else:
+        assert out.stat().st_size > 0

@@ -377,3 +377,4 @@ def report(timing: bool, target: str, out: str | None, jobs: int, asic: str | No
     if out_path is not None:
         with atomic_output_file(out_path, inputs=[liberty_path]) as tmp:
             tmp.write_text(table)
+        click.echo(f"wrote {out_path}", err=True)  # as every command says what it wrote
