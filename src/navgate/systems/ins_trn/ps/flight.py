@@ -1,7 +1,11 @@
 """The ``navgate fly`` run: plan, simulate, navigate INS-only and INS+TRN, and score both.
 
 The scenario (route, truth, sensors, scoring) is :mod:`navgate.sim.flight`; the navigation
-loop is :mod:`navgate.systems.ins_trn.ps.navigation`; the report is
+loop is the streaming navigator (:mod:`navgate.systems.ins_trn.ps.navigator`: the PS side over
+a PL engine of :mod:`navgate.systems.ins_trn.ps.pl_interface`), fed by the record stream
+(:mod:`navgate.systems.ins_trn.ps.records`) that :func:`flight_stream` makes of the simulated
+sensor data; :func:`run_navigation` runs it once (INS + 15-state ESKF with barometric
+altitude updates and, optionally, TRN position fixes). The report is
 :mod:`navgate.systems.ins_trn.ps.report`.
 """
 
@@ -14,9 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navgate.nav.earth import LocalTangent
 from navgate.sim import sensors
 from navgate.sim.flight import (
     FlightConfig,
+    InitialEstimate,
     Route,
     RouteError,
     SensorData,
@@ -25,10 +31,32 @@ from navgate.sim.flight import (
     score,
     simulate_sensors,
 )
-from navgate.systems.ins_trn.ps.navigation import NavRun, flight_stream, run_navigation
-from navgate.systems.ins_trn.ps.navigator import navigate
+from navgate.systems.ins_trn.ps.navigator import NavRun, navigate
+from navgate.systems.ins_trn.ps.records import RecordStream, make_header, stream_from_sensors
 from navgate.systems.ins_trn.ps.trn_settings import TrnSettings
 from navgate.trn.dem import Dem
+
+
+def flight_stream(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialEstimate, *,
+                  with_truth: bool = True, trn: TrnSettings | None = None) -> RecordStream:
+    """The record stream (with its header, which records ``trn``) of a simulated flight."""
+    tangent = LocalTangent(*dem.center, 0.0)
+    header = make_header(cfg, data, init, data.imu.calibration, tangent, trn)
+    header["dem"] = dem.name
+    log_every = max(1, int(round(cfg.imu_rate_hz / cfg.log_rate_hz)))
+    return stream_from_sensors(data, log_every if with_truth else None, header)
+
+
+def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialEstimate, *,
+                   use_trn: bool, name: str, progress=None, engine: str = "reference",
+                   stream: RecordStream | None = None,
+                   trn: TrnSettings | None = None) -> NavRun:
+    """Closed-loop INS + ESKF over the sensor data, with baro and (optionally) TRN updates,
+    with the float64 ``reference`` engine or another registered engine."""
+    if stream is None:
+        stream = flight_stream(data, dem, cfg, init, with_truth=False, trn=trn)
+    return navigate(stream, cfg, engine=engine, dem=dem if use_trn else None, use_trn=use_trn,
+                    name=name, progress=progress, trn=trn)
 
 
 @dataclass
@@ -196,6 +224,5 @@ def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progr
 
 
 __all__ = ["FlightConfig", "FlightResult", "NavRun", "RouteError", "TrnSettings", "fly",
-           "fly_stream",
-           "record_stream",
-           "max_position_difference", "plan_route", "run_navigation"]
+           "flight_stream", "fly_stream", "record_stream", "max_position_difference",
+           "plan_route", "run_navigation"]
