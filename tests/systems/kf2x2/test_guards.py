@@ -160,3 +160,20 @@ def test_scenario_parameters(kwargs, name):
 def test_scenario_defaults_still_run():
     sc = kf.rlc_scenario(frames=10, step_frame=10, step_factor=0.0)
     assert sc.frames == 10 and np.isfinite(sc.z).all()
+
+
+def test_gateware_entry_points_check_before_building(frames):
+    """The divider unit takes the filter's parameter checks (iterations = 0 was accepted, n =
+    20.5 a TypeError from Amaranth), and verify_frames refuses a bad raw word before it
+    elaborates or simulates anything."""
+    from navgate.systems.kf2x2.rtl_sim import verify_frames
+    from navgate.systems.kf2x2.top import Kf2x2
+    from navgate.systems.kf2x2.units import GoldschmidtSerial
+
+    raises_naming("div_iterations", GoldschmidtSerial, iterations=0)
+    raises_naming("n", GoldschmidtSerial, n=20.5)
+    raises_naming("n", Kf2x2, n=20.5)
+    st = kf.init_state(P)
+    raises_naming("init['x0']", verify_frames, P, {**st, "x0": 1.5}, frames)
+    raises_naming("frames[2]: inputs['z0']", verify_frames, P, st,
+                  [*frames[:2], {**frames[2], "z0": P.max_int + 1}])

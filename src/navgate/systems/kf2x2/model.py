@@ -383,8 +383,7 @@ def run_frames(params: KfParams, init_state: dict, frames: list[dict],
     prog = frame_program(params)
     adapt_q = validate.flag("adapt_q", adapt_q)
     adapt_r = validate.flag("adapt_r", adapt_r)
-    state = {k: _raw_word(f"init_state[{k!r}]", init_state[k], params) if k in init_state
-             else _missing("init_state", k) for k in STATE_NAMES}
+    state = check_state(params, init_state)
     rows = []
     for index, fr in enumerate(frames):
         try:
@@ -400,6 +399,23 @@ def run_frames(params: KfParams, init_state: dict, frames: list[dict],
 
 def _missing(what: str, name: str):
     raise ValueError(f"{what}: missing word {name!r}")
+
+
+def check_state(params: KfParams, state: dict, what: str = "init_state") -> dict:
+    """The state words (:data:`STATE_NAMES`) as ints, each a raw Q(N, FRAC) word."""
+    return {k: _raw_word(f"{what}[{k!r}]", state[k], params) if k in state
+            else _missing(what, k) for k in STATE_NAMES}
+
+
+def check_frames(params: KfParams, frames) -> list[dict]:
+    """The frames' input words (:data:`FRAME_INPUTS`) as ints, each a raw Q(N, FRAC) word;
+    a bad one is a ValueError naming the frame and the word."""
+    out = []
+    for index, fr in enumerate(frames):
+        out.append({k: _raw_word(f"frames[{index}]: inputs[{k!r}]", fr[k], params)
+                    if k in fr else _missing(f"frames[{index}]: inputs", k)
+                    for k in FRAME_INPUTS})
+    return out
 
 
 # ----------------------------------------------------------------------------- float64
@@ -621,4 +637,5 @@ def init_state(params: KfParams, x=(0.0, 0.0), P=(1.0, 0.0, 1.0), Q=(0.01, 0.0, 
     return st
 
 
-__all__ += ["init_state", "COMMIT", "reciprocal", "QuantizedFrames"]
+__all__ += ["init_state", "COMMIT", "reciprocal", "QuantizedFrames", "check_state",
+            "check_frames"]
