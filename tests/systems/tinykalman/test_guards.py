@@ -150,6 +150,10 @@ def test_rtl_runners_refuse_bad_counts_and_flags():
     words = run.synthetic_motion(3)
     for n in (0, -1, 2.5):
         raises_naming("n_samples", rtl_sim.run_amaranth, words.bursts(), n)
+    bad = words.bursts()
+    bad[1] = (*bad[1][:6], 1.5)  # a fraction (encode_burst truncated it mid-simulation)
+    raises_naming("samples", rtl_sim.run_amaranth, bad, 3)
+    raises_naming("samples", rtl_sim.run_amaranth, [b[:6] for b in words.bursts()], 3)
     raises_naming("ok", rtl_sim.datapath_inputs, words, ok=[1])
     raises_naming("ok", rtl_sim.datapath_inputs, words, ok=[1, 2, 1])
     d = rtl_sim.datapath_inputs(words, ok=np.array([True, False, True]))

@@ -154,6 +154,9 @@ def run_amaranth(samples, n_samples: int, config: SimConfig = FAST, *,
     from amaranth.sim import Simulator
 
     n_samples = validate.positive_int("n_samples", n_samples)
+    if isinstance(samples, (list, tuple, np.ndarray)) and not any(
+            isinstance(s, dict) for s in samples):  # (an iterator is read lazily, as it runs)
+        validate.int_words("samples", [list(s) for s in samples], 16, shape=(-1, 7))
     if max_cycles is not None:
         max_cycles = validate.positive_int("max_cycles", max_cycles)
 
