@@ -158,3 +158,23 @@ def test_rtl_runners_refuse_bad_counts_and_flags():
     raises_naming("ok", rtl_sim.datapath_inputs, words, ok=[1, 2, 1])
     d = rtl_sim.datapath_inputs(words, ok=np.array([True, False, True]))
     assert d["ok"].tolist() == [1, 0, 1]
+
+
+def test_chip_timing_functions_check_the_chip_parameters():
+    """timing(spi_div=0) divided by zero, timing(baud_div=1.5) and min_sample_period(-1, 4)
+    returned figures, spi_cycles(0) said 1 clock, lfsr_timer(0) built a timer, and
+    expected_stream(log, -1) dropped the last sample: each now names its argument."""
+    from navgate.systems.tinykalman import rtl_sim, spi, top
+
+    raises_naming("Mpu6500Spi: spi_div", top.timing, spi_div=0)
+    raises_naming("UartPacketTx: baud_div", top.timing, baud_div=1.5)
+    raises_naming("TinyKalman: sample_period", top.timing, sample_period=10)
+    raises_naming("clk_hz", top.timing, clk_hz=0)
+    raises_naming("Mpu6500Spi: spi_div", top.min_sample_period, -1, 4)
+    raises_naming("UartPacketTx: baud_div", top.min_sample_period, 2, 0)
+    raises_naming("Mpu6500Spi: spi_div", spi.spi_cycles, 0)
+    raises_naming("Mpu6500Spi: spi_div", spi.spi_cycles, math.nan)
+    for period in (0, 1, 2.5):
+        raises_naming("lfsr_timer: period", top.lfsr_timer, period)
+    raises_naming("n_samples", rtl_sim.expected_stream, [], -1)
+    assert top.timing()["slack_cycles"] == 100_000 - top.timing()["busy_cycles"] > 0

@@ -95,8 +95,8 @@ def expected_stream(log, n_samples: int | None = None) -> tuple[bytes, list[int]
     out = bytearray()
     whos = []
     pairs = [(log[k], log[k + 1]) for k in range(0, len(log) - 1, 2)]
-    if n_samples is not None:
-        pairs = pairs[:n_samples]
+    if n_samples is not None:  # (-1 once meant "all but the last")
+        pairs = pairs[:validate.integer("n_samples", n_samples, 0)]
     for (a0, r0, b0), (a1, r1, b1) in pairs:
         if not (a0 == REG["WHO_AM_I"] and r0 and a1 == REG["ACCEL_XOUT_H"] and r1
                 and len(b0) == 2 and len(b1) == 1 + BURST_LEN):
