@@ -14,6 +14,7 @@ from navgate.opflow import loop_kernels as K
 from navgate.opflow.execute import run_bittrue
 from navgate.opflow.loopmachine import LoopMachine
 from navgate.opflow.loops import (
+    Addr,
     LoopError,
     LoopNest,
     LoopUnits,
@@ -102,6 +103,61 @@ def test_scheduler_blocks_the_iterative_units_for_their_interval():
     assert LoopUnits().occupancy("add") == 1 and LoopUnits().occupancy("sqrt") == SQRT_I
 
 
+def _critical_path_nest():
+    """Straight line, program order against the critical path: three short products, then
+    a chain of three squarings of ``a[3]``; every result stored to ``o``."""
+    ops = [LOp("x1", "load", ("a",), Addr(None, (), 1)),
+           LOp("x2", "load", ("a",), Addr(None, (), 2)),
+           LOp("x3", "load", ("a",), Addr(None, (), 3)),
+           LOp("s1", "mul", ("x2", "x3")), LOp("s2", "mul", ("x1", "x3")),
+           LOp("s3", "mul", ("x1", "x2")), LOp("c1", "mul", ("x3", "x3")),
+           LOp("c2", "mul", ("c1", "c1")), LOp("c3", "mul", ("c2", "c2"))]
+    return LoopNest("cp_order", (), {"a": 4, "o": 4}, {}, ops, [],
+                    [Store("o", Addr(None, (), k), s)
+                     for k, s in enumerate(("s1", "s2", "s3", "c3"))])
+
+
+@pytest.mark.parametrize("registered", [False, True])
+def test_straight_line_is_list_scheduled_by_critical_path(registered):
+    """One multiplier, two read ports: the chain's load and first product go first (the
+    longest path to the end), the short products fill the chain's latency; in program
+    order (the modulo scheduler's greedy placement) the chain would start behind them."""
+    from navgate.opflow.loops import _place
+
+    nest = _critical_path_nest()
+    # then, back to back: o[3] (written in seg's last cycle) read at offset 1, doubled
+    twice = LoopNest("twice", (), nest.arrays, {}, [
+        LOp("w", "load", ("o",), Addr(None, (), 3)), LOp("d", "add", ("w", "w"))], [],
+        [Store("a", Addr(None, (), 0), "d")])
+    prog = SequenceProgram("cp", nest.arrays, {"seg": nest, "twice": twice},
+                           {"run": ("seg",), "both": ("seg", "twice")})
+    sch = schedule_sequence(prog, 1, registered=registered)
+    s = sch.schedules["seg"]
+    ld, mul = s.units.latency("load"), s.units.latency("mul")
+    # cycle 1: x3 and x2 (the highest), x1 at 2; c1 as soon as x3 is ready, then s1..s3
+    # one a cycle, c2 and c3 each a multiply latency after the one before; c3's store
+    assert s.time["x3"] == s.time["x2"] == 1 and s.time["x1"] == 2
+    assert s.time["c1"] == 1 + ld
+    assert [s.time[k] for k in ("s1", "s2", "s3")] == [2 + ld, 3 + ld, 4 + ld]
+    assert s.time["c3"] == 1 + ld + 2 * mul
+    assert s.ii == s.depth == 1 + ld + 3 * mul + 1
+    greedy = _place(nest, s.units, 1000, {})[3]
+    # greedy: x1, x2 at 1, x3 at 2; s3, s1, s2 from 1 + ld; c1 behind them at 4 + ld
+    assert greedy == 4 + ld + 3 * mul + 1 > s.depth
+    rng = np.random.default_rng(3)
+    mems = {"a": rng.standard_normal(4), "o": np.zeros(4)}
+    t = sch.schedules["twice"]
+    assert t.time["w"] == 1
+    runs = simulate_sequence(sch, mems, ["run", ("both", mems)])
+    for entry, (words, cycles), n in zip(("run", "both"), runs, (s.depth + 1,
+                                                              s.depth + t.depth + 1),
+                                         strict=True):
+        want = run_sequence(prog, mems, entry)
+        assert cycles == sch.cycles(entry) == n, entry
+        for name in prog.arrays:
+            assert np.array_equal(words[name], floats_to_bits(want[name])), (entry, name)
+
+
 def _chain_memories(prog, rng, special=False):
     mems = {}
     for name, words in prog.arrays.items():
@@ -141,7 +197,8 @@ def test_sequence_machine_bit_exact_with_exact_cycles(lanes, registered):
         assert cycles == sch.cycles(entry), entry
         for name in prog.arrays:
             assert np.array_equal(words[name], floats_to_bits(want[name])), (entry, name)
-    assert sch.cycles("update") == sum(sch.schedules[s].cycles + 1 for s in ("rank1", "cmp"))
+    # segments back to back: cmp issues in the cycle after rank1's last write
+    assert sch.cycles("update") == sum(sch.schedules[s].cycles for s in ("rank1", "cmp")) + 1
 
 
 def test_sequence_machine_special_values():

@@ -65,11 +65,19 @@ each op at its earliest free slot) fits. Cycles of a nest: ``(N - 1) * II + dept
 the offset after an iteration's last result is written. ``neg`` takes no unit and no time:
 its value is its source's, sign flipped on the consumer's operand path. A nest of one
 iteration (a straight-line segment, ``trips == ()``) is list-scheduled without wrap-around and
-gets II = depth.
+gets II = depth: cycle by cycle, the ready ops by priority, the priority an op's height (the
+longest latency path from its issue to the segment's end, as
+:mod:`navgate.opflow.schedule`), where a store counts the stores of its array that must
+follow it through the one write port (ranked by the earliest cycle their word can be ready)
+and a load the stores of its array that wait for it; stores then take their array's write
+port in the order their words are ready. Of that schedule and the greedy topological
+placement the shorter is kept (the critical path has won on every client segment measured so
+far; the clients' documents give the figures).
 """
 
 from __future__ import annotations
 
+import heapq
 import math
 from dataclasses import dataclass, field
 
@@ -530,7 +538,9 @@ def modulo_schedule(nest: LoopNest, units: LoopUnits = LoopUnits(),
     limit = max_ii or sum(units.latency(op.kind) + units.occupancy(op.kind)
                           for op in nest.ops) + len(nest.stores) + 8
     if nest.iterations == 1:  # straight line: one placement without wrap-around, II = depth
-        time, resource, ready, depth = _place(nest, units, limit + 1, accs)
+        time, resource, ready, depth = min(_list_place(nest, units, accs),
+                                           _place(nest, units, limit + 1, accs),
+                                           key=lambda got: got[3])
         return LoopSchedule(nest, units, depth, res_mii, rec_mii, time, resource, ready, depth)
     for ii in range(start, limit + 1):
         got = _place(nest, units, ii, accs)
@@ -600,4 +610,133 @@ def _place(nest, units, ii, accs):
             for op in nest.ops:
                 if a.name in op.srcs and ready[a.update] - a.distance * ii > time[op.dst]:
                     return None
+    return time, resource, ready, depth
+
+
+def _sources(op, accs):
+    """The temporaries ``op`` waits for (an accumulator stands for its init: a straight
+    line runs one iteration, so every accumulator read is a reset)."""
+    if op.kind == "load":
+        return []
+    out = []
+    for x in op.srcs:
+        if x.startswith("c:"):
+            continue
+        if x in accs:
+            x = accs[x].init
+            if x.startswith("c:"):
+                continue
+        out.append(x)
+    return out
+
+
+def _list_place(nest, units, accs):
+    """A straight-line segment list-scheduled cycle by cycle with critical-path priority
+    (the longest latency path from an op to the end of the segment first, ties in program
+    order; as :mod:`navgate.opflow.schedule`), under the rules of :func:`_place`: units and
+    read ports per cycle, the iterative units blocked for their interval, operands at their
+    ready offsets, addresses and flags from ``ADDR_READY``, a store after every load of its
+    array, one write port per array. Returns (time, resource, ready, depth)."""
+    ops = nest.ops
+    by_dst = {op.dst: k for k, op in enumerate(ops)}
+    preds = [[by_dst[x] for x in _sources(op, accs)] for op in ops]
+    succs: list = [[] for _ in ops]
+    for k, ps in enumerate(preds):
+        for p in ps:
+            succs[p].append(k)
+    # a store's height: the stores of its array that must follow it through the one write
+    # port (ranked by the earliest cycle their word can be ready), so that on a segment bound
+    # by a write port the words stored early are computed early
+    free_ready = _place(nest, units, None, accs)[2]
+    stored: dict = {}  # temporary -> the largest height of a store of it
+    last_store: dict = {}  # array -> the largest height of a store to it
+    for array in {st.array for st in nest.stores}:
+        mine = sorted((free_ready[st.src], k) for k, st in enumerate(nest.stores)
+                      if st.array == array)
+        for rank, (_, k) in enumerate(mine):
+            h = len(mine) - rank
+            src = nest.stores[k].src
+            stored[src] = max(stored.get(src, 0), h)
+        last_store[array] = len(mine)
+    height = [0] * len(ops)  # cycles from an op's issue to the end of the segment
+    for k in reversed(range(len(ops))):
+        op = ops[k]
+        tail = max([height[c] for c in succs[k]] + [stored.get(op.dst, 0)])
+        if op.kind == "load" and op.srcs[0] in last_store:
+            # every store of the array waits one cycle after the load
+            tail = max(tail, 1 + last_store[op.srcs[0]] - units.latency("load"))
+        height[k] = units.latency(op.kind) + tail
+    time, resource, ready = {}, {}, {}
+    busy: set = set()  # (resource, instance, cycle)
+    waiting = [len(ps) for ps in preds]
+    earliest = [ADDR_READY] * len(ops)
+    queue: list = []  # (earliest, -height, index) of ops whose sources are placed
+    placed = 0
+
+    def release(k):
+        """``k`` has every source placed: a neg is placed at once, others queued."""
+        nonlocal placed
+        op = ops[k]
+        if op.kind == "neg":  # a sign flip on the consumers' operand paths: no unit, no time
+            time[op.dst] = ready[op.dst] = earliest[k]
+            resource[op.dst] = None
+            placed += 1
+            done(k)
+        else:
+            heapq.heappush(queue, (earliest[k], -height[k], k))
+
+    def done(k):
+        for c in succs[k]:
+            earliest[c] = max(earliest[c], ready[ops[k].dst])
+            waiting[c] -= 1
+            if waiting[c] == 0:
+                release(c)
+
+    for k in range(len(ops)):
+        if waiting[k] == 0:
+            release(k)
+    cycle = ADDR_READY
+    while placed < len(ops):
+        now: list = []  # queued ops that may issue this cycle, by priority
+        while queue and queue[0][0] <= cycle:
+            _, h, k = heapq.heappop(queue)
+            now.append((h, k))
+        now.sort()
+        later = []
+        for h, k in now:
+            op = ops[k]
+            res, count = _resource(op, units)
+            occ = units.occupancy(op.kind)
+            inst = next((i for i in range(count) if not any(
+                (res, i, cycle + j) in busy for j in range(occ))), None)
+            if inst is None:
+                later.append((cycle + 1, h, k))
+                continue
+            busy.update((res, inst, cycle + j) for j in range(occ))
+            time[op.dst] = cycle
+            resource[op.dst] = (res, inst)
+            ready[op.dst] = cycle + units.latency(op.kind)
+            placed += 1
+            done(k)
+        for item in later:
+            heapq.heappush(queue, item)
+        if queue:  # the next cycle in which a queued op may issue
+            cycle = max(cycle + 1, queue[0][0])
+        elif placed < len(ops):
+            raise LoopError(f"{nest.name}: ops left unplaced (a cycle in the data flow)")
+    depth = max(ready.values(), default=ADDR_READY)
+    order = sorted(range(len(nest.stores)), key=lambda k: (
+        max([ready[nest.stores[k].src], ADDR_READY]
+            + [time[op.dst] + 1 for op in ops if op.kind == "load"
+               and op.srcs[0] == nest.stores[k].array]), k))
+    for k in order:
+        st = nest.stores[k]
+        t = max([ready[st.src], ADDR_READY] + [time[op.dst] + 1 for op in ops
+                                               if op.kind == "load" and op.srcs[0] == st.array])
+        while (("write", st.array), 0, t) in busy:
+            t += 1
+        busy.add((("write", st.array), 0, t))
+        time[("store", k)] = t
+        resource[("store", k)] = (("write", st.array), 0)
+        depth = max(depth, t + 1)
     return time, resource, ready, depth

@@ -53,9 +53,12 @@ datapath:
 
 Handshake: ``start`` (one cycle, while ``busy`` is low; ``entry`` = the entry's number,
 :meth:`SequenceMachine.entry_index`; an unknown number is ignored) runs the entry; segment
-``k`` starts in the cycle segment ``k - 1`` is done, and ``done`` is high for one cycle
-:meth:`SequenceSchedule.cycles` cycles after the start cycle: the sum over the entry's
-segments of (the segment's schedule cycles + 1).
+``k`` issues in the cycle after segment ``k - 1``'s last cycle (the last iteration's offset
+``depth - 1``, its last write: segment ``k`` reads no word before its offset ``ADDR_READY``,
+and the iterative units are free again, their interval being shorter than their latency),
+and ``done`` is high for one cycle :meth:`SequenceSchedule.cycles` cycles after the start
+cycle: the sum over the entry's segments of their schedule cycles, + 1 (``done`` comes one
+cycle after the last write, so the host reads the written words from the cycle after it).
 """
 
 from __future__ import annotations
@@ -162,7 +165,7 @@ class SequenceSchedule:
 
     def cycles(self, entry: str) -> int:
         """Cycles from the start cycle to ``done`` for ``entry``."""
-        return sum(self.schedules[s].cycles + 1 for s in self.program.entries[entry])
+        return sum(self.schedules[s].cycles for s in self.program.entries[entry]) + 1
 
     @property
     def control_rows(self) -> int:
@@ -292,9 +295,19 @@ class SequenceMachine(wiring.Component):
             v = Signal(name=f"iv{k}")
             m.d.sync += v.eq(iv[-1])
             iv.append(v)
-        mask = table(seg, [sum(1 << (k - 1) for k in range(1, s.depth)) for s in scheds],
+        # a segment is done in the cycle of its last iteration's offset depth - 1 (its last
+        # write) when another segment follows, which then issues in the next cycle: nothing
+        # of the segment is left to read or write then; the entry's last segment one cycle
+        # later, so that ``done`` follows the last write as the host port expects
+        mask = table(seg, [sum(1 << (k - 1) for k in range(1, s.depth - 1)) for s in scheds],
                      "pending_mask", max(1, dmax - 1))
-        pending = (Cat(*iv[1:dmax]) & mask) != 0 if dmax > 1 else Const(0, 1)
+        mask_end = table(seg, [1 << (s.depth - 2) if s.depth >= 2 else 0 for s in scheds],
+                         "pending_end", max(1, dmax - 1))
+        ivs = Cat(*iv[1:dmax])
+        # back to back: a divide or square root of the segment before is over by then
+        assert all(c.INTERVAL <= c.LATENCY + 1 for c in (Fp32DivIter, Fp32SqrtIter))
+        pending = (((ivs & mask) != 0) | (is_last_pos & ((ivs & mask_end) != 0))
+                   if dmax > 1 else Const(0, 1))
         seg_done = Signal()
         m.d.comb += [seg_done.eq(running & (left == 0) & ~pending),
                      self.done.eq(seg_done & is_last_pos)]

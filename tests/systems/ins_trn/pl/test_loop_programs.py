@@ -121,24 +121,32 @@ CYCLES = {
     "trn_apply": [("trn_gate_vec", 184), ("trn_joseph", 295), ("trn_corr", 186)],
 }
 #: on opflow's sequence machine (registered, 3 lanes): per entry (segment, II, cycles + 1)
-#: and the cycles from start to done
+#: and the cycles from start to done (straight-line segments list-scheduled by critical path;
+#: segments back to back, so the total is the sum of the cycles + 1, one less per segment
+#: after the first than the sum of the steps' figures)
 SEQ_CYCLES = {
-    "propagate": ([("prop_head", 410, 411), ("cov_M", 1, 199), ("cov_E", 1, 145),
-                   ("prop_tail", 212, 213)], 968),
-    "alt_gate": ([("alt_gate", 52, 53)], 53),
-    "alt_apply": ([("alt_gate_vec", 69, 70), ("alt_joseph", 1, 157), ("alt_corr", 161, 162)],
-                  389),
-    "trn_gate": ([("trn_gate", 123, 124)], 124),
-    "trn_apply": ([("trn_gate_vec", 169, 170), ("trn_joseph", 2, 303), ("trn_corr", 161, 162)],
-                  635),
+    "propagate": ([("prop_head", 376, 377), ("cov_M", 1, 199), ("cov_E", 1, 145),
+                   ("prop_tail", 194, 195)], 913),
+    "alt_gate": ([("alt_gate", 51, 52)], 52),
+    "alt_apply": ([("alt_gate_vec", 68, 69), ("alt_joseph", 1, 157), ("alt_corr", 161, 162)],
+                  386),
+    "trn_gate": ([("trn_gate", 120, 121)], 121),
+    "trn_apply": ([("trn_gate_vec", 158, 159), ("trn_joseph", 2, 303), ("trn_corr", 161, 162)],
+                  622),
 }
+#: the merged variant's updates (each one straight-line segment), same machine
+SEQ_MERGED = {"alt_apply": ([("alt_update", 208, 209)], 209),
+              "trn_apply": ([("trn_update", 416, 417)], 417)}
 
 
 def test_sequence_machine_cycles_of_the_default_lanes_exact():
     got = L.sequence_cycles(L.DEFAULT_LANES)
-    assert got.pop("control_rows") == 1362
+    assert got.pop("control_rows") == 1294
     assert {k: (v["steps"], v["cycles"]) for k, v in got.items()} == SEQ_CYCLES
     assert SEQ_CYCLES["propagate"][1] <= 1000  # issue 29's IMU-sample target
+    got = L.sequence_cycles(L.DEFAULT_LANES, "merged")
+    assert {k: (got[k]["steps"], got[k]["cycles"]) for k in SEQ_MERGED} == SEQ_MERGED
+    assert SEQ_MERGED["alt_apply"][1] <= 250  # the 1-D update's target (2-D: 417 > 400)
 
 
 def _run_sequence_form(ref, key, state, inputs, variant):
@@ -295,13 +303,13 @@ def test_more_nests_on_the_loop_machine_bit_exact(ref):
     assert all(n == c + 1 for n, c in seen.values()) and len(seen) == 7
 
 
-def _on_sequence_machine(keys, seed):
+def _on_sequence_machine(keys, seed, variant="fused"):
     """The entries ``keys`` of the sequence form on opflow's SequenceMachine in Amaranth's
     simulation (3 lanes, registered): every array word as run_sequence leaves it (which the
     test above holds to the fp32 programs' bits), in exactly the scheduled cycles."""
     from navgate.opflow.sequence import run_sequence, schedule_sequence, simulate_sequence
 
-    lps = {k: L.loop_programs(L.DEFAULT_LANES)[k] for k in keys}
+    lps = {k: L.loop_programs(L.DEFAULT_LANES, variant)[k] for k in keys}
     prog, ri = L.to_sequence(lps)
     sched = schedule_sequence(prog, L.DEFAULT_LANES, read_ports=L.DEFAULT_LANES)
     rng = np.random.default_rng(seed)
@@ -317,11 +325,14 @@ def _on_sequence_machine(keys, seed):
 
 @pytest.mark.slow
 def test_updates_on_the_sequence_machine():
-    assert _on_sequence_machine(("alt_gate", "alt_apply"), 21) == 389
-    assert _on_sequence_machine(("trn_gate", "trn_apply"), 22) == 635
+    assert _on_sequence_machine(("alt_gate", "alt_apply"), 21) == SEQ_CYCLES["alt_apply"][1]
+    assert _on_sequence_machine(("trn_gate", "trn_apply"), 22) == SEQ_CYCLES["trn_apply"][1]
+    # the merged 1-D update: one straight-line segment of 1,229 ops
+    assert (_on_sequence_machine(("alt_gate", "alt_apply"), 24, "merged")
+            == SEQ_MERGED["alt_apply"][1])
 
 
 @pytest.mark.slow
 def test_propagate_on_the_sequence_machine():
     """About 4 minutes (the head segment is a one-iteration nest of 1,445 ops)."""
-    assert _on_sequence_machine(("propagate",), 23) == 968
+    assert _on_sequence_machine(("propagate",), 23) == SEQ_CYCLES["propagate"][1]

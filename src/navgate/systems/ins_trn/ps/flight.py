@@ -170,11 +170,14 @@ def record_stream(dem: Dem, cfg: FlightConfig, route: Route | None = None,
 
 def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None,
         engine: str = "reference", trn_link=None, trn_latency_s: float = 0.0,
-        realtime: float | None = None, trn: TrnSettings | None = None) -> FlightResult:
+        realtime: float | None = None, trn: TrnSettings | None = None,
+        engine_options: dict | None = None) -> FlightResult:
     """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done.
 
     ``engine``: the PL engine (``reference`` or ``fp32``); with a non-reference engine the
     reference engine flies the same records too, for the comparison in the summary.
+    ``engine_options``: keyword arguments of the engine's constructor (the ``board`` engine's
+    opened board).
     ``trn``: the navigator's TRN settings (default :class:`TrnSettings`: PMF, its own fix
     interval, lag compensation on).
     """
@@ -192,7 +195,7 @@ def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | N
     stream = flight_stream(data, dem, cfg, init, trn=trn)
     runs = fly_stream(stream, dem, cfg, engine=engine, progress=progress, stage=stage,
                       trn_link=trn_link, trn_latency_s=trn_latency_s, realtime=realtime,
-                      trn=trn)
+                      trn=trn, engine_options=engine_options)
     reference_runs = None
     if engine != "reference":
         reference_runs = fly_stream(stream, dem, cfg, engine="reference", stage=stage, trn=trn)
@@ -204,7 +207,8 @@ def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | N
 
 def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progress=None,
                stage=None, trn_link=None, trn_latency_s: float = 0.0,
-               realtime: float | None = None, trn: TrnSettings | None = None) -> dict:
+               realtime: float | None = None, trn: TrnSettings | None = None,
+               engine_options: dict | None = None) -> dict:
     """The INS-only and (cfg.trn) INS+TRN runs over one record stream, the latter with the
     TRN settings ``trn`` (default :class:`TrnSettings`); ``realtime`` (a speed factor) paces
     the INS+TRN run to the wall clock (the INS-only run, which does not talk to the Pi, runs
@@ -213,13 +217,15 @@ def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progr
     if stage:
         stage(f"navigating: INS only ({engine})")
     runs["ins_only"] = navigate(stream, cfg, engine=engine, dem=None, use_trn=False,
-                                name="ins_only", progress=progress)
+                                name="ins_only", progress=progress,
+                                engine_options=engine_options)
     if cfg.trn:
         if stage:
             stage(f"navigating: INS + TRN ({engine})")
         runs["trn_aided"] = navigate(stream, cfg, engine=engine, dem=dem, use_trn=True,
                                      name="trn_aided", progress=progress, trn_link=trn_link,
-                                     trn_latency_s=trn_latency_s, realtime=realtime, trn=trn)
+                                     trn_latency_s=trn_latency_s, realtime=realtime, trn=trn,
+                                     engine_options=engine_options)
     return runs
 
 
