@@ -132,6 +132,6 @@ def test_segment_on_the_sequence_machine():
     from navgate.opflow.sequence import run_sequence
     want = run_sequence(sp, mems, "ab")
     (got, cycles), = simulate_sequence(sch, mems, ["ab"])
-    assert cycles == sch.cycles("ab") == sch.schedules["a"].cycles + sch.schedules["b"].cycles + 2
+    assert cycles == sch.cycles("ab") == sch.schedules["a"].cycles + sch.schedules["b"].cycles + 1
     for a in arrays:
         assert list(got[a]) == list(floats_to_bits(want[a])), a
