@@ -87,6 +87,11 @@ def compile_native(verilog_text: str, main_src: str, top: str, kind: str = "serv
                "main.cpp", "-o", f"V{top}"]
         env = V._env_with_verilator()
         env["MAKEFLAGS"] = "OPT_FAST=-O1 OPT_SLOW=-O0 OPT_GLOBAL=-O1 CFG_CXXFLAGS_PCH_I=-include"
+        from navgate.gateware.objcache import wrapper
+
+        objcache = wrapper(root)  # Verilator's runtime objects compiled once for all models
+        if objcache:
+            env["MAKEFLAGS"] += f" OBJCACHE={objcache}"
         with V.build_clock(top, key, kind, verilog_text) as record:
             r = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
         if r.returncode != 0:

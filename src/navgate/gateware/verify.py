@@ -566,6 +566,13 @@ def _build_model(verilog_text: str, top: str, extra_args: tuple[str, ...] = ()) 
         # not found"; gcc's flag is -include.
         makeflags = (f"OPT_FAST={opt} OPT_SLOW={opt} OPT_GLOBAL={opt} "
                      f"CFG_CXXFLAGS_PCH_I=-include")
+        # OBJCACHE: Verilator's runtime objects compiled once for every model
+        # (navgate.gateware.objcache)
+        from navgate.gateware.objcache import wrapper
+
+        objcache = wrapper(root)
+        if objcache:
+            makeflags += f" OBJCACHE={objcache}"
         with (_verilator_path({"MAKEFLAGS": makeflags}),
               build_clock(top, key, "cocotb", verilog_text) as record):
             runner = get_runner("verilator")
