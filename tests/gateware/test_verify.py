@@ -236,3 +236,19 @@ def test_lint_reports_unwaived_warning_and_passes_clean_code(tmp_path):
     good = tmp_path / "addpipe.v"
     good.write_text(V.emit_verilog(AddPipe(), "addpipe"))
     assert V.lint_verilog(good) == []
+
+
+def test_native_back_end_refuses_random_gaps_and_verify_names_it():
+    """``native_stream.simulate_native_stream`` as ``verify``'s back end: random valid/ready
+    gaps are refused before anything is built (the native server offers every input at
+    once); an unknown back-end name is refused too."""
+    from navgate.gateware.native_stream import simulate_native_stream
+
+    duts = [AddPipe(), AddPipe()]
+    for dut in duts:
+        V.not_elaborated(dut)  # refused before elaboration
+    with pytest.raises(ValueError, match="random valid/ready gaps"):
+        V.verify(duts[0], _add_model, _vectors(10, 1), backend=simulate_native_stream,
+                 ready_prob=0.5)
+    with pytest.raises(ValueError, match="unknown backend 'icarus'"):
+        V.verify(duts[1], _add_model, _vectors(10, 1), backend="icarus")

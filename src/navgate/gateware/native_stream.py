@@ -26,7 +26,8 @@ from pathlib import Path
 
 from navgate.gateware import verify as V
 
-__all__ = ["NativeStreamServer", "NativeStreamError", "compile_native", "build_native"]
+__all__ = ["NativeStreamServer", "NativeStreamError", "compile_native", "build_native",
+           "simulate_native_stream"]
 
 
 class NativeStreamError(RuntimeError):
@@ -171,3 +172,29 @@ class NativeStreamServer:
                 f.close()
             except OSError:
                 pass
+
+
+def simulate_native_stream(component, packed: list[int], *, top: str = "dut",
+                           idle_limit: int = 100_000, design: str | None = None,
+                           params: dict | None = None, valid_prob: float = 1.0,
+                           ready_prob: float = 1.0, seed: int = 0) -> V.SimRun:
+    """Stream ``packed`` through ``component`` compiled by Verilator without VPI
+    (:class:`navgate.gateware.native_stream.NativeStreamServer`, the model ``navgate fly
+    --engine rtl`` runs): every input offered as soon as the last one is taken, every output
+    taken when offered, so the same model serves the CLI and the tests (one build). Pass it
+    as ``backend`` to :func:`navgate.gateware.verify.verify`. It does
+    not count cycles or draw random gaps: ``valid_prob``/``ready_prob`` other than 1 are
+    refused (use ``"verilator"`` or ``"amaranth"`` for those)."""
+    if valid_prob != 1.0 or ready_prob != 1.0:
+        raise ValueError("the native back end offers every input and takes every output at "
+                         "once; use backend='verilator' for random valid/ready gaps")
+    del seed  # nothing random to seed
+    server = NativeStreamServer(component, top, idle_limit, design=design,
+                                params=dict(params) if params is not None else None)
+    try:
+        t0 = time.perf_counter()
+        outs = server.batch_packed(packed)
+        seconds = time.perf_counter() - t0
+    finally:
+        server.close()
+    return V.SimRun(outs, None, None, seconds)

@@ -699,37 +699,12 @@ def simulate_verilator(component, packed: list[int], *, seed: int = 0,
             shutil.rmtree(work, ignore_errors=True)
 
 
-def simulate_native_stream(component, packed: list[int], *, top: str = "dut",
-                           idle_limit: int = 100_000, design: str | None = None,
-                           params: Mapping | None = None, valid_prob: float = 1.0,
-                           ready_prob: float = 1.0, seed: int = 0) -> SimRun:
-    """Stream ``packed`` through ``component`` compiled by Verilator without VPI
-    (:class:`navgate.gateware.native_stream.NativeStreamServer`, the model ``navgate fly
-    --engine rtl`` runs): every input offered as soon as the last one is taken, every output
-    taken when offered, so the same model serves the CLI and the tests (one build). It does
-    not count cycles or draw random gaps: ``valid_prob``/``ready_prob`` other than 1 are
-    refused (use ``"verilator"`` or ``"amaranth"`` for those)."""
-    if valid_prob != 1.0 or ready_prob != 1.0:
-        raise ValueError("the native back end offers every input and takes every output at "
-                         "once; use backend='verilator' for random valid/ready gaps")
-    del seed  # nothing random to seed
-    from navgate.gateware.native_stream import NativeStreamServer
-
-    server = NativeStreamServer(component, top, idle_limit, design=design,
-                                params=dict(params) if params is not None else None)
-    try:
-        t0 = time.perf_counter()
-        outs = server.batch_packed(packed)
-        seconds = time.perf_counter() - t0
-    finally:
-        server.close()
-    return SimRun(outs, None, None, seconds)
-
-
 def simulate(component, inputs: Mapping[str, np.ndarray], *, backend: str = "amaranth",
              **kwargs) -> tuple[dict[str, np.ndarray], SimRun]:
-    """Run ``inputs`` (per-field arrays) through ``component`` on ``backend`` ("amaranth",
-    "verilator" or "native", see :func:`simulate_native_stream`); returns per-field outputs."""
+    """Run ``inputs`` (per-field arrays) through ``component`` on ``backend``: "amaranth",
+    "verilator", or a function ``(component, packed, **kwargs) -> SimRun`` such as
+    :func:`navgate.gateware.native_stream.simulate_native_stream`; returns per-field
+    outputs."""
     in_fmt = stream_format(_port_shape(component.i))
     out_fmt = stream_format(_port_shape(component.o))
     packed = pack(in_fmt, inputs)
@@ -737,10 +712,11 @@ def simulate(component, inputs: Mapping[str, np.ndarray], *, backend: str = "ama
         run = simulate_amaranth(component, packed, **kwargs)
     elif backend == "verilator":
         run = simulate_verilator(component, packed, **kwargs)
-    elif backend == "native":
-        run = simulate_native_stream(component, packed, **kwargs)
+    elif callable(backend):
+        run = backend(component, packed, **kwargs)
     else:
-        raise ValueError(f"unknown backend {backend!r}; use 'amaranth', 'verilator' or 'native'")
+        raise ValueError(f"unknown backend {backend!r}; use 'amaranth', 'verilator' or a "
+                         "simulator function")
     return unpack(out_fmt, run.outputs), run
 
 
@@ -787,7 +763,9 @@ def verify(component, model: Callable[[dict[str, np.ndarray]], Mapping[str, np.n
             got={k: int(got[k][j]) for k in expected},
         ))
     return VerifyResult(
-        name=name or type(component).__name__, backend=backend, n_vectors=n,
+        name=name or type(component).__name__,
+        backend=backend if isinstance(backend, str) else getattr(backend, "__name__", "custom"),
+        n_vectors=n,
         n_mismatches=int(len(idx)), mismatches=mismatches, cycles=run.cycles,
         latency=run.latency, seconds=run.seconds, in_format=in_fmt, out_format=out_fmt,
         formatters=dict(formatters or {}), outputs=got if keep_outputs else None,
