@@ -28,7 +28,7 @@ import numpy as np
 
 from navgate.nav.earth import A
 from navgate.systems.ins_trn.ps import flight
-from navgate.systems.ins_trn.ps.navigation import flight_stream
+from navgate.systems.ins_trn.ps.flight import flight_stream
 from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
 from navgate.systems.ins_trn.ps.pl_interface import make_engine
 from navgate.trn.dem import Dem

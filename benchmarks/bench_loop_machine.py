@@ -11,6 +11,13 @@ multiplier), ``spmv_15`` (y <- A x, 15 x 15 with 45 non-zeros in a fixed pseudo-
 pattern, seed 0, ROM column/row maps and row flags), ``matvec_15`` (dense 15 x 15, two
 levels, affine addresses), ``matvec_il_15`` (the same sums with the row loop inside: one
 accumulator at distance 15). Each synthesis takes a minute or two on a quiet machine.
+
+The sequence machine (navgate.opflow.sequence): ``--sequence-lanes 1 2`` synthesises the
+machine of :func:`navgate.opflow.loop_kernels.chain_program` at n = 15 (the sparse pattern
+above; segments prep, spmv, rank1, cmp, norm on one datapath with ``lanes`` multipliers and
+adders, an iterative divider and square root, a comparator) once per lane count, and prints
+its segment schedules, entry cycles, control-store size and the xc7z020 row beside issue 29's
+engine targets (<= 4,500 LUT, 6 DSP48E1, 3 BRAM36, logic path <= 4.0 ns).
 Prints tables and writes a JSON summary (default ``bench_loop_machine.json``).
 """
 
@@ -36,9 +43,44 @@ def nests() -> dict:
             "matvec_il_15": K.dense_matvec_interleaved(15, 15)}
 
 
+def sequence_rows(lanes_list) -> dict:
+    from navgate.hw.synth import XC7_ROW_HEADER, print_xc7_row, xc7_summary
+    from navgate.hw.verilog import emit_verilog
+    from navgate.opflow.sequence import SequenceMachine, schedule_sequence
+
+    rng = np.random.default_rng(0)
+    flat = np.sort(rng.choice(15 * 15, 45, replace=False))
+    prog = K.chain_program(15, flat // 15, flat % 15)
+    out: dict = {}
+    for lanes in lanes_list:
+        sch = schedule_sequence(prog, lanes)
+        print(f"\nsequence machine {prog.name}, lanes {lanes}")
+        print(f"{'segment':10s} {'iters':>6s} {'II':>3s} {'ResMII':>6s} {'RecMII':>6s} "
+              f"{'depth':>5s} {'cycles':>7s}")
+        for name, s in sch.schedules.items():
+            print(f"{name:10s} {s.nest.iterations:6d} {s.ii:3d} {s.res_mii:6d} {s.rec_mii:6d} "
+                  f"{s.depth:5d} {s.cycles:7d}")
+        cycles = {e: sch.cycles(e) for e in prog.entries}
+        print("entry cycles (start to done):", cycles)
+        dut = SequenceMachine(sch)
+        text = emit_verilog(dut, "sequence_machine")
+        print(f"control store: {dut.control_rows} rows x {dut.control_bits} bits")
+        print("\nlanes" + XC7_ROW_HEADER[5:])
+        row = xc7_summary(text, "sequence_machine")
+        print_xc7_row(f"{lanes}", row)
+        print("issue 29 engine targets: <= 4,500 LUT, 6 DSP48E1, 3 BRAM36, <= 4.0 ns")
+        out[lanes] = {"cycles": cycles, "control_rows": dut.control_rows,
+                      "control_bits": dut.control_bits, "synth": row,
+                      "segments": {n: {"ii": s.ii, "depth": s.depth, "cycles": s.cycles}
+                                   for n, s in sch.schedules.items()}}
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--synth", nargs="*", default=["rank1_15"], help="nests to synthesise")
+    ap.add_argument("--sequence-lanes", nargs="*", type=int, default=[],
+                    help="lane counts of the sequence machine to synthesise (1 to 4)")
     ap.add_argument("--json", default="bench_loop_machine.json")
     args = ap.parse_args()
     all_nests = nests()
@@ -71,6 +113,8 @@ def main():
                               "loop_machine")
             print_xc7_row(name, row)
             summary["nests"][name]["synth"] = row
+    if args.sequence_lanes:
+        summary["sequence"] = sequence_rows(args.sequence_lanes)
     Path(args.json).write_text(json.dumps(summary, indent=2, default=str) + "\n")
     print(f"\nwrote {args.json}")
 

@@ -93,7 +93,7 @@ def fly_stages(repeat):
     """The default flight's steps in this process: stage -> median (wall, CPU)."""
     from navgate.sim.flight import initial_estimate, score, simulate_sensors
     from navgate.systems.ins_trn.ps import flight, report
-    from navgate.systems.ins_trn.ps.navigation import flight_stream
+    from navgate.systems.ins_trn.ps.flight import flight_stream
     from navgate.systems.ins_trn.ps.navigator import navigate
     from navgate.systems.ins_trn.ps.records import IMU
     from navgate.trn.dem import Dem

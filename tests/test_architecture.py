@@ -149,6 +149,40 @@ def test_opflow_names_no_system():
     assert not offenders, "opflow names a client:\n" + "\n".join(offenders)
 
 
+#: opflow's clients and the toolchain modules each builds on (its program on opflow's IR and
+#: executor, its machine from opflow's scheduler and generator)
+OPFLOW_CLIENTS = {
+    "navgate.systems.ins_trn.pl.fp32_program": {"navgate.opflow.ir"},
+    "navgate.systems.ins_trn.pl.nav_engines": {"navgate.opflow.schedule",
+                                               "navgate.opflow.machine"},
+    "navgate.systems.attitude.program": {"navgate.opflow.ir", "navgate.opflow.execute"},
+    "navgate.systems.attitude.datapath": {"navgate.opflow.phased",
+                                          "navgate.opflow.phased_machine"},
+}
+#: the generic parts that live in opflow: a client package must not define them again
+OPFLOW_GENERIC = {"Schedule", "ScheduledProgram", "Placed", "ScheduleError", "Builder",
+                  "build_schedule", "schedule_banked", "run_bittrue", "PhasedDatapath",
+                  "ScheduledMachine"}
+
+
+def test_opflow_clients_build_on_it():
+    """Seed 000's engines and seed 003's circuit take their IR, executor, scheduler and
+    machine from opflow (their programs, unit choices and tops stay in systems/), and their
+    packages define none of opflow's generic parts again."""
+    graph = import_graph()
+    missing = sorted(f"{client} -> {target}" for client, targets in OPFLOW_CLIENTS.items()
+                     for target in targets - graph.get(client, set()))
+    assert not missing, "opflow client without its toolchain import:\n" + "\n".join(missing)
+    offenders = []
+    for package in ("ins_trn", "attitude"):
+        for path in sorted((PACKAGE_ROOT / "systems" / package).rglob("*.py")):
+            for node in ast.parse(path.read_text()).body:
+                if (isinstance(node, (ast.ClassDef, ast.FunctionDef))
+                        and node.name in OPFLOW_GENERIC):
+                    offenders.append(f"{path.relative_to(PACKAGE_ROOT)}: {node.name}")
+    assert not offenders, "a client defines opflow's generic parts:\n" + "\n".join(offenders)
+
+
 def find_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     """Strongly connected components of more than one module (Tarjan): the import cycles."""
     index: dict[str, int] = {}
@@ -226,3 +260,55 @@ def test_seed000_is_arranged_by_computer():
             if there and there != here and there not in SEED000_FLOORS[here]:
                 offenders.append(f"{module} -> {target}")
     assert not offenders, "seed 000 part imports a part it must not:\n" + "\n".join(offenders)
+
+
+def test_amaranths_private_unused_switch_has_one_user():
+    """Amaranth has no public way to mark an elaboratable as intentionally unused; the package
+    uses its private switch in one place only (a component whose Verilog came from the cache),
+    and refuses bad parameters before a component exists elsewhere (CheckedParameters)."""
+    users = sorted(str(p.relative_to(PACKAGE_ROOT)) for p in PACKAGE_ROOT.rglob("*.py")
+                   if "_MustUse__silence" in p.read_text(encoding="utf-8"))
+    assert users == ["gateware/verify.py"]
+
+
+#: a seed or one of the seed systems, by number or by package name
+_SEED_NAME = re.compile(r"seed[ _-]?00\d|\b(tinykalman|kf2x2|ins_trn|gpsins)\b|systems\.attitude",
+                        re.IGNORECASE)
+
+
+def _code_tokens(source: str):
+    """(line, text) of the names and strings of ``source``, docstrings and comments left out."""
+    import io
+    import tokenize
+
+    doc_lines: set[int] = set()
+    for node in ast.walk(ast.parse(source)):
+        body = getattr(node, "body", None)
+        if (isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef)
+                and body and isinstance(body[0], ast.Expr)
+                and isinstance(body[0].value, ast.Constant)
+                and isinstance(body[0].value.value, str)):
+            doc_lines.update(range(body[0].lineno, body[0].end_lineno + 1))
+    for tok in tokenize.generate_tokens(io.StringIO(source).readline):
+        if tok.type in (tokenize.NAME, tokenize.STRING) and tok.start[0] not in doc_lines:
+            yield tok.start[0], tok.string
+
+
+def test_no_code_outside_the_systems_names_a_seed():
+    """Outside ``systems/`` (the seeds) and ``cli/`` (their commands), no code names a seed: the
+    shared libraries' docstrings and comments cite seed sections as their references, as the
+    developers' guide asks, but nothing they do depends on one."""
+    found = []
+    for path in sorted(PACKAGE_ROOT.rglob("*.py")):
+        rel = path.relative_to(PACKAGE_ROOT)
+        if rel.parts[0] in ("systems", "cli"):
+            continue
+        found += [f"{rel}:{line}: {text[:60]}"
+                  for line, text in _code_tokens(path.read_text(encoding="utf-8"))
+                  if _SEED_NAME.search(text)]
+    assert not found, "\n".join(found)
+
+
+def test_the_seed_name_check_sees_code_and_skips_docstrings():
+    source = '"""Seed 000 reference."""\n# seed 001\nX = "kf2x2 block"\n'
+    assert [t for _, t in _code_tokens(source) if _SEED_NAME.search(t)] == ['"kf2x2 block"']

@@ -76,6 +76,7 @@ def test_the_blocker_blocks():
     (["report"], "gateware"),
     (["fly", "--engine", "rtl", "--duration", "5"], "gateware"),
     (["fly", "--engine", "fpga-sim", "--duration", "5"], "gateware"),
+    (["fly", "--engine", "board", "--duration", "5"], "board"),
     (["kf2x2", "--engine", "verilator"], "gateware"),
     (["campaign", "--seeds", "0-1", "--duration", "10"], "campaign"),
     (["tiles", "split", "default", "--into", "2x2"], "dem"),
@@ -90,6 +91,21 @@ def test_a_command_that_needs_an_extra_names_it_in_one_line(args, extra, tmp_pat
     assert len(lines) == 1, proc.stderr
     assert f'pip install "navgate[{extra}]"' in lines[0], lines[0]
     assert not (tmp_path / "out").exists()
+
+
+#: the board's PS: ``navgate[board]`` adds Amaranth and the SystemRDL compiler (pure Python)
+BOARD_BLOCKED = tuple(m for m in PS_BLOCKED if m not in ("amaranth", "systemrdl"))
+
+
+def test_the_board_engine_runs_on_the_board_install(tmp_path):
+    """``--engine board`` imports without Verilator, Yosys, cocotb or PeakRDL and gets as far
+    as opening the memory device (absent here: one line, exit 2)."""
+    missing = tmp_path / "no-mem"
+    proc = _run(BOARD_BLOCKED, "fly", "--engine", "board", "--board-mem", missing,
+                "--duration", "5", "--out", tmp_path / "out", timeout=120)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+    assert f"--engine board: no {missing} on this machine" in lines[0], lines[0]
 
 
 def test_help_lists_every_command_on_a_slim_install():

@@ -27,6 +27,22 @@ def test_builder_emits_ssa_and_counts():
     assert b.prog.counts()["add"] == 1 and b.prog.counts()["neg"] == 1
 
 
+def test_a_clients_own_kinds_and_named_results():
+    """Builder.op takes any kind (a client's unit) and a result name; counts list the
+    client's kinds after the float32 ones, by module too."""
+    b = Builder("p", inputs=("a",))
+    t = b.op("twice", "a", 1.0)
+    b.module = "m2"
+    out = b.op("add", t, "a", name="out")
+    assert out == "out" and t == "t1"
+    assert [(op.dst, op.kind, op.srcs) for op in b.prog.ops] == [
+        ("t1", "twice", ("a", "c:3f800000")), ("out", "add", ("t1", "a"))]
+    counts = b.prog.counts()
+    assert counts["twice"] == 1 and counts["add"] == 1 and list(counts)[-1] == "twice"
+    assert b.prog.counts_by_module()["p"]["twice"] == 1
+    assert b.prog.counts_by_module()["m2"]["add"] == 1
+
+
 def test_constants_are_float32_bits_with_subnormals_flushed():
     assert const_name(1.0) == "c:3f800000"
     assert const_name(-0.1) == f"c:{int(np.float32(-0.1).view(np.uint32)):08x}"

@@ -45,11 +45,15 @@ def numba_note(console) -> Iterator[None]:
 
 
 def hardware_line(hw: dict) -> str:
-    """One line of a simulated PL's counts (summary "hardware")."""
-    if "simulated_cycles" in hw:
-        return (f"{hw['simulated_cycles'] / 1e6:.1f} M cycles simulated "
-                f"({hw['cycles_per_imu_sample']:,.0f} per IMU sample), "
-                f"{hw['update_interrupts']:,} update interrupts, "
+    """One line of a PL's counts (summary "hardware"): a simulated one's cycles, or the
+    board's fabric's events."""
+    if "update_interrupts" in hw:
+        if "simulated_cycles" in hw:
+            head = (f"{hw['simulated_cycles'] / 1e6:.1f} M cycles simulated "
+                    f"({hw['cycles_per_imu_sample']:,.0f} per IMU sample), ")
+        else:
+            head = f"the board's fabric over {hw.get('board_bus', 'its bus')}: "
+        return (head + f"{hw['update_interrupts']:,} update interrupts, "
                 f"{hw['profile_dmas']:,} profile DMAs, "
                 f"{hw['baro_samples_through_pins']:,} barometer samples and "
                 f"{hw['ranger_frames_through_pins']:,} ranger frames through the pins")

@@ -19,6 +19,10 @@ def engine_choice(default: str = "reference"):
     return click.Choice([default] + [n for n in names if n != default])
 
 
+#: the install extra an engine needs beyond the core (default: the gateware toolchain)
+EXTRA_OF = {"board": "board"}
+
+
 def load_engine_class(engine: str, what: str):
     """The class of ``--engine ENGINE`` (imported now); a missing package is one line."""
     from navgate.systems.ins_trn.ps.engine_registry import engine_class
@@ -27,5 +31,6 @@ def load_engine_class(engine: str, what: str):
         return engine_class(engine)
     except ImportError as error:
         missing = (error.name or "a package").split(".")[0]
+        extra = EXTRA_OF.get(engine, "gateware")
         raise CliError(f"{what} --engine {engine} needs the Python package {missing!r}, not "
-                       f'installed: pip install "navgate[gateware]"') from None
+                       f'installed: pip install "navgate[{extra}]"') from None

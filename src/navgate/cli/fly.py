@@ -71,9 +71,28 @@ def _positive_float(ctx, param, value):
                    "ins_engines gateware in Verilator, or the whole FPGA (ins_trn_top, IMU on "
                    "its SPI pins, the PS through AXI registers) in Verilator; rtl and "
                    "fpga-sim equal fp32 bit for bit; fp32-plain is fp32 without its float32 "
-                   "remedies (an ablation, docs/seed000-navigator.md). With any engine but "
-                   "reference the reference "
+                   "remedies (an ablation, docs/seed000-navigator.md); board flies the real "
+                   "ins_trn_top in the Zynq's PL from its PS (the --board-* options, "
+                   "docs/deploy.md). With any engine but reference the reference "
                    "flies too, for the comparison in summary.json.")
+@click.option("--board-bus", type=click.Choice(["devmem", "pynq", "verilator"]), default=None,
+              help="With --engine board: the way to the register bank. devmem (the default) "
+                   "maps /dev/mem (root; any Zynq Linux); pynq uses pynq.MMIO (a PYNQ image); "
+                   "verilator is the stand-in, the Verilated ins_trn_top with its sensor "
+                   "emulators, to check the board's code path without a board.")
+@click.option("--board-base", type=str, default=None, metavar="ADDR",
+              help="With --engine board: the register bank's physical address (default "
+                   "0x40000000, where the Vivado block design puts it on M_AXI_GP0).")
+@click.option("--board-dma", type=str, default=None, metavar="ADDR",
+              help="With --engine board --board-bus devmem: the profile DMA's buffer in DDR "
+                   "(default 0x3FF00000, the last MiB of the Zybo's 1 GiB; keep Linux off it "
+                   "with mem=1023M). pynq allocates its own.")
+@click.option("--board-irq", type=str, default=None, metavar="poll|/dev/uioN",
+              help="With --engine board: wait for the PL's interrupt by polling IRQ_STATUS "
+                   "(default) or on a UIO device bound to IRQ_F2P[0].")
+@click.option("--board-mem", type=str, default=None, metavar="PATH",
+              help="With --engine board --board-bus devmem: the memory device (default "
+                   "/dev/mem).")
 @click.option("--record", "record_path", type=click.Path(dir_okay=False), default=None,
               callback=reject_empty,
               help="Also write the sensor record stream to this log file (navgate replay).")
@@ -103,7 +122,8 @@ def _positive_float(ctx, param, value):
 @click.option("--quiet", is_flag=True, help="No progress bar and no table.")
 def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_sensors, no_trn,
         imu_rate, ranger, speed, trn_method, engine, record_path, trn_service, trn_timeout,
-        trn_heartbeat, trn_latency, link_flip_rate, realtime, quiet):
+        trn_heartbeat, trn_latency, link_flip_rate, realtime, board_bus, board_base, board_dma,
+        board_irq, board_mem, quiet):
     """Fly a GPS-denied route over a DEM; compare INS-only with INS+TRN."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -123,6 +143,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
     # imported now, before any work: on a slim install (the boards) an engine that needs the
     # gateware extra is one line naming it
     engine_cls = load_engine_class(engine, "navgate fly")
+    board_settings = _board_settings(engine, board_bus, board_base, board_dma, board_irq,
+                                     board_mem)
     if ideal_sensors and engine_cls.needs_imu_words:
         raise CliError(f"--engine {engine} needs the IMU's int16 output words, which "
                        "--ideal-sensors does not produce")
@@ -175,8 +197,21 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
                                heartbeat_s=trn_heartbeat)
         except LinkError as error:
             raise CliError(str(error)) from None
-    # the link (if any) stays open for the flight and is closed whatever happens
-    with trn_link if trn_link is not None else contextlib.nullcontext():
+    engine_options = None
+    board = None
+    if board_settings is not None:
+        from navgate.systems.ins_trn.ps.board_engine import BoardError, open_board
+
+        try:
+            board = open_board(board_settings)
+        except BoardError as error:
+            if trn_link is not None:
+                trn_link.close()
+            raise CliError(f"--engine board: {error}") from None
+        engine_options = {"board": board}
+    # the link and the board (if any) stay open for the flight and are closed whatever happens
+    with trn_link if trn_link is not None else contextlib.nullcontext(), \
+            board if board is not None else contextlib.nullcontext():
         console.print(f"[bold]navgate fly[/]: {duration:g} s at {imu_rate:g} Hz over {dem.name} "
                       f"({dem.shape[0]} x {dem.shape[1]} posts), seed {seed}"
                       + (", ideal sensors" if ideal_sensors else ", ADIS16500/BMP390 errors")
@@ -197,9 +232,11 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
                 result = flight.fly(dem, cfg, progress=lambda n: bar.advance(task, n),
                                     stage=lambda s: bar.update(task, description=s), route=route,
                                     engine=engine, trn_link=trn_link, trn_latency_s=trn_latency,
-                                    realtime=realtime, trn=trn)
+                                    realtime=realtime, trn=trn, engine_options=engine_options)
             except simulation_errors() as error:
-                raise CliError(f"--engine {engine}: the co-simulation failed: {error}") from None
+                what = "the board" if board is not None and board.standin is None \
+                    else "the co-simulation"
+                raise CliError(f"--engine {engine}: {what} failed: {error}") from None
             except DemError as error:
                 raise CliError(str(error)) from None
             bar.update(task, description="writing report", completed=total)
@@ -232,6 +269,49 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
 
 #: the files fly writes into --out (navgate.systems.ins_trn.ps.report.write_report)
 REPORT_FILES = ("summary.json", "trajectory.csv", "trn_fixes.csv", "track.png", "errors.png")
+
+
+def _address(option: str, text: str | None, default: int) -> int:
+    if text is None:
+        return default
+    try:
+        value = int(text, 0)
+    except ValueError:
+        raise CliError(f"{option} {text!r} is not an address (0x40000000 or 1073741824)") \
+            from None
+    if not 0 <= value <= 0xFFFF_FFFF:
+        raise CliError(f"{option} {text} is not a 32-bit address")
+    return value
+
+
+def _board_settings(engine, bus, base, dma, irq, mem):
+    """The --board-* options as BoardSettings for --engine board (None for another engine,
+    which refuses them)."""
+    given = [name for name, value in (("--board-bus", bus), ("--board-base", base),
+                                      ("--board-dma", dma), ("--board-irq", irq),
+                                      ("--board-mem", mem)) if value is not None]
+    if engine != "board":
+        if given:
+            raise CliError(f"{given[0]} goes with --engine board, not --engine {engine}")
+        return None
+    from navgate.systems.ins_trn.pl.registers import BASE_ADDRESS
+    from navgate.systems.ins_trn.ps.board_engine import (
+        DMA_ADDRESS,
+        BoardError,
+        BoardSettings,
+    )
+
+    settings = BoardSettings(bus=bus or "devmem",
+                             base=_address("--board-base", base, BASE_ADDRESS),
+                             dma=_address("--board-dma", dma, DMA_ADDRESS),
+                             irq=irq or "poll", mem=mem or "/dev/mem")
+    if mem is not None and settings.bus != "devmem":
+        raise CliError("--board-mem goes with --board-bus devmem")
+    try:
+        settings.check()
+    except BoardError as error:
+        raise CliError(str(error)) from None
+    return settings
 
 
 def _check_record(record_path, out, dem_path) -> None:

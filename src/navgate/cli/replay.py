@@ -68,6 +68,9 @@ def replay(log_path, engine, dem_path, no_trn, min_used, out, quiet):
     from navgate.trn.tiles import load_terrain
 
     table_console, console = consoles(quiet)
+    if engine == "board":
+        raise CliError("--engine board: a board's fabric reads its own sensors on its pins, "
+                       "not a log's records; replay the log with --engine fpga-sim")
     check_out_dir(out)
     check_outputs_early(out, OUTPUTS, [log_path, dem_path])
     try:

@@ -39,7 +39,11 @@ def _cache(ctx, param, value):
               help="Serve over this inherited file descriptor (fly --trn-service spawn).")
 @click.option("--max-requests", type=click.IntRange(1), default=None,
               help="Stop after answering this many profile requests.")
-def trn_serve(tiles_path, cache_mb, listen, serial_port, baud, fd, max_requests):
+@click.option("--silent-periods", type=click.IntRange(0, 1000), default=5, show_default=True,
+              help="Drop a PS that sends nothing for this many of its heartbeat periods (the "
+                   "period its hello gives), so the next one can connect. 0: never.")
+def trn_serve(tiles_path, cache_mb, listen, serial_port, baud, fd, max_requests,
+              silent_periods):
     """Serve terrain correlation to the PS over TCP or a serial link (seed 000's Pi 5)."""
     from navgate.systems.ins_trn.link.transport import Transport, open_serial, parse_tcp
     from navgate.systems.ins_trn.pi.service import TrnService
@@ -61,7 +65,7 @@ def trn_serve(tiles_path, cache_mb, listen, serial_port, baud, fd, max_requests)
         terrain = load_terrain(dem_input(tiles_path), cache_mb=cache_mb)
     except DemError as error:
         raise CliError(str(error)) from None
-    service = TrnService(terrain)
+    service = TrnService(terrain, silent_periods=silent_periods)
     service.stop_on_signals()
     if fd is not None:
         try:
@@ -83,7 +87,9 @@ def trn_serve(tiles_path, cache_mb, listen, serial_port, baud, fd, max_requests)
                            f"{getattr(error, 'strerror', None) or error}") from None
         service.log(f"trn-serve: serving on {serial_port} at {baud} baud")
         try:
-            service.serve(link, max_requests)
+            # a silent PS is dropped; the line then waits for the next one's hello
+            while service.serve(link, max_requests) and not service.stop.is_set():
+                pass
         finally:
             link.close()
     else:

@@ -69,8 +69,8 @@ from navgate.gateware import verify as V
 from navgate.gateware.native_stream import compile_native
 from navgate.hw.regmap import OKAY, Reading
 
-__all__ = ["NativeAxiSim", "NativeAxiBus", "NativeAxiError", "AxiResponseError",
-           "build_native_axi"]
+__all__ = ["NativeAxiSim", "NativeAxiBus", "NativeAxiWindow", "NativeAxiError",
+           "AxiResponseError", "build_native_axi"]
 
 
 class NativeAxiError(RuntimeError):
@@ -484,3 +484,51 @@ class NativeAxiBus:
 
     def deferred(self):
         return self.sim.deferred()
+
+
+class NativeAxiWindow:
+    """A :class:`NativeAxiSim`'s AXI space seen as a board's memory map is: a word-indexed
+    window (``w[i]`` reads the 32-bit word at byte ``base + 4 i``, ``w[i] = v`` writes it),
+    which :class:`navgate.hw.bus.DevMemBus` takes in place of its ``/dev/mem`` map, so the
+    board's code path runs unchanged against the Verilated fabric.
+
+    On a board the fabric runs while the PS's program runs between two bus accesses; here
+    the clock stops between batches, so every access first runs ``access_cycles`` idle cycles
+    (the time of one access from Python on the Zynq's PS: 100 cycles = 1 us at 100 MHz).
+    Each access is one round trip to the native process (no batching: the board's bus has
+    none). A bus error (SLVERR) raises :class:`AxiResponseError`, an ``OSError``."""
+
+    def __init__(self, sim: NativeAxiSim, base: int = 0, words: int | None = None, *,
+                 access_cycles: int = 100):
+        if access_cycles < 0:
+            raise ValueError("access_cycles must be >= 0")
+        self.sim, self.base, self.access_cycles = sim, int(base), int(access_cycles)
+        self.words = ((1 << sim.addr_width) - self.base) // 4 if words is None else int(words)
+        #: the bus accesses made through this window
+        self.accesses = 0
+
+    def __len__(self) -> int:
+        return self.words
+
+    def _addr(self, index) -> int:
+        index = int(index)
+        if not 0 <= index < self.words:
+            raise IndexError(f"word {index} outside the {self.words}-word window")
+        return self.base + 4 * index
+
+    def __getitem__(self, index) -> int:
+        addr = self._addr(index)
+        self.accesses += 1
+        _, token = self.sim.batch([f"C {self.access_cycles}", f"R {addr:x}"])
+        data, _, resp = token.partition("/")
+        if resp and int(resp) != OKAY:
+            raise AxiResponseError(f"{_RESP_NAMES[int(resp)]} reading offset 0x{addr:03X}")
+        return int(data, 16)
+
+    def __setitem__(self, index, value) -> None:
+        addr = self._addr(index)
+        self.accesses += 1
+        _, token = self.sim.batch([f"C {self.access_cycles}",
+                                   f"W {addr:x} {int(value) & 0xFFFFFFFF:x} f"])
+        if int(token) != OKAY:
+            raise AxiResponseError(f"{_RESP_NAMES[int(token)]} writing offset 0x{addr:03X}")

@@ -42,11 +42,11 @@ REGISTRY: dict[str, tuple[str, str]] = {
     ),
     "goldschmidt_div": (
         "navgate.gateware.goldschmidt:GoldschmidtDivider",
-        "Goldschmidt fixed-point divider (seed 004), pipelined",
+        "Goldschmidt fixed-point divider, pipelined",
     ),
     "goldschmidt_recip": (
         "navgate.gateware.goldschmidt:GoldschmidtReciprocal",
-        "Goldschmidt fixed-point reciprocal (seed 004), pipelined",
+        "Goldschmidt fixed-point reciprocal, pipelined",
     ),
     "fp32_div_iter": (
         "navgate.gateware.fp32:Fp32DivIter",
@@ -67,7 +67,7 @@ REGISTRY: dict[str, tuple[str, str]] = {
     ),
     "mul_20x20": (
         "navgate.gateware.yardstick:mul_20x20",
-        "yardstick: bare registered signed 20x20 multiply (kf2x2's Q(20, FRAC) product)",
+        "yardstick: bare registered signed 20x20 multiply (a Q(20, FRAC) fixed-point product)",
     ),
     "mul_24x24": (
         "navgate.gateware.yardstick:mul_24x24",

@@ -4,11 +4,16 @@ units.
 
 - :mod:`navgate.opflow.ir`: ops, programs (with their own named registers) and a builder;
 - :mod:`navgate.opflow.execute`: the bit-true interpreter (:mod:`navgate.numerics.fp32` on bit
-  patterns) and the compiled Numba executor over a register file built from the programs;
+  patterns, a client's own kinds through the functions it passes) and the compiled Numba
+  executor over a register file built from the programs;
 - :mod:`navgate.opflow.schedule`: the op form (SSA ops, commit map, outputs), unit kinds and
   latencies, and the banked list scheduler with its port and bank rules;
 - :mod:`navgate.opflow.machine`: the banked datapath and its microcode control, emitted from a
   schedule, and the command-stream wrapper;
+- :mod:`navgate.opflow.phased`: the phased list scheduler (one unit per kind, a client's own
+  unit kinds included, flip-flop sources and sinks, result bypass, a control FSM's phases,
+  small register banks); :mod:`navgate.opflow.phased_machine`: the datapath and control ROM
+  emitted from its schedules;
 - :mod:`navgate.opflow.loops`: loop nests (ROM address generators, accumulators), their
   bit-true executor (Numba) and the modulo scheduler of their bodies;
 - :mod:`navgate.opflow.loopmachine`: the sequencer and delay-line datapath that runs a

@@ -31,7 +31,8 @@ from numba import njit
 from navgate.numerics import fp32 as F
 from navgate.opflow.ir import OPCODE, Program, const_value
 
-__all__ = ["round_fp32", "execute", "commit", "Compiled", "Machine", "to_f32", "run_bittrue"]
+__all__ = ["round_fp32", "apply_op", "execute", "commit", "Compiled", "Machine", "to_f32",
+           "run_bittrue"]
 
 _MIN_NORMAL = 2.0**-126
 _ZERO_BELOW = 2.0**-126 - 2.0**-151  #: magnitudes that round (24 bits) to below 2^-126
@@ -49,31 +50,38 @@ def round_fp32(r):
     return np.float64(np.float32(r))
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def apply_op(k, regs, ia, ib):
+    """One float32 op of opcode ``k`` (:data:`navgate.opflow.ir.OPCODE`) on the registers at
+    ``ia`` and ``ib`` (``ib`` is not read by a one-operand kind), rounded by
+    :func:`round_fp32`. A client's kernel with kinds of its own calls it for these kinds."""
+    a = regs[ia]
+    if k == 2:
+        r = a * regs[ib]
+    elif k == 0:
+        r = a + regs[ib]
+    elif k == 1:
+        r = a - regs[ib]
+    elif k == 3:
+        r = a / regs[ib]
+    elif k == 4:
+        r = math.sqrt(a) if a >= 0.0 or a != a else (a if a == 0.0 else math.nan)
+    elif k == 5:
+        r = -a
+    elif k == 6:
+        r = a
+    elif k == 7:
+        r = 1.0 if a <= regs[ib] else 0.0
+    else:
+        r = 1.0 if a < regs[ib] else 0.0
+    return round_fp32(r)
+
+
 @njit(cache=True, error_model="numpy")
 def execute(regs, ops):
     """Run an op table (rows: opcode, dst, src a, src b) on the register file."""
     for n in range(ops.shape[0]):
-        k = ops[n, 0]
-        a = regs[ops[n, 2]]
-        if k == 2:
-            r = a * regs[ops[n, 3]]
-        elif k == 0:
-            r = a + regs[ops[n, 3]]
-        elif k == 1:
-            r = a - regs[ops[n, 3]]
-        elif k == 3:
-            r = a / regs[ops[n, 3]]
-        elif k == 4:
-            r = math.sqrt(a) if a >= 0.0 or a != a else (a if a == 0.0 else math.nan)
-        elif k == 5:
-            r = -a
-        elif k == 6:
-            r = a
-        elif k == 7:
-            r = 1.0 if a <= regs[ops[n, 3]] else 0.0
-        else:
-            r = 1.0 if a < regs[ops[n, 3]] else 0.0
-        regs[ops[n, 1]] = round_fp32(r)
+        regs[ops[n, 1]] = apply_op(ops[n, 0], regs, ops[n, 2], ops[n, 3])
 
 
 @njit(cache=True)
@@ -165,12 +173,15 @@ def _cvt_bits(x: np.ndarray) -> np.ndarray:
     return np.asarray(F._round_f64(x), np.uint32)
 
 
-def run_bittrue(prog: Program, state: dict, inputs: dict, lanes: int = 1):
+def run_bittrue(prog: Program, state: dict, inputs: dict, lanes: int = 1,
+                kinds: dict | None = None):
     """Run ``prog`` with :mod:`navgate.numerics.fp32` on bit patterns.
 
     ``state``: register name -> uint32 bit patterns (scalar or (lanes,)); ``inputs``: name ->
     values: float64 numbers for registers read by ``cvt`` (IMU words), otherwise uint32 bit
-    patterns. Returns (new state dict, outputs dict, every temporary dict)."""
+    patterns; ``kinds``: a client's own op kinds -> their bit-true function (uint32 arrays
+    in, uint32 array out). Returns (new state dict, outputs dict, every temporary dict)."""
+    kinds = kinds or {}
     regs: dict = {}
     for k, v in state.items():
         regs[k] = np.broadcast_to(np.asarray(v, np.uint32), (lanes,)).copy()
@@ -189,7 +200,9 @@ def run_bittrue(prog: Program, state: dict, inputs: dict, lanes: int = 1):
 
     for op in prog.ops:
         k = op.kind
-        if k == "cvt":
+        if k in kinds:
+            r = kinds[k](*(get(s) for s in op.srcs))
+        elif k == "cvt":
             src = op.srcs[0]
             r = _cvt_bits(raw[src]) if src in raw else F.flush_subnormal(get(src))
         elif k in ("add", "sub", "mul", "div"):
@@ -199,10 +212,12 @@ def run_bittrue(prog: Program, state: dict, inputs: dict, lanes: int = 1):
             r = F.fp32_sqrt(get(op.srcs[0]))
         elif k == "neg":
             r = F.fp32_neg(get(op.srcs[0]))
-        else:
+        elif k in ("le", "lt"):
             cmp = F.fp32_compare(get(op.srcs[0]), get(op.srcs[1]))
             flag = cmp["lt"] | cmp["eq"] if k == "le" else cmp["lt"]
             r = np.where(flag, np.uint32(0x3F800000), np.uint32(0)).astype(np.uint32)
+        else:
+            raise ValueError(f"{prog.name}: op {op.dst} has unknown kind {k!r}")
         regs[op.dst] = np.asarray(r, np.uint32).reshape(lanes)
     outputs = {k: regs[v] for k, v in prog.outputs.items()}
     new_state = {k: regs[k] for k in state}

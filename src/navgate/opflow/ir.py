@@ -2,7 +2,9 @@
 register <- temporary read at program start, outputs, and the program's own named persistent
 registers), and a builder that emits ops and names float32 constants ``c:<hex>`` (subnormals
 flushed to signed zero, as the float32 cores do). Kinds: ``add sub mul div sqrt neg cvt le
-lt``; ``neg`` is a sign flip on an operand path (unit ``wire``). Loop nests have their own
+lt``; ``neg`` is a sign flip on an operand path (unit ``wire``). A client may add kinds of
+its own units (:meth:`Builder.op`; it evaluates them itself, e.g. through ``run_bittrue``'s
+``kinds``, and maps them to units in its scheduler's unit table). Loop nests have their own
 IR in :mod:`navgate.opflow.loops` (bodies of these float32 kinds over array memories).
 """
 
@@ -55,17 +57,18 @@ class Program:
     registers: tuple = ()
 
     def counts(self) -> dict:
-        """Operations by kind (``neg`` is a sign flip and costs no unit)."""
+        """Operations by kind (``neg`` is a sign flip and costs no unit; a client's own
+        kinds follow the float32 ones)."""
         out = {k: 0 for k in KINDS}
         for op in self.ops:
-            out[op.kind] += 1
+            out[op.kind] = out.get(op.kind, 0) + 1
         return out
 
     def counts_by_module(self) -> dict:
         out: dict = {}
         for op in self.ops:
             m = out.setdefault(op.module, {k: 0 for k in KINDS})
-            m[op.kind] += 1
+            m[op.kind] = m.get(op.kind, 0) + 1
         return out
 
     def names(self) -> list:
@@ -81,19 +84,24 @@ class Program:
 
 
 class Builder:
-    """Emits SSA ops; each helper returns the name of its result."""
+    """Emits SSA ops; each helper returns the name of its result (``t<n>``, or ``name``
+    where given: a value the client reads by name, such as a new state or an output)."""
 
     def __init__(self, name: str, inputs=(), registers=()):
         self.prog = Program(name, inputs=tuple(inputs), registers=tuple(registers))
         self.module = name
         self._n = 0
 
-    def _emit(self, kind, *srcs):
+    def _emit(self, kind, *srcs, name=None):
         srcs = tuple(self.c(s) if isinstance(s, (int, float)) else s for s in srcs)
         self._n += 1
-        dst = f"t{self._n}"
+        dst = f"t{self._n}" if name is None else name
         self.prog.ops.append(Op(dst, kind, srcs, self.module))
         return dst
+
+    def op(self, kind: str, *srcs, name: str | None = None) -> str:
+        """Any kind, a client's own included; ``name``: the result's name."""
+        return self._emit(kind, *srcs, name=name)
 
     @staticmethod
     def c(value: float) -> str:

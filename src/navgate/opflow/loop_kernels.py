@@ -14,7 +14,17 @@ kernels used to prove the loop toolchain (executor, modulo scheduler, loop machi
 * :func:`dense_matvec_interleaved`: the same sums with the row loop inside: one accumulator
   at distance ``n_rows`` carries every row's sum (each in the same order as
   :func:`dense_matvec`, so the results are the same bits) and II drops to 1 once there are
-  as many rows as the adder has stages.
+  as many rows as the adder has stages;
+* :func:`scalar_div_sqrt`: a straight-line segment (no loop levels) with a divide, a square
+  root and sign flips;
+* :func:`sym_rank1_update_loaded`: ``P <- P + (g v) v^T`` with the scale ``g`` read from a
+  memory word (written by an earlier segment of a sequence);
+* :func:`diag_compare`: ``lt``/``le`` of a symmetric matrix's diagonal against a vector;
+* :func:`vector_sqrt_div`: ``z_i <- sqrt(x_i) / y_i`` (the iterative units once per
+  iteration: II is the divider's interval);
+* :func:`chain_program`: a :class:`~navgate.opflow.sequence.SequenceProgram` of these
+  segments over shared memories, with several entry points (a straight-line scalar segment
+  feeding a sparse mat-vec feeding a rank-1 update, then a compare).
 """
 
 from __future__ import annotations
@@ -25,7 +35,8 @@ from navgate.opflow.ir import const_name
 from navgate.opflow.loops import Acc, Addr, Cond, LoopNest, LOp, Store
 
 __all__ = ["upper_index", "sym_rank1_update", "sparse_matvec", "dense_matvec",
-           "dense_matvec_interleaved"]
+           "dense_matvec_interleaved", "scalar_div_sqrt", "sym_rank1_update_loaded",
+           "diag_compare", "vector_sqrt_div", "chain_program"]
 
 
 def upper_index(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -102,3 +113,77 @@ def dense_matvec_interleaved(n_rows: int, n_cols: int) -> LoopNest:
                     {"A": n_rows * n_cols, "x": n_cols, "y": n_rows}, {}, ops,
                     [Acc("acc", const_name(0.0), "s", Cond("at_first", 0), n_rows)],
                     [Store("y", Addr(None, (0, 1)), "s", Cond("at_last", 0))])
+
+
+def scalar_div_sqrt(array: str = "s") -> LoopNest:
+    """Straight line on ``x, y, z = s[0], s[1], s[2]``: ``q = x / y``, ``r = sqrt(z)``;
+    ``s[3] <- (-q) r``, ``s[4] <- -r``, ``s[5] <- q + r`` (memory ``s``, 6 words)."""
+    ops = [LOp("x", "load", (array,), Addr(None, (), 0)),
+           LOp("y", "load", (array,), Addr(None, (), 1)),
+           LOp("z", "load", (array,), Addr(None, (), 2)),
+           LOp("q", "div", ("x", "y")), LOp("r", "sqrt", ("z",)),
+           LOp("nq", "neg", ("q",)), LOp("g", "mul", ("nq", "r")),
+           LOp("nr", "neg", ("r",)), LOp("h", "add", ("q", "r"))]
+    return LoopNest("scalar_div_sqrt", (), {array: 6}, {}, ops, [],
+                    [Store(array, Addr(None, (), 3), "g"), Store(array, Addr(None, (), 4), "nr"),
+                     Store(array, Addr(None, (), 5), "h")])
+
+
+def sym_rank1_update_loaded(n: int, vector: str = "y", scale: tuple = ("s", 3, 6),
+                            matrix: str = "P") -> LoopNest:
+    """``P[i,j] <- P[i,j] + (g v_i) v_j`` for i <= j, ``g = scale[0][scale[1]]`` (an array of
+    ``scale[2]`` words), ``v`` the memory ``vector``."""
+    rows, cols = upper_index(n)
+    m = len(rows)
+    sarr, sword, swords = scale
+    ops = [LOp("p", "load", (matrix,), Addr(None, (1,))),
+           LOp("vi", "load", (vector,), Addr("row", (1,))),
+           LOp("vj", "load", (vector,), Addr("col", (1,))),
+           LOp("g", "load", (sarr,), Addr(None, (0,), sword)),
+           LOp("gvi", "mul", ("g", "vi")), LOp("kk", "mul", ("gvi", "vj")),
+           LOp("q", "add", ("p", "kk"))]
+    return LoopNest(f"sym_rank1_loaded_{n}", (m,), {matrix: m, vector: n, sarr: swords},
+                    {"row": rows, "col": cols}, ops, [],
+                    [Store(matrix, Addr(None, (1,)), "q")])
+
+
+def diag_compare(n: int, matrix: str = "P", vector: str = "y", out: str = "c") -> LoopNest:
+    """``c[i] <- (P[i,i] < v_i)``, ``c[n + i] <- (-v_i <= P[i,i])`` (1.0 or 0.0; 0.0 when a
+    NaN is involved) with P's upper triangle stored row by row."""
+    rows, cols = upper_index(n)
+    diag = np.flatnonzero(rows == cols)
+    ops = [LOp("d", "load", (matrix,), Addr("diag", (1,))),
+           LOp("v", "load", (vector,), Addr(None, (1,))),
+           LOp("a", "lt", ("d", "v")), LOp("nv", "neg", ("v",)),
+           LOp("b", "le", ("nv", "d"))]
+    return LoopNest(f"diag_compare_{n}", (n,), {matrix: len(rows), vector: n, out: 2 * n},
+                    {"diag": diag}, ops, [],
+                    [Store(out, Addr(None, (1,)), "a"), Store(out, Addr(None, (1,), n), "b")])
+
+
+def vector_sqrt_div(n: int, num: str = "x", den: str = "y", out: str = "z") -> LoopNest:
+    """``out[i] <- sqrt(num[i]) / den[i]``."""
+    ops = [LOp("u", "load", (num,), Addr(None, (1,))),
+           LOp("v", "load", (den,), Addr(None, (1,))),
+           LOp("r", "sqrt", ("u",)), LOp("q", "div", ("r", "v"))]
+    return LoopNest(f"vector_sqrt_div_{n}", (n,), {num: n, den: n, out: n}, {}, ops, [],
+                    [Store(out, Addr(None, (1,)), "q")])
+
+
+def chain_program(n: int, rows, cols):
+    """Segments ``prep`` (:func:`scalar_div_sqrt` on ``s``), ``spmv`` (``y <- A x``, the
+    sparse pattern ``rows``/``cols``), ``rank1`` (``P <- P + (s[3] y) y^T``), ``cmp``
+    (:func:`diag_compare` of P against y into ``c``) and ``norm`` (``z <- sqrt(x) / y``);
+    entries ``all`` (prep, spmv, rank1, cmp), ``update`` (rank1, cmp), ``norm`` and
+    ``prep``."""
+    from navgate.opflow.sequence import SequenceProgram
+
+    segs = {"prep": scalar_div_sqrt(), "spmv": sparse_matvec(rows, cols, n, n),
+            "rank1": sym_rank1_update_loaded(n), "cmp": diag_compare(n),
+            "norm": vector_sqrt_div(n)}
+    arrays: dict = {}
+    for nest in segs.values():
+        arrays.update(nest.arrays)
+    return SequenceProgram(f"chain_{n}", arrays, segs,
+                           {"all": ("prep", "spmv", "rank1", "cmp"), "update": ("rank1", "cmp"),
+                            "norm": ("norm",), "prep": ("prep",)})

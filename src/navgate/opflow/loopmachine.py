@@ -39,8 +39,15 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Mul
+from navgate.gateware.parameters import CheckedParameters
 from navgate.numerics import fp32 as F
-from navgate.opflow.loops import ADDR_READY, LoopSchedule, addresses, iteration_indices
+from navgate.opflow.loops import (
+    ADDR_READY,
+    LoopError,
+    LoopSchedule,
+    addresses,
+    iteration_indices,
+)
 
 __all__ = ["LoopMachine", "to_bits", "simulate"]
 
@@ -55,8 +62,21 @@ def _bits(n: int) -> int:
     return max(1, int(n - 1).bit_length())
 
 
-class LoopMachine(wiring.Component):
+class LoopMachine(CheckedParameters, wiring.Component):
     """The machine of one modulo-scheduled loop nest (module docstring)."""
+
+    @classmethod
+    def check_parameters(cls, schedule: LoopSchedule, init: dict | None = None) -> None:
+        """Refuse, before the component exists, a schedule this one-nest machine cannot run."""
+        nest = schedule.nest
+        u = schedule.units
+        if u.load_latency != 1 or u.operand_stage != 0:
+            raise LoopError(f"{nest.name}: the one-nest LoopMachine needs load_latency 1 and "
+                            "no operand stage: use navgate.opflow.sequence.SequenceMachine")
+        other = sorted({op.kind for op in nest.ops} - {"load", "add", "sub", "mul"})
+        if other:
+            raise LoopError(f"{nest.name}: the one-nest LoopMachine runs load/add/sub/mul only, "
+                            f"not {other}: use navgate.opflow.sequence.SequenceMachine")
 
     def __init__(self, schedule: LoopSchedule, init: dict | None = None):
         self.schedule = schedule

@@ -23,9 +23,12 @@ words), ``tables`` (ROMs of non-negative integers) and a body run once per itera
   ``("at_last", l)`` (the index of level ``l`` alone) or ``("table", name)``
   (``tables[name][n] != 0``, one entry per iteration);
 * ops (:class:`LOp`, SSA temporaries ``dst``): ``load`` (``srcs = (array,)``, ``addr``),
-  ``add``, ``sub``, ``mul`` on float32 (:mod:`navgate.numerics.fp32` rounding, subnormals
-  flushed); a source is a temporary of the same iteration, a constant ``c:<hex>``
-  (:func:`navgate.opflow.ir.const_name`) or an accumulator;
+  ``add``, ``sub``, ``mul``, ``div``, ``sqrt`` (one source), ``neg`` (one source: a sign
+  flip, NaN in -> canonical NaN out, as :func:`navgate.numerics.fp32.fp32_neg`), ``lt`` and
+  ``le`` (1.0 when the comparison holds, else 0.0; false when a NaN is involved) on float32
+  (:mod:`navgate.numerics.fp32` rounding, subnormals flushed); a source is a temporary of
+  the same iteration, a constant ``c:<hex>`` (:func:`navgate.opflow.ir.const_name`) or an
+  accumulator;
 * :class:`Acc`: a loop-carried value: read as ``init`` (a constant or a temporary) in an
   iteration where ``reset`` holds, otherwise as the value of ``update`` (a temporary) in
   the iteration ``distance`` before (1: the previous one; ``d`` > 1 interleaves ``d``
@@ -44,7 +47,11 @@ Scheduling (:func:`modulo_schedule`)
 ------------------------------------
 One iteration starts every II cycles; every op has a fixed offset in its iteration. Resources
 per cycle modulo II: ``mul`` and ``add`` units (add/sub; fully pipelined, latencies of
-:mod:`navgate.gateware.fp32`), ``read_ports`` read ports and one write port per array. An
+:mod:`navgate.gateware.fp32`), a ``cmp`` unit (lt/le, :class:`~navgate.gateware.fp32.Fp32Compare`,
+pipelined), the iterative ``div`` and ``sqrt`` units (:class:`~navgate.gateware.fp32.Fp32DivIter`,
+:class:`~navgate.gateware.fp32.Fp32SqrtIter`: not pipelined, an op blocks its unit for the
+core's ``INTERVAL`` cycles, so they count ``INTERVAL`` times in ResMII and II >= INTERVAL for a
+nest that uses one), ``read_ports`` read ports and one write port per array. An
 iteration's addresses and flags are ready at offset 1 (one ROM read; they then ride delay
 lines to their ops), a load's word one cycle after it is issued, a unit's result ``L`` cycles
 after issue; an op reads its operands in its issue cycle from the delay line of the unit
@@ -55,26 +62,43 @@ instances; RecMII = max over accumulators of ``(r - t) / distance`` (rounded up)
 schedule without resource limits; II
 starts at max(ResMII, RecMII) and grows until the greedy placement (topological order,
 each op at its earliest free slot) fits. Cycles of a nest: ``(N - 1) * II + depth``, depth
-the offset after an iteration's last result is written.
+the offset after an iteration's last result is written. ``neg`` takes no unit and no time:
+its value is its source's, sign flipped on the consumer's operand path. A nest of one
+iteration (a straight-line segment, ``trips == ()``) is list-scheduled without wrap-around and
+gets II = depth: cycle by cycle, the ready ops by priority, the priority an op's height (the
+longest latency path from its issue to the segment's end, as
+:mod:`navgate.opflow.schedule`), where a store counts the stores of its array that must
+follow it through the one write port (ranked by the earliest cycle their word can be ready)
+and a load the stores of its array that wait for it; stores then take their array's write
+port in the order their words are ready. Of that schedule and the greedy topological
+placement the shorter is kept (the critical path wins on every seed-000 segment measured:
+docs/seed000-loop-programs.md).
 """
 
 from __future__ import annotations
 
+import heapq
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
 
-from navgate.gateware.fp32 import Fp32Add, Fp32Mul
+from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32DivIter, Fp32Mul, Fp32SqrtIter
 from navgate.opflow.execute import round_fp32
 from navgate.opflow.ir import Op, Program, const_value
 
 __all__ = ["Addr", "Cond", "LOp", "Acc", "Store", "LoopNest", "LoopError", "check_nest",
            "iteration_indices", "addresses", "flags", "run_nest", "unroll", "LoopUnits",
-           "LoopSchedule", "modulo_schedule", "ADDR_READY", "LOAD_LATENCY"]
+           "LoopSchedule", "modulo_schedule", "ADDR_READY", "LOAD_LATENCY", "LOOP_KINDS",
+           "UNARY", "UNIT_OF"]
 
-LOOP_KINDS = ("load", "add", "sub", "mul")
+LOOP_KINDS = ("load", "add", "sub", "mul", "div", "sqrt", "neg", "lt", "le")
+#: kinds with one float source (the others but ``load`` take two)
+UNARY = ("sqrt", "neg")
+#: the unit each kind runs on (``neg`` runs on none: a sign flip on an operand path)
+UNIT_OF = {"load": "read", "add": "add", "sub": "add", "mul": "mul", "div": "div",
+           "sqrt": "sqrt", "neg": None, "lt": "cmp", "le": "cmp"}
 #: offset at which an iteration's addresses and flags are ready (one ROM/register stage)
 ADDR_READY = 1
 #: a load's word is ready one cycle after its address is presented (synchronous read)
@@ -204,8 +228,9 @@ def check_nest(nest: LoopNest) -> None:
             if len(op.srcs) != 1 or op.srcs[0] not in nest.arrays or op.addr is None:
                 raise LoopError(f"{nest.name}: load {op.dst} needs an array and an address")
         else:
-            if len(op.srcs) != 2:
-                raise LoopError(f"{nest.name}: {op.kind} {op.dst} takes two sources")
+            want = 1 if op.kind in UNARY else 2
+            if len(op.srcs) != want:
+                raise LoopError(f"{nest.name}: {op.kind} {op.dst} takes {want} source(s)")
             for s in op.srcs:
                 if not (s in defined or s in accs or s.startswith("c:")):
                     raise LoopError(f"{nest.name}: {op.dst} reads {s} before it is defined")
@@ -258,6 +283,7 @@ def _bounds(nest, array, a):
 # ------------------------------------------------------------------ bit-true executor
 
 _K_LOAD, _K_ADD, _K_SUB, _K_MUL, _K_ACC = 0, 1, 2, 3, 4
+_K_CODE = {"add": 1, "sub": 2, "mul": 3, "div": 5, "sqrt": 6, "neg": 7, "le": 8, "lt": 9}
 
 
 class CompiledNest:
@@ -297,8 +323,7 @@ class CompiledNest:
                     seen.add(s)
                     a = accs[s]
                     rows.append([_K_ACC, slot[s], slot[a.init], acc_col[s]])
-            k = {"add": _K_ADD, "sub": _K_SUB, "mul": _K_MUL}[op.kind]
-            rows.append([k, slot[op.dst], slot[op.srcs[0]], slot[op.srcs[1]]])
+            rows.append([_K_CODE[op.kind], slot[op.dst], slot[op.srcs[0]], slot[op.srcs[-1]]])
         self.ops = np.array(rows, np.int64).reshape(-1, 4)
         n = len(idx)
         self.load_addr = np.array(load_cols, np.int64).reshape(-1, n).T.copy()
@@ -339,8 +364,18 @@ def _run_kernel(mem, regs, ops, load_addr, acc_reset, acc_slots, store, store_ad
                     x = a + b
                 elif k == 2:
                     x = a - b
-                else:
+                elif k == 3:
                     x = a * b
+                elif k == 5:
+                    x = a / b
+                elif k == 6:  # sqrt(-0) = -0, sqrt(negative) = NaN
+                    x = math.sqrt(a) if a >= 0.0 or a != a else (a if a == 0.0 else math.nan)
+                elif k == 7:
+                    x = -a
+                elif k == 8:
+                    x = 1.0 if a <= b else 0.0
+                else:
+                    x = 1.0 if a < b else 0.0
                 regs[ops[r, 1]] = round_fp32(x)
         for c in range(acc_slots.shape[0]):
             carry[c, n % acc_slots[c, 2]] = regs[acc_slots[c, 1]]
@@ -404,7 +439,7 @@ def unroll(nest: LoopNest) -> tuple[Program, dict]:
                 continue
             t += 1
             dst = f"t{t}"
-            prog.ops.append(Op(dst, op.kind, (name(op.srcs[0]), name(op.srcs[1])), nest.name))
+            prog.ops.append(Op(dst, op.kind, tuple(name(x) for x in op.srcs), nest.name))
             val[op.dst] = dst
         for a in nest.accs:
             carry.setdefault(a.name, {})[n] = val[a.update]
@@ -420,16 +455,34 @@ def unroll(nest: LoopNest) -> tuple[Program, dict]:
 
 @dataclass(frozen=True)
 class LoopUnits:
-    """The loop machine's resources: pipelined float32 units and memory read ports."""
+    """The loop machine's resources: pipelined float32 units (mul, add, cmp), the iterative
+    divider and square root (one each; an op blocks its unit for ``occupancy`` cycles) and
+    memory read ports."""
 
     mul: int = 1
     add: int = 1
     read_ports: int = 2
+    div: int = 1
+    sqrt: int = 1
+    cmp: int = 1
+    #: cycles from a load's address to its word (2: the memory's output registered)
+    load_latency: int = LOAD_LATENCY
+    #: register stages between the operand multiplexers and every unit's input (0 or 1)
+    operand_stage: int = 0
 
     def latency(self, kind: str) -> int:
         if kind == "load":
-            return LOAD_LATENCY
-        return Fp32Mul.LATENCY if kind == "mul" else Fp32Add.LATENCY
+            return self.load_latency
+        if kind == "neg":
+            return 0
+        return self.operand_stage + {
+            "mul": Fp32Mul.LATENCY, "add": Fp32Add.LATENCY, "sub": Fp32Add.LATENCY,
+            "div": Fp32DivIter.LATENCY, "sqrt": Fp32SqrtIter.LATENCY,
+            "lt": Fp32Compare.LATENCY, "le": Fp32Compare.LATENCY}[kind]
+
+    def occupancy(self, kind: str) -> int:
+        """Cycles an op blocks its unit instance (1 on a pipelined unit)."""
+        return {"div": Fp32DivIter.INTERVAL, "sqrt": Fp32SqrtIter.INTERVAL}.get(kind, 1)
 
 
 @dataclass
@@ -453,7 +506,7 @@ class LoopSchedule:
 def _resource(op, units):
     if op.kind == "load":
         return ("read", op.srcs[0]), units.read_ports
-    unit = "mul" if op.kind == "mul" else "add"
+    unit = UNIT_OF[op.kind]
     return (unit,), getattr(units, unit)
 
 
@@ -465,12 +518,14 @@ def modulo_schedule(nest: LoopNest, units: LoopUnits = LoopUnits(),
     accs = nest.acc_names()
     uses: dict = {}
     for op in nest.ops:
+        if op.kind == "neg":
+            continue
         res, count = _resource(op, units)
         if count < 1:
             raise LoopError(f"{nest.name}: no {res[0]} resource for {op.dst}")
-        uses[res] = uses.get(res, 0) + 1
-    caps = {res: _resource(next(o for o in nest.ops if _resource(o, units)[0] == res),
-                           units)[1] for res in uses}
+        uses[res] = uses.get(res, 0) + units.occupancy(op.kind)
+    caps = {res: _resource(next(o for o in nest.ops if o.kind != "neg"
+                                and _resource(o, units)[0] == res), units)[1] for res in uses}
     for st in nest.stores:
         uses[("write", st.array)] = uses.get(("write", st.array), 0) + 1
         caps[("write", st.array)] = 1
@@ -480,7 +535,13 @@ def modulo_schedule(nest: LoopNest, units: LoopUnits = LoopUnits(),
                                                       if a.name in op.srcs)) / a.distance)
                    for a in nest.accs if any(a.name in op.srcs for op in nest.ops)] + [1])
     start = max(res_mii, rec_mii)
-    limit = max_ii or sum(units.latency(op.kind) for op in nest.ops) + 8
+    limit = max_ii or sum(units.latency(op.kind) + units.occupancy(op.kind)
+                          for op in nest.ops) + len(nest.stores) + 8
+    if nest.iterations == 1:  # straight line: one placement without wrap-around, II = depth
+        time, resource, ready, depth = min(_list_place(nest, units, accs),
+                                           _place(nest, units, limit + 1, accs),
+                                           key=lambda got: got[3])
+        return LoopSchedule(nest, units, depth, res_mii, rec_mii, time, resource, ready, depth)
     for ii in range(start, limit + 1):
         got = _place(nest, units, ii, accs)
         if got is None:
@@ -496,13 +557,16 @@ def _place(nest, units, ii, accs):
     time, resource, ready = {}, {}, {}
     busy: set = set()  # (resource, instance, cycle mod II)
 
-    def take(res, count, earliest):
+    def take(res, count, earliest, occ=1):
         if ii is None:
             return earliest, 0
+        if occ > ii:
+            return None
         for t in range(earliest, earliest + ii):
             for inst in range(count):
-                if (res, inst, t % ii) not in busy:
-                    busy.add((res, inst, t % ii))
+                cells = {(res, inst, (t + j) % ii) for j in range(occ)}
+                if not cells & busy:
+                    busy.update(cells)
                     return t, inst
         return None
 
@@ -518,8 +582,12 @@ def _place(nest, units, ii, accs):
                         earliest = max(earliest, ready[a.init])
                 else:
                     earliest = max(earliest, ready[s])
+        if op.kind == "neg":  # a sign flip on the consumers' operand paths: no unit, no time
+            time[op.dst] = ready[op.dst] = earliest
+            resource[op.dst] = None
+            continue
         res, count = _resource(op, units)
-        got = take(res, count, earliest)
+        got = take(res, count, earliest, units.occupancy(op.kind))
         if got is None:
             return None
         time[op.dst], inst = got
@@ -542,4 +610,133 @@ def _place(nest, units, ii, accs):
             for op in nest.ops:
                 if a.name in op.srcs and ready[a.update] - a.distance * ii > time[op.dst]:
                     return None
+    return time, resource, ready, depth
+
+
+def _sources(op, accs):
+    """The temporaries ``op`` waits for (an accumulator stands for its init: a straight
+    line runs one iteration, so every accumulator read is a reset)."""
+    if op.kind == "load":
+        return []
+    out = []
+    for x in op.srcs:
+        if x.startswith("c:"):
+            continue
+        if x in accs:
+            x = accs[x].init
+            if x.startswith("c:"):
+                continue
+        out.append(x)
+    return out
+
+
+def _list_place(nest, units, accs):
+    """A straight-line segment list-scheduled cycle by cycle with critical-path priority
+    (the longest latency path from an op to the end of the segment first, ties in program
+    order; as :mod:`navgate.opflow.schedule`), under the rules of :func:`_place`: units and
+    read ports per cycle, the iterative units blocked for their interval, operands at their
+    ready offsets, addresses and flags from ``ADDR_READY``, a store after every load of its
+    array, one write port per array. Returns (time, resource, ready, depth)."""
+    ops = nest.ops
+    by_dst = {op.dst: k for k, op in enumerate(ops)}
+    preds = [[by_dst[x] for x in _sources(op, accs)] for op in ops]
+    succs: list = [[] for _ in ops]
+    for k, ps in enumerate(preds):
+        for p in ps:
+            succs[p].append(k)
+    # a store's height: the stores of its array that must follow it through the one write
+    # port (ranked by the earliest cycle their word can be ready), so that on a segment bound
+    # by a write port the words stored early are computed early
+    free_ready = _place(nest, units, None, accs)[2]
+    stored: dict = {}  # temporary -> the largest height of a store of it
+    last_store: dict = {}  # array -> the largest height of a store to it
+    for array in {st.array for st in nest.stores}:
+        mine = sorted((free_ready[st.src], k) for k, st in enumerate(nest.stores)
+                      if st.array == array)
+        for rank, (_, k) in enumerate(mine):
+            h = len(mine) - rank
+            src = nest.stores[k].src
+            stored[src] = max(stored.get(src, 0), h)
+        last_store[array] = len(mine)
+    height = [0] * len(ops)  # cycles from an op's issue to the end of the segment
+    for k in reversed(range(len(ops))):
+        op = ops[k]
+        tail = max([height[c] for c in succs[k]] + [stored.get(op.dst, 0)])
+        if op.kind == "load" and op.srcs[0] in last_store:
+            # every store of the array waits one cycle after the load
+            tail = max(tail, 1 + last_store[op.srcs[0]] - units.latency("load"))
+        height[k] = units.latency(op.kind) + tail
+    time, resource, ready = {}, {}, {}
+    busy: set = set()  # (resource, instance, cycle)
+    waiting = [len(ps) for ps in preds]
+    earliest = [ADDR_READY] * len(ops)
+    queue: list = []  # (earliest, -height, index) of ops whose sources are placed
+    placed = 0
+
+    def release(k):
+        """``k`` has every source placed: a neg is placed at once, others queued."""
+        nonlocal placed
+        op = ops[k]
+        if op.kind == "neg":  # a sign flip on the consumers' operand paths: no unit, no time
+            time[op.dst] = ready[op.dst] = earliest[k]
+            resource[op.dst] = None
+            placed += 1
+            done(k)
+        else:
+            heapq.heappush(queue, (earliest[k], -height[k], k))
+
+    def done(k):
+        for c in succs[k]:
+            earliest[c] = max(earliest[c], ready[ops[k].dst])
+            waiting[c] -= 1
+            if waiting[c] == 0:
+                release(c)
+
+    for k in range(len(ops)):
+        if waiting[k] == 0:
+            release(k)
+    cycle = ADDR_READY
+    while placed < len(ops):
+        now: list = []  # queued ops that may issue this cycle, by priority
+        while queue and queue[0][0] <= cycle:
+            _, h, k = heapq.heappop(queue)
+            now.append((h, k))
+        now.sort()
+        later = []
+        for h, k in now:
+            op = ops[k]
+            res, count = _resource(op, units)
+            occ = units.occupancy(op.kind)
+            inst = next((i for i in range(count) if not any(
+                (res, i, cycle + j) in busy for j in range(occ))), None)
+            if inst is None:
+                later.append((cycle + 1, h, k))
+                continue
+            busy.update((res, inst, cycle + j) for j in range(occ))
+            time[op.dst] = cycle
+            resource[op.dst] = (res, inst)
+            ready[op.dst] = cycle + units.latency(op.kind)
+            placed += 1
+            done(k)
+        for item in later:
+            heapq.heappush(queue, item)
+        if queue:  # the next cycle in which a queued op may issue
+            cycle = max(cycle + 1, queue[0][0])
+        elif placed < len(ops):
+            raise LoopError(f"{nest.name}: ops left unplaced (a cycle in the data flow)")
+    depth = max(ready.values(), default=ADDR_READY)
+    order = sorted(range(len(nest.stores)), key=lambda k: (
+        max([ready[nest.stores[k].src], ADDR_READY]
+            + [time[op.dst] + 1 for op in ops if op.kind == "load"
+               and op.srcs[0] == nest.stores[k].array]), k))
+    for k in order:
+        st = nest.stores[k]
+        t = max([ready[st.src], ADDR_READY] + [time[op.dst] + 1 for op in ops
+                                               if op.kind == "load" and op.srcs[0] == st.array])
+        while (("write", st.array), 0, t) in busy:
+            t += 1
+        busy.add((("write", st.array), 0, t))
+        time[("store", k)] = t
+        resource[("store", k)] = (("write", st.array), 0)
+        depth = max(depth, t + 1)
     return time, resource, ready, depth

@@ -29,16 +29,18 @@ def same_registers(engs: dict, name: str):
     assert not diff, diff[:8]
 
 
-def fly(name: str, duration: float, seed: int = 1):
-    """The default mission (INS+TRN) through the fp32 engine and the ``name`` engine: every
-    logged state, sigma and P_NE word, every update and fix decision and every register at
-    the end equal; (stream, cfg, the ``name`` run, {engine name: engine})."""
+def fly(name: str, duration: float, seed: int = 1, **options):
+    """The default mission (INS+TRN) through the fp32 engine and the ``name`` engine (made
+    with the keyword arguments ``options``): every logged state, sigma and P_NE word, every
+    update and fix decision and every register at the end equal; (stream, cfg, the ``name``
+    run, {engine name: engine})."""
     dem = Dem.default()
     cfg = flight.FlightConfig(duration_s=duration, seed=seed)
     _, _, stream = flight.record_stream(dem, cfg)
     runs, engs = {}, {}
     for eng_name in ("fp32", name):
-        eng = make_engine(eng_name, engine_setup(stream.header, cfg))
+        eng = make_engine(eng_name, engine_setup(stream.header, cfg),
+                          **(options if eng_name == name else {}))
         nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=True)
         runs[eng_name], engs[eng_name] = nav.run(stream), eng
     a, b = runs["fp32"], runs[name]

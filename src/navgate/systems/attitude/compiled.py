@@ -2,8 +2,8 @@
 lowered to an op table and run sample after sample by a Numba kernel, bit-identical to
 :class:`navgate.systems.attitude.mahony_fp32.MahonyCircuitFP32`.
 
-The float32 ops (``mul add sub div sqrt neg``) are evaluated as :mod:`navgate.opflow.execute`
-does (float64 on float32 values, rounded by its ``round_fp32``, the rule of
+The float32 ops (``mul add sub div sqrt neg``) are evaluated by :mod:`navgate.opflow.execute`'s
+``apply_op`` (float64 on float32 values, rounded by its ``round_fp32``, the rule of
 :mod:`navgate.numerics.fp32`); the circuit's own kinds are exact here: ``dbl`` (``x + x``,
 rounded the same way), ``clampneg`` (a negative value -> +0), ``yawsel`` (``a < 0 ? b : a``)
 and ``atan``, the fix16 arctangent of :mod:`navgate.systems.attitude.atan16` (Q2.13 inputs
@@ -16,20 +16,21 @@ against ``MahonyCircuitFP32`` on random and bad inputs.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
 from navgate.numerics.fp32 import bits_to_f32, f32_to_bits, floats_to_bits, flush_subnormal
-from navgate.opflow.execute import round_fp32
+from navgate.opflow.execute import apply_op, round_fp32
+from navgate.opflow.ir import KINDS
 from navgate.systems.attitude import atan16
 from navgate.systems.attitude.mahony import SEED003, MahonyParams
 from navgate.systems.attitude.program import CONSTANTS, OUTPUTS, SENSORS, STATE, solve_program
 
 __all__ = ["CompiledSolve"]
 
-_KINDS = ("add", "sub", "mul", "div", "sqrt", "neg", "dbl", "clampneg", "yawsel", "atan")
+#: the float32 kinds evaluated by opflow's ``apply_op``, with opflow's opcodes
+_SHARED = 6
+_KINDS = KINDS[:_SHARED] + ("dbl", "clampneg", "yawsel", "atan")
 _CODE = {k: i for i, k in enumerate(_KINDS)}
 _ATAN_TABLE = atan16.ATAN_TABLE.astype(np.int64)
 
@@ -85,19 +86,8 @@ def _run(regs, ops, table, half_pi, in_idx, words, commit, out_idx, chk_idx, out
         for n in range(ops.shape[0]):
             code = ops[n, 0]
             a = regs[ops[n, 2]]
-            if code == 2:
-                r = round_fp32(a * regs[ops[n, 3]])
-            elif code == 0:
-                r = round_fp32(a + regs[ops[n, 3]])
-            elif code == 1:
-                r = round_fp32(a - regs[ops[n, 3]])
-            elif code == 3:
-                r = round_fp32(a / regs[ops[n, 3]])
-            elif code == 4:
-                ok = a >= 0.0 or a != a
-                r = round_fp32(math.sqrt(a) if ok else (a if a == 0.0 else math.nan))
-            elif code == 5:
-                r = -a
+            if code < _SHARED:
+                r = apply_op(code, regs, ops[n, 2], ops[n, 3])
             elif code == 6:
                 r = round_fp32(a + a)
             elif code == 7:
@@ -128,12 +118,12 @@ class CompiledSolve:
         self.p = params
         prog = solve_program()
         names = list(SENSORS) + list(STATE) + ["kp", "ki", "dt"] + list(CONSTANTS)
-        names += [o.name for o in prog]
+        names += [o.dst for o in prog.ops]
         self.index = {n: i for i, n in enumerate(names)}
-        self.ops = np.array([[_CODE[o.kind], self.index[o.name], self.index[o.args[0]],
-                              self.index[o.args[1]] if len(o.args) > 1 else 0] for o in prog],
-                            dtype=np.int64)
-        self.commit = np.array([[self.index[s], self.index[f"{s}_n"]] for s in STATE],
+        self.ops = np.array([[_CODE[o.kind], self.index[o.dst], self.index[o.srcs[0]],
+                              self.index[o.srcs[1]] if len(o.srcs) > 1 else 0]
+                             for o in prog.ops], dtype=np.int64)
+        self.commit = np.array([[self.index[s], self.index[t]] for s, t in prog.commit.items()],
                                dtype=np.int64)
         self.regs = np.zeros(len(names))
         consts = dict(CONSTANTS)

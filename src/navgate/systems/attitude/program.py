@@ -2,29 +2,32 @@
 
 Reference: seed 003 sections 3.1.2-3.1.8 (modules INS_acc, INS_mag, INS_gyro, INS_quat,
 INS_matx, INS_euler and the fix16 arctangent) and :mod:`navgate.systems.attitude.mahony_fp32`,
-whose docstring fixes the operation order. :func:`solve_program` writes that order down as a
-list of :class:`Op`, one per rounded float32 operation (or exact bit manipulation), so that a
-scheduler can place it on shared arithmetic units (:mod:`navgate.systems.attitude.schedule`)
-and :func:`run_program` can evaluate it with :mod:`navgate.numerics.fp32` (the tests check
-that evaluation against ``mahony_fp32`` bit for bit, so program and model cannot drift).
+whose docstring fixes the operation order. :func:`solve_program` writes that order down as an
+:class:`navgate.opflow.ir.Program`, one op per rounded float32 operation (or exact bit
+manipulation), so that :mod:`navgate.opflow.phased` can place it on shared arithmetic units
+(the unit choices are :mod:`navgate.systems.attitude.datapath`) and :func:`run_program` can
+evaluate it with :func:`navgate.opflow.execute.run_bittrue` (:mod:`navgate.numerics.fp32`; the
+tests check that evaluation against ``mahony_fp32`` bit for bit, so program and model cannot
+drift).
 
 Operation kinds (unit in brackets):
 
 * ``mul``, ``add``, ``sub``, ``div``, ``sqrt`` [the float32 cores];
-* ``neg`` (``fp32_neg``), ``dbl`` (``fp32_add(x, x)``, the exact doubling of INS_matx),
+* the circuit's own kinds (:data:`OWN_KINDS`, evaluated by :data:`EVAL`): ``neg``
+  (``fp32_neg``), ``dbl`` (``fp32_add(x, x)``, the exact doubling of INS_matx),
   ``clampneg`` (a negative value -> +0, EULER_P), ``yawsel`` (``a < 0 ? b : a``, the yaw
-  wrap) [the one-cycle ``misc`` unit];
-* ``atan`` (cos, sin) -> radians [the fix16 arctangent of section 3.1.8].
+  wrap) [the one-cycle ``misc`` unit]; ``atan`` (cos, sin) -> radians [the fix16
+  arctangent of section 3.1.8]. ``neg`` is opflow's sign flip, but here it runs on the misc
+  unit (the circuit has no operand sign flip).
 
 Value names: sensor inputs ``ax ay az mx my mz gx gy gz`` (after the model's axis signs),
 state ``q0..q3``, ``c11..c33``, ``exi eyi ezi`` (the integral), parameters ``kp ki dt``,
 constants ``ONE HALF D2R R2D F360``. New state values carry ``_n`` (``q0_n``, ``c11_n``,
-``exi_n``); the solve's outputs are ``pitch roll yaw`` (degrees, float32).
+``exi_n``); the solve's outputs are ``pitch roll yaw`` (degrees, float32); other
+temporaries are ``t<n>``.
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -37,11 +40,13 @@ from navgate.numerics.fp32 import (
     fp32_sqrt,
     fp32_sub,
 )
+from navgate.opflow.execute import run_bittrue
+from navgate.opflow.ir import Builder, Program
 from navgate.systems.attitude import mahony_fp32 as bt
 from navgate.systems.attitude.atan16 import atan_fp32
 
-__all__ = ["Op", "MODULES", "SENSORS", "STATE", "PARAMS", "CONSTANTS", "solve_program",
-           "run_program", "module_interface"]
+__all__ = ["MODULES", "SENSORS", "STATE", "PARAMS", "CONSTANTS", "solve_program",
+           "run_program", "module_interface", "UNIT_OF_KIND", "OWN_KINDS", "EVAL"]
 
 #: seed modules in FSM order (acc and mag share the ACC_MAG state)
 MODULES = ("acc", "mag", "gyro", "quat", "matx", "euler")
@@ -57,30 +62,11 @@ UNIT_OF_KIND = {"mul": "mul", "add": "add", "sub": "add", "div": "div", "sqrt": 
                 "atan": "atan"}
 
 
-@dataclass(frozen=True)
-class Op:
-    name: str
-    kind: str
-    args: tuple[str, ...]
-    module: str
+class _Builder(Builder):
+    """opflow's builder with the solve's shorthands and its explicitly named results."""
 
-    @property
-    def unit(self) -> str:
-        return UNIT_OF_KIND[self.kind]
-
-
-class _Builder:
     def __init__(self):
-        self.ops: list[Op] = []
-        self.module = ""
-        self._n = 0
-
-    def op(self, kind, *args, name=None):
-        if name is None:
-            self._n += 1
-            name = f"{self.module}_{kind}{self._n}"
-        self.ops.append(Op(name, kind, tuple(args), self.module))
-        return name
+        super().__init__("solve", inputs=SENSORS, registers=STATE + PARAMS)
 
     def M(self, a, b, name=None):
         return self.op("mul", a, b, name=name)
@@ -104,8 +90,10 @@ class _Builder:
         return tuple(self.D(v, n, name=nm) for v, nm in zip((x, y, z), names, strict=True))
 
 
-def solve_program() -> list[Op]:
-    """One solve, in the order of ``mahony_fp32`` (module docstring there)."""
+def solve_program() -> Program:
+    """One solve, in the order of ``mahony_fp32`` (module docstring there): inputs the
+    sensors, registers the state and parameters, commits ``<state>_n`` to each state
+    register, outputs pitch, roll and yaw."""
     b = _Builder()
     M, A, S, D, SQ = b.M, b.A, b.S, b.D, b.SQ
 
@@ -167,22 +155,25 @@ def solve_program() -> list[Op]:
     M(b.op("atan", "c33_n", "c23_n"), "R2D", name="roll")
     yaw = M(b.op("atan", "c11_n", "c12_n"), "R2D")
     b.op("yawsel", yaw, A(yaw, "F360"), name="yaw")
-    return b.ops
+    prog = b.prog
+    prog.commit = {k: f"{k}_n" for k in STATE}
+    prog.outputs = {k: k for k in OUTPUTS}
+    return prog
 
 
-def module_interface(program: list[Op], module: str) -> tuple[list[str], list[str]]:
+def module_interface(program: Program, module: str) -> tuple[list[str], list[str]]:
     """External inputs (read, not produced in the module) and outputs (produced in it and
     read elsewhere or final) of one module, in program order."""
-    mine = [o for o in program if o.module == module]
-    produced = {o.name for o in mine}
+    mine = [o for o in program.ops if o.module == module]
+    produced = {o.dst for o in mine}
     ins: list[str] = []
     for o in mine:
-        for a in o.args:
+        for a in o.srcs:
             if a not in produced and a not in CONSTANTS and a not in ins:
                 ins.append(a)
-    used_elsewhere = {a for o in program if o.module != module for a in o.args}
-    outs = [o.name for o in mine if o.name in used_elsewhere or o.name.endswith("_n")
-            or o.name in OUTPUTS]
+    used_elsewhere = {a for o in program.ops if o.module != module for a in o.srcs}
+    outs = [o.dst for o in mine if o.dst in used_elsewhere or o.dst.endswith("_n")
+            or o.dst in OUTPUTS]
     return ins, outs
 
 
@@ -197,6 +188,7 @@ def _yawsel(a, b):
     return np.where(fp32_compare(a, np.uint32(0))["lt"], b, a).astype(np.uint32)
 
 
+#: every kind of the program -> its bit-true function (uint32 bit patterns)
 EVAL = {
     "mul": fp32_mul, "add": fp32_add, "sub": fp32_sub, "div": fp32_div, "sqrt": fp32_sqrt,
     "neg": fp32_neg, "dbl": lambda x: fp32_add(x, x), "clampneg": _clampneg,
@@ -204,12 +196,18 @@ EVAL = {
 }
 
 
-def run_program(program: list[Op], values: dict) -> dict:
-    """Evaluate ``program`` on float32 bit patterns (arrays or scalars); ``values`` holds the
-    inputs it reads (constants are added). Returns every value by name."""
+#: the kinds opflow's float32 IR does not have (the circuit's misc and atan units)
+OWN_KINDS = ("neg", "dbl", "clampneg", "yawsel", "atan")
+
+
+def run_program(program: Program, values: dict) -> dict:
+    """Evaluate ``program`` on float32 bit patterns (arrays of one length, or scalars);
+    ``values`` holds the inputs it reads (constants are added). Returns every value by name,
+    as arrays of the common length."""
     env = {k: np.asarray(v, dtype=np.uint32) for k, v in values.items()}
     for k, v in CONSTANTS.items():
         env.setdefault(k, np.uint32(v))
-    for o in program:
-        env[o.name] = np.asarray(EVAL[o.kind](*(env[a] for a in o.args)), dtype=np.uint32)
-    return env
+    lanes = max((a.size for a in env.values()), default=1)
+    _, _, regs = run_bittrue(program, {}, env, lanes=lanes,
+                             kinds={k: EVAL[k] for k in OWN_KINDS})
+    return regs

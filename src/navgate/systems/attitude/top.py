@@ -3,8 +3,9 @@
 Reference: seed 003 sections 2.1 (table 2-1, the top-level interface), 3.1.1 (figure 3-2, the
 top FSM: IDLE, ACC_MAG, GYRO, QUAT, MATX, EULER, END) and 3.1.2-3.1.8 (the modules and their
 port lists, tables 3-1 to 3-7); bit-true model :mod:`navgate.systems.attitude.mahony_fp32`
-(operation order), program :mod:`navgate.systems.attitude.program`, schedule
-:mod:`navgate.systems.attitude.schedule`, datapath :mod:`navgate.systems.attitude.datapath`.
+(operation order), program :mod:`navgate.systems.attitude.program`, units, phases and banks
+:mod:`navgate.systems.attitude.datapath` (scheduled and built by :mod:`navgate.opflow.phased`
+and :mod:`navgate.opflow.phased_machine`).
 
 :class:`AttitudeTop` (``attitude_top``)
     Table 2-1's ports: ``in_accx..in_gyroz`` (float32 words, read in the cycle
@@ -41,7 +42,7 @@ from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.start_run import start_run_respond
 from navgate.numerics.fp32 import f32_to_bits
-from navgate.systems.attitude.datapath import ScheduledDatapath, make_schedule
+from navgate.systems.attitude.datapath import make_datapath, make_schedule
 from navgate.systems.attitude.mahony import SEED003
 from navgate.systems.attitude.program import (
     MODULES,
@@ -73,7 +74,7 @@ def top_schedule():
     if "top" not in _SCHEDULES:
         sinks = {f"{k}_n": k for k in STATE}
         sinks.update({k: k for k in OUTPUTS})
-        _SCHEDULES["top"] = make_schedule(solve_program(), SENSORS + STATE + PARAMS, sinks)
+        _SCHEDULES["top"] = make_schedule(solve_program().ops, SENSORS + STATE + PARAMS, sinks)
     return _SCHEDULES["top"]
 
 
@@ -110,7 +111,7 @@ class AttitudeTop(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.dp = dp = ScheduledDatapath(self.schedule)
+        m.submodules.dp = dp = make_datapath(self.schedule)
         p = SEED003
         regs = {}
         for v in SENSORS:
@@ -239,7 +240,7 @@ class ModuleCircuit(wiring.Component):
         self.ins, self.outs, self.sinks = ins, outs, sinks
         key = f"mod_{module}"
         if key not in _SCHEDULES:
-            prog = [o for o in solve_program() if o.module == module]
+            prog = [o for o in solve_program().ops if o.module == module]
             _SCHEDULES[key] = make_schedule(prog, ins, sinks)
         self.schedule = _SCHEDULES[key]
         self.LATENCY = self.schedule.length + 1
@@ -252,7 +253,7 @@ class ModuleCircuit(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        m.submodules.dp = dp = ScheduledDatapath(self.schedule)
+        m.submodules.dp = dp = make_datapath(self.schedule)
         regs = {v: Signal(32, name=f"r_{v}") for v in self.ins}
         for r in self.sinks.values():
             regs.setdefault(r, Signal(32, name=f"r_{r}"))

@@ -267,7 +267,6 @@ def test_on_the_fp32_engine_states_of_a_flight():
     angles are within the bound of the reference on the same words."""
     from navgate.systems.ins_trn.ps import flight
     from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
-    from navgate.systems.ins_trn.ps.navigation import flight_stream
     from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
     from navgate.trn.dem import Dem
 
@@ -282,7 +281,7 @@ def test_on_the_fp32_engine_states_of_a_flight():
     dem = Dem.default()
     cfg = flight.FlightConfig(duration_s=60.0, seed=1)
     data = flight.simulate_sensors(flight.plan_route(dem, cfg), dem, cfg)
-    stream = flight_stream(data, dem, cfg, flight.initial_estimate(data, cfg))
+    stream = flight.flight_stream(data, dem, cfg, flight.initial_estimate(data, cfg))
     eng = Recording(engine_setup(stream.header, cfg))
     Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=True).run(stream)
     r = np.array(rec)

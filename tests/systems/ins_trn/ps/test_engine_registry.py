@@ -20,6 +20,22 @@ def test_every_published_engine_loads_a_pl_engine_of_its_own_name():
         assert issubclass(cls, PlEngine) and cls.name == name
 
 
+def test_pyproject_publishes_every_engine_under_its_own_name():
+    """What pyproject.toml publishes (the installed metadata is a copy made at install time:
+    after a change, pip install --no-deps -e . refreshes it), the board engine included."""
+    import importlib
+    import tomllib
+
+    pyproject = Path(__file__).parents[4] / "pyproject.toml"
+    published = tomllib.loads(pyproject.read_text())["project"]["entry-points"][R.ENTRY_POINT_GROUP]
+    assert {"reference", "fp32", "rtl", "fpga-sim", "fp32-plain", "board"} == set(published)
+    assert published["board"] == "navgate.systems.ins_trn.ps.board_engine:BoardEngine"
+    for name, target in published.items():
+        module, _, attr = target.partition(":")
+        cls = getattr(importlib.import_module(module), attr)
+        assert issubclass(cls, PlEngine) and cls.name == name
+
+
 def test_an_unknown_engine_is_a_value_error_listing_the_names():
     with pytest.raises(ValueError, match="unknown engine 'warp'.*reference"):
         R.engine_class("warp")
@@ -47,7 +63,8 @@ def test_no_module_below_the_engines_names_them():
     """The registry and the engine interface import no engine module, not even by string."""
     for module in ("engine_registry.py", "pl_interface.py"):
         code = " ".join(_code_names(PS / module))
-        for engine_module in ("reference_engine", "fp32_engine", "rtl_engine", "fpga_sim"):
+        for engine_module in ("reference_engine", "fp32_engine", "rtl_engine", "fpga_sim",
+                              "board_engine"):
             assert engine_module not in code, (module, engine_module)
     tree = ast.parse((PS / "engine_registry.py").read_text())
     imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}

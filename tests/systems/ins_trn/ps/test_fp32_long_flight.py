@@ -7,7 +7,6 @@ import pytest
 
 from navgate.systems.ins_trn.ps import flight
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
-from navgate.systems.ins_trn.ps.navigation import flight_stream
 from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup
 from navgate.trn.dem import Dem
 
@@ -19,7 +18,7 @@ def test_one_hour_fp32_flight_keeps_p_positive_definite():
     route = flight.plan_route(dem, cfg)
     data = flight.simulate_sensors(route, dem, cfg)
     init = flight.initial_estimate(data, cfg)
-    stream = flight_stream(data, dem, cfg, init)
+    stream = flight.flight_stream(data, dem, cfg, init)
     eng = Fp32Engine(engine_setup(stream.header, cfg), check_pd=True)
     run = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=True).run(stream)
     assert eng.samples == 3600 * 400

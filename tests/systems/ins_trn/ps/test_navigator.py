@@ -9,7 +9,7 @@ import pytest
 
 from navgate.nav.earth import LocalTangent
 from navgate.systems.ins_trn.ps import flight
-from navgate.systems.ins_trn.ps.navigation import flight_stream
+from navgate.systems.ins_trn.ps.flight import flight_stream
 from navgate.systems.ins_trn.ps.navigator import Navigator, engine_setup, navigate
 from navgate.systems.ins_trn.ps.pl_interface import make_engine
 from navgate.systems.ins_trn.ps.records import (

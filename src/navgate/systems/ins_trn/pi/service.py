@@ -18,6 +18,13 @@ until the first disconnects. Every request logs one line on stderr; SIGTERM and 
 the service cleanly after the request in hand; a status request returns the counters.
 Heartbeats are answered at once and counted (``heartbeats``); the first of each client is
 logged, and the count when the client goes.
+
+A silent PS: a PS whose hello gives its heartbeat period (``heartbeat_s``; it sends
+something at least that often) and then sends nothing for ``silent_periods`` of them (default
+5; the bytes of a bad frame count as something; the silence counts from when the service
+listens again after an answer) is dropped, counted (``silent_clients_dropped``) and logged,
+so that the next client can connect (TCP) or say hello (a serial line, served on). A PS
+without heartbeats (0, or an older PS that does not say) is never dropped for silence.
 """
 
 from __future__ import annotations
@@ -38,6 +45,8 @@ from navgate.systems.ins_trn.link.transport import LinkClosed, Transport, from_s
 POLL_S = 0.2
 #: PS sessions whose kept fragments and fixes the service remembers
 SESSIONS_KEPT = 4
+#: heartbeat periods of silence after which a PS is dropped
+SILENT_PERIODS = 5
 
 
 def _config(cls, values: dict):
@@ -51,8 +60,14 @@ def _config(cls, values: dict):
 class TrnService:
     """Answers link messages; :meth:`serve` runs it over one transport."""
 
-    def __init__(self, terrain, *, log=None, latency_s: float = 0.0):
+    def __init__(self, terrain, *, log=None, latency_s: float = 0.0,
+                 silent_periods: int = SILENT_PERIODS):
         self.terrain = terrain
+        if silent_periods < 0:
+            raise ValueError(f"silent_periods must be >= 0, got {silent_periods}")
+        self.silent_periods = int(silent_periods)
+        #: the client's silence limit (s), from its hello's heartbeat period (None: no limit)
+        self._silence_s: float | None = None
         #: fault injection: a slow Pi answers each profile request this much later (s)
         self.latency_s = float(latency_s)
         self.log = log if log is not None else (lambda line: print(line, file=sys.stderr,
@@ -61,7 +76,7 @@ class TrnService:
         self.started = time.time()
         self.counters = {"clients": 0, "requests": 0, "fixes_accepted": 0,
                          "fixes_rejected": 0, "errors": 0, "bad_frames": 0,
-                         "heartbeats": 0, "status_requests": 0}
+                         "heartbeats": 0, "status_requests": 0, "silent_clients_dropped": 0}
         self._correlators: dict = {}
         self._reassembly = messages.Reassembly()
         self._sessions: dict[str, messages.Reassembly] = {}
@@ -133,6 +148,11 @@ class TrnService:
                     self._sessions.pop(next(iter(self._sessions)))
             else:
                 self._reassembly = messages.Reassembly()
+            period = body.get("heartbeat_s")
+            self._silence_s = None
+            if (isinstance(period, (int, float)) and not isinstance(period, bool)
+                    and math.isfinite(period) and period > 0 and self.silent_periods):
+                self._silence_s = self.silent_periods * float(period)
             self.log(f"trn-serve: hello from {body.get('client', '?')}")
             return messages.CAPABILITIES, self.capabilities()
         if kind == messages.HEARTBEAT:
@@ -181,11 +201,15 @@ class TrnService:
         return messages.ERROR, {"id": None, "error": f"unknown message type {kind}"}
 
     # -- the loop ---------------------------------------------------------------------------
-    def serve(self, link: Transport, max_requests: int | None = None) -> None:
-        """Answer frames on ``link`` until the peer closes it, the stop flag is set, or
-        ``max_requests`` profile requests have been answered."""
+    def serve(self, link: Transport, max_requests: int | None = None) -> bool:
+        """Answer frames on ``link`` until the peer closes it, the stop flag is set,
+        ``max_requests`` profile requests have been answered, or the client falls silent
+        (module docstring); True in the last case (the link may serve the next client)."""
         self.counters["clients"] += 1
         self._client_heartbeats = 0
+        self._silence_s = None  # until the client's hello gives its heartbeat period
+        heard = time.monotonic()
+        got_bytes = getattr(link, "received_bytes", 0)
         self._reassembly = messages.Reassembly()  # until the client's hello names its session
         bad_base = self.counters["bad_frames"] - sum(link.decoder.bad.values())
         try:
@@ -197,21 +221,33 @@ class TrnService:
                     self.log(f"trn-serve: peer speaks another protocol version ({error})")
                     link.send(messages.ERROR, 0, {"id": None, "error":
                                                   f"protocol version {frames.VERSION} only"})
-                    return
+                    return False
                 finally:  # counted as they happen, so a status request sees them
                     self.counters["bad_frames"] = bad_base + sum(link.decoder.bad.values())
+                now = time.monotonic()
+                got = getattr(link, "received_bytes", 0)
+                if got != got_bytes:  # any byte, even of a frame that was bad, is not silence
+                    heard, got_bytes = now, got
                 if frame is None:
+                    if self._silence_s is not None and now - heard > self._silence_s:
+                        self.counters["silent_clients_dropped"] += 1
+                        self.log(f"trn-serve: client silent for {now - heard:.1f} s "
+                                 f"({self.silent_periods} heartbeat periods): dropped")
+                        return True
                     continue
+                heard = now
                 answer = self.handle(frame)
                 if answer is not None:
                     link.send(answer[0], frame.seq, answer[1])
+                heard = time.monotonic()  # silence counts from when the service listens again
                 if max_requests is not None and self.counters["requests"] >= max_requests:
-                    return
+                    return False
         except (LinkClosed, BrokenPipeError, ConnectionResetError):
             self.log(f"trn-serve: client closed the link "
                      f"({self._client_heartbeats} heartbeats answered)")
         finally:
             self.counters["bad_frames"] = bad_base + sum(link.decoder.bad.values())
+        return False
 
     def serve_tcp(self, host: str, port: int, *, ready=None, max_requests=None) -> None:
         """Listen on host:port; one client at a time until stopped."""

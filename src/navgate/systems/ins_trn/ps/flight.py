@@ -1,7 +1,11 @@
 """The ``navgate fly`` run: plan, simulate, navigate INS-only and INS+TRN, and score both.
 
 The scenario (route, truth, sensors, scoring) is :mod:`navgate.sim.flight`; the navigation
-loop is :mod:`navgate.systems.ins_trn.ps.navigation`; the report is
+loop is the streaming navigator (:mod:`navgate.systems.ins_trn.ps.navigator`: the PS side over
+a PL engine of :mod:`navgate.systems.ins_trn.ps.pl_interface`), fed by the record stream
+(:mod:`navgate.systems.ins_trn.ps.records`) that :func:`flight_stream` makes of the simulated
+sensor data; :func:`run_navigation` runs it once (INS + 15-state ESKF with barometric
+altitude updates and, optionally, TRN position fixes). The report is
 :mod:`navgate.systems.ins_trn.ps.report`.
 """
 
@@ -14,9 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from navgate.nav.earth import LocalTangent
 from navgate.sim import sensors
 from navgate.sim.flight import (
     FlightConfig,
+    InitialEstimate,
     Route,
     RouteError,
     SensorData,
@@ -25,10 +31,32 @@ from navgate.sim.flight import (
     score,
     simulate_sensors,
 )
-from navgate.systems.ins_trn.ps.navigation import NavRun, flight_stream, run_navigation
-from navgate.systems.ins_trn.ps.navigator import navigate
+from navgate.systems.ins_trn.ps.navigator import NavRun, navigate
+from navgate.systems.ins_trn.ps.records import RecordStream, make_header, stream_from_sensors
 from navgate.systems.ins_trn.ps.trn_settings import TrnSettings
 from navgate.trn.dem import Dem
+
+
+def flight_stream(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialEstimate, *,
+                  with_truth: bool = True, trn: TrnSettings | None = None) -> RecordStream:
+    """The record stream (with its header, which records ``trn``) of a simulated flight."""
+    tangent = LocalTangent(*dem.center, 0.0)
+    header = make_header(cfg, data, init, data.imu.calibration, tangent, trn)
+    header["dem"] = dem.name
+    log_every = max(1, int(round(cfg.imu_rate_hz / cfg.log_rate_hz)))
+    return stream_from_sensors(data, log_every if with_truth else None, header)
+
+
+def run_navigation(data: SensorData, dem: Dem, cfg: FlightConfig, init: InitialEstimate, *,
+                   use_trn: bool, name: str, progress=None, engine: str = "reference",
+                   stream: RecordStream | None = None,
+                   trn: TrnSettings | None = None) -> NavRun:
+    """Closed-loop INS + ESKF over the sensor data, with baro and (optionally) TRN updates,
+    with the float64 ``reference`` engine or another registered engine."""
+    if stream is None:
+        stream = flight_stream(data, dem, cfg, init, with_truth=False, trn=trn)
+    return navigate(stream, cfg, engine=engine, dem=dem if use_trn else None, use_trn=use_trn,
+                    name=name, progress=progress, trn=trn)
 
 
 @dataclass
@@ -142,11 +170,14 @@ def record_stream(dem: Dem, cfg: FlightConfig, route: Route | None = None,
 
 def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | None = None,
         engine: str = "reference", trn_link=None, trn_latency_s: float = 0.0,
-        realtime: float | None = None, trn: TrnSettings | None = None) -> FlightResult:
+        realtime: float | None = None, trn: TrnSettings | None = None,
+        engine_options: dict | None = None) -> FlightResult:
     """Plan, simulate and navigate a flight; ``progress(n)`` reports IMU samples done.
 
     ``engine``: the PL engine (``reference`` or ``fp32``); with a non-reference engine the
     reference engine flies the same records too, for the comparison in the summary.
+    ``engine_options``: keyword arguments of the engine's constructor (the ``board`` engine's
+    opened board).
     ``trn``: the navigator's TRN settings (default :class:`TrnSettings`: PMF, its own fix
     interval, lag compensation on).
     """
@@ -164,7 +195,7 @@ def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | N
     stream = flight_stream(data, dem, cfg, init, trn=trn)
     runs = fly_stream(stream, dem, cfg, engine=engine, progress=progress, stage=stage,
                       trn_link=trn_link, trn_latency_s=trn_latency_s, realtime=realtime,
-                      trn=trn)
+                      trn=trn, engine_options=engine_options)
     reference_runs = None
     if engine != "reference":
         reference_runs = fly_stream(stream, dem, cfg, engine="reference", stage=stage, trn=trn)
@@ -176,7 +207,8 @@ def fly(dem: Dem, cfg: FlightConfig, progress=None, stage=None, route: Route | N
 
 def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progress=None,
                stage=None, trn_link=None, trn_latency_s: float = 0.0,
-               realtime: float | None = None, trn: TrnSettings | None = None) -> dict:
+               realtime: float | None = None, trn: TrnSettings | None = None,
+               engine_options: dict | None = None) -> dict:
     """The INS-only and (cfg.trn) INS+TRN runs over one record stream, the latter with the
     TRN settings ``trn`` (default :class:`TrnSettings`); ``realtime`` (a speed factor) paces
     the INS+TRN run to the wall clock (the INS-only run, which does not talk to the Pi, runs
@@ -185,17 +217,18 @@ def fly_stream(stream, dem: Dem, cfg: FlightConfig, *, engine="reference", progr
     if stage:
         stage(f"navigating: INS only ({engine})")
     runs["ins_only"] = navigate(stream, cfg, engine=engine, dem=None, use_trn=False,
-                                name="ins_only", progress=progress)
+                                name="ins_only", progress=progress,
+                                engine_options=engine_options)
     if cfg.trn:
         if stage:
             stage(f"navigating: INS + TRN ({engine})")
         runs["trn_aided"] = navigate(stream, cfg, engine=engine, dem=dem, use_trn=True,
                                      name="trn_aided", progress=progress, trn_link=trn_link,
-                                     trn_latency_s=trn_latency_s, realtime=realtime, trn=trn)
+                                     trn_latency_s=trn_latency_s, realtime=realtime, trn=trn,
+                                     engine_options=engine_options)
     return runs
 
 
 __all__ = ["FlightConfig", "FlightResult", "NavRun", "RouteError", "TrnSettings", "fly",
-           "fly_stream",
-           "record_stream",
-           "max_position_difference", "plan_route", "run_navigation"]
+           "flight_stream", "fly_stream", "record_stream", "max_position_difference",
+           "plan_route", "run_navigation"]

@@ -7,49 +7,26 @@ Reference: seed 000 "System Architecture" / "Data Flow". The co-simulation top
 of the flight's record stream are pushed into the emulator, which raises data-ready and
 answers the top's burst reads bit by bit; ``spi_master_imu`` (data-ready paced, IMU_CFG.dr_sync)
 checks the checksum and hands the raw words to the sequencer, which runs the ``propagate``
-program on the engines. Python stays out of the per-cycle path: the model runs in a
-persistent native Verilator process (:class:`navgate.gateware.native_axi.NativeAxiSim`) that
-takes batches of bus commands.
+program on the engines. The barometer and the ranger go through the BMP390 and TF-Luna
+emulators on their pins, and the profile DMA writes into a 1 KiB memory that stands for DDR.
+Python stays out of the per-cycle path: the model runs in a persistent native Verilator
+process (:class:`navgate.gateware.native_axi.NativeAxiSim`) that takes batches of bus commands.
 
-The PS side is the ``fp32`` engine's (:class:`Fp32Engine`), talking to the PL only through
-registers, with the board's driver: :class:`navgate.hw.regmap.Registers` over
-:class:`navgate.gateware.native_axi.NativeAxiBus`, by register and field name. On a board
-the same calls run over :class:`navgate.hw.bus.DevMemBus` or :class:`navgate.hw.bus.PynqBus`
-(docs/seed000-registers.md, "One driver, three buses"). Each engine call is one
-``regs.deferred()`` block, sent as one batch (one round trip to the native process):
-:meth:`Registers.wait_until` becomes the simulation's in-process poll and
+The PS side is :class:`navgate.systems.ins_trn.ps.pl_registers.RegisterEngine`, the same class
+the ``board`` engine flies the Zynq's fabric with; this module gives it a :class:`SimFabric`:
+:class:`navgate.hw.regmap.Registers` over :class:`navgate.gateware.native_axi.NativeAxiBus`.
+Each engine call is one ``regs.deferred()`` block, sent as one batch (one round trip to the
+native process): :meth:`Registers.wait_until` becomes the simulation's in-process poll and
 :meth:`Registers.read_later` answers are filled in when the batch comes back. The
 simulation's own extras, which a board has not, stay at bus level: ``bus.push`` (samples into
-the device emulators) and ``bus.wait`` (the ``irq`` line). The register accesses:
-
-- set-up: the calibration through CAL_* and CAL_APPLY; the other engine registers (noise,
-  initial state, P0) through the engine register window (ENG_ADDR/ENG_WDATA/ENG_CMD); the
-  reference point (REF_*), IMU_CFG
-  (fastest SCLK, data-ready pacing, enabled), IRQ_ENABLE.update, CTRL.enable;
-- IMU samples: pushed into the emulator; the PS waits until ENG_STATUS counts them
-  (propagations) and the sequencer is idle;
-- altitude and TRN updates: ALT_* / TRN_* registers (the fix as the innovation, its
-  covariance, lag and chi-square gate), the start strobe, then the update interrupt
-  (IRQ_STATUS, read to clear), the status and NIS registers; the gate flags and the
-  correction words through the window;
-- state reads (``read_nav``, ``read_cov_diag``, ...): the raw state and compensation words
-  through the window (the PS recovers geodetic position in float64 from them, as with the
-  ``fp32`` engine), cached until the next engine job.
+the device emulators) and ``bus.wait`` (the ``irq`` line).
 
 The result equals the ``fp32`` engine's bit for bit (tests/systems/ins_trn/ps/test_fpga_sim.py).
-- the altitude profile (:mod:`navgate.systems.ins_trn.ps.pl_profile`): every accepted terrain
-  height pushed into the profile FIFO with the position and time the PL's timestamp
-  correlator latched at its ranger frame (PROF_ENTRY_H, PROF_PUSH); for each correlation the
-  newest entries by DMA into the co-simulation's DDR (PROF_ADDR/PROF_COUNT/PROF_CTRL, the
-  update interrupt at the DMA's end), read back from DDR;
-- the barometer through the BMP390 emulator's pins (BARO_PRESS) and the ranger through the
-  TF-Luna emulator's UART (LIDAR_DATA).
 """
 
 from __future__ import annotations
 
 import contextlib
-import weakref
 
 import numpy as np
 from amaranth import Module, Signal
@@ -66,11 +43,7 @@ from navgate.gateware.native_axi import (
     NativeAxiError,
     NativeAxiSim,
 )
-from navgate.hw.regmap import Registers
-from navgate.numerics.fp32 import bits_to_float, float_to_bits
-from navgate.systems.ins_trn.pl.fp32_exec import to_f32
-from navgate.systems.ins_trn.pl.fp32_program import CAL_REGS, N_STATES, NAV_REGS, p_reg
-from navgate.systems.ins_trn.pl.nav_engines import engine_image
+from navgate.hw.regmap import Reading, Registers
 from navgate.systems.ins_trn.pl.registers import register_map
 from navgate.systems.ins_trn.pl.sensors.adis16500_emulator import SAMPLE_LAYOUT as IMU_SAMPLE
 from navgate.systems.ins_trn.pl.sensors.adis16500_emulator import Adis16500Emulator
@@ -78,22 +51,22 @@ from navgate.systems.ins_trn.pl.sensors.bmp390_emulator import SAMPLE_LAYOUT as 
 from navgate.systems.ins_trn.pl.sensors.bmp390_emulator import Bmp390Emulator
 from navgate.systems.ins_trn.pl.sensors.tfluna_emulator import SAMPLE_LAYOUT as LIDAR_SAMPLE
 from navgate.systems.ins_trn.pl.sensors.tfluna_emulator import TfLunaEmulator
-from navgate.systems.ins_trn.pl.top import CAL_REGISTER_OF, InsTrnTop
-from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
-from navgate.systems.ins_trn.ps.pl_interface import EngineSetup, UpdateOutcome, check_imu_words
-from navgate.systems.ins_trn.ps.pl_profile import VALID_BIT
+from navgate.systems.ins_trn.pl.top import InsTrnTop
+from navgate.systems.ins_trn.ps.pl_interface import EngineSetup
+from navgate.systems.ins_trn.ps.pl_registers import (
+    LIDAR_BIT_CYCLES,
+    LIDAR_TEMP_WORD,
+    Fabric,
+    PlRegisterError,
+    RegisterEngine,
+)
 
-__all__ = ["InsTrnSimTop", "FpgaSimEngine", "FpgaSimError"]
+__all__ = ["InsTrnSimTop", "FpgaSimEngine", "FpgaSimError", "SimFabric", "start_sim"]
 
 
-class FpgaSimError(RuntimeError):
+class FpgaSimError(PlRegisterError):
     """The co-simulation failed or answered unexpectedly."""
 
-
-#: UART bit time of the ranger emulator and LIDAR_CFG.baud_div in the co-simulation (cycles)
-LIDAR_BIT_CYCLES = 32
-#: the TF-Luna temperature word the emulator sends (25 degC: (25 + 256) * 8)
-LIDAR_TEMP_WORD = 2248
 
 #: the co-simulation's "DDR": the DMA target memory, readable at this AXI offset
 DMA_WINDOW = 0x800
@@ -217,282 +190,79 @@ def sim_verilog(top: InsTrnSimTop) -> str:
     return V.emit_verilog(top, "dut", design="InsTrnSimTop", params={})
 
 
-#: state words the navigator reads at every log row and ranger record, fetched in one batch
-HOT_WORDS = (NAV_REGS + ("cN", "cE", "cD", "cvN", "cvE", "cvD", "cq0", "cq1", "cq2", "cq3")
-             + tuple(p_reg(i, i) for i in range(N_STATES))
-             + tuple("c" + p_reg(i, i) for i in range(N_STATES))
-             + (p_reg(0, 1), "c" + p_reg(0, 1)))
+class SimFabric(Fabric):
+    """The Verilated fabric for :class:`RegisterEngine`: the driver over
+    :class:`NativeAxiBus`, each engine job one batch, the sensors' words pushed into the
+    emulators, the ``irq`` line waited for in clock cycles, the DMA's "DDR" read through the
+    AXI window at :data:`DMA_WINDOW`."""
 
+    error = FpgaSimError
+    dma_address = 0
 
-class _WindowMachine:
-    """The PS's view of the engine registers through the window, shaped like the part of
-    ``fp32_exec.Machine`` the ``fp32`` engine's read methods use (``get``, ``set``)."""
+    def __init__(self, sim: NativeAxiSim):
+        super().__init__(Registers(register_map(), NativeAxiBus(sim)))
+        self.sim = sim
 
-    def __init__(self, engine: FpgaSimEngine, ps_machine):
-        self.e = engine
-        self.ps = ps_machine  # the PS's set-up values (register names and the index)
-        self.cache: dict[str, float] = {}
-
-    def __getattr__(self, name):
-        return getattr(self.ps, name)
-
-    def get(self, name: str) -> float:
-        if name not in self.cache:
-            names = [n for n in HOT_WORDS if n not in self.cache] if name in HOT_WORDS \
-                else [name]
-            for n, bits in zip(names, self.e.window_read(names), strict=True):
-                self.cache[n] = bits_to_float(bits)
-        return self.cache[name]
-
-    def set(self, name: str, value: float) -> None:
-        v = to_f32(value)
-        self.e.window_write([(name, float_to_bits(v))])
-        self.cache[name] = v
-
-
-class _DmaProfileFifo:
-    """The PL's profile FIFO through the registers: an accepted sample is pushed with
-    PROF_ENTRY_H and PROF_PUSH (the PL's timestamp correlator supplies the position and time
-    it latched at the ranger frame; they are read back from PROF_SAMPLE_N/E/T and must be
-    the words the PS's model expects); a read starts the DMA of the newest entries into the
-    co-simulation's DDR (PROF_ADDR = 0, PROF_COUNT, PROF_CTRL.start), waits for the update
-    interrupt and reads the words back from DDR (:data:`DMA_WINDOW`)."""
-
-    def __init__(self, engine: FpgaSimEngine):
-        self.e = engine
-        self.dmas = 0  #: profile DMA transfers made
-
-    def push(self, words) -> None:
-        with self.e._job() as regs:
-            out = [regs.read_later(r) for r in ("PROF_SAMPLE_N", "PROF_SAMPLE_E",
-                                                "PROF_SAMPLE_T")]
-            regs.write("PROF_ENTRY_H", int(words[0]))
-            regs.write("PROF_PUSH", push=1)
-        latched = (out[0].value, out[1].value, out[2].value | VALID_BIT)
-        if latched != tuple(words[1:]):
-            raise FpgaSimError(f"timestamp correlator latched {latched}, the PS expected "
-                               f"{tuple(words[1:])}")
-
-    def read(self, count: int) -> np.ndarray:
-        e = self.e
-        if not 0 < count <= DMA_WORDS // 4:
-            raise FpgaSimError(f"profile DMA of {count} entries (1-{DMA_WORDS // 4})")
-        with e._job() as regs:
-            regs.read_later("IRQ_STATUS")  # clear what is pending (read to clear)
-            regs.write("PROF_ADDR", 0)
-            regs.write("PROF_COUNT", count)
-            regs.write("PROF_CTRL", start=1)
-            regs.bus.wait("irq", 100_000)
-            irq, prof = regs.read_later("IRQ_STATUS"), regs.read_later("PROF_STATUS")
-            # DDR is not a register: the co-simulation's PS reads it through the AXI window
-            ddr = [regs.bus.read_later(DMA_WINDOW + 4 * k) for k in range(4 * count)]
-        irq_status, status = irq.value, prof.value
-        if irq_status != 1 or status & 1:
-            raise FpgaSimError(f"profile DMA of {count} entries: IRQ_STATUS {irq_status:#x} "
-                               f"(update only expected), PROF_STATUS {status:#x}")
-        self.dmas += 1
-        e.interrupts += 1
-        return np.array([r.value for r in ddr], np.uint32).reshape(count, 4)
-
-
-class FpgaSimEngine(Fp32Engine):
-    """The whole PL in Verilator behind the PlEngine interface (module docstring)."""
-
-    name = "fpga-sim"
-    needs_imu_words = True
-
-    def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
-        if check_pd:
-            raise ValueError("check_pd needs the whole of P after every sample, which the "
-                             "fpga-sim engine does not read back (use the fp32 engine)")
-        super().__init__(setup, check_pd=False)
-        self.image = engine_image("ins_engines")
-        self.addr = self.image.layout.fixed
-        top = InsTrnSimTop()
-        self.sim = NativeAxiSim(top, streams=("imu_feed", "lidar_feed", "baro_feed"),
-                                watch=("irq",), verilog=sim_verilog(top))
-        #: the driver, as on the board (there over DevMemBus or PynqBus)
-        self.regs = Registers(register_map(), NativeAxiBus(self.sim))
-        self.baro_samples = 0
-        self.lidar_frames = 0
-        self._finalizer = weakref.finalize(self, self.sim.close)
-        self.propagations = 0
-        self.interrupts = 0
-        self._load()
-        self.m = _WindowMachine(self, self.m)
-
-    # -- bus ------------------------------------------------------------------------------------
     @contextlib.contextmanager
-    def _job(self):
-        """One engine job's register accesses, sent as one batch (one round trip) when the
-        block ends; a bus error, SLVERR or timeout is an :class:`FpgaSimError`."""
+    def job(self):
         try:
             with self.regs.deferred():
                 yield self.regs
         except (NativeAxiError, AxiResponseError) as exc:
             raise FpgaSimError(str(exc)) from None
 
-    def _wait_idle(self) -> None:
-        self.regs.wait_until("ENG_STATUS", busy=0, limit=100_000)
+    def feed_imu(self, w) -> None:
+        self.regs.bus.push("imu_feed", imu_fields(w))
 
-    def _window_put(self, name: str, bits: int) -> None:
-        regs = self.regs
-        regs.write("ENG_ADDR", self.addr[name])
-        regs.write("ENG_WDATA", bits)
-        regs.write("ENG_CMD", write=1)
+    def feed_baro(self, uncomp_press: int, uncomp_temp: int) -> None:
+        self.regs.bus.push("baro_feed", {"up": uncomp_press, "ut": uncomp_temp})
 
-    def window_write(self, items) -> None:
-        with self._job():
-            for name, bits in items:
-                self._window_put(name, bits)
-            self._wait_idle()
+    def feed_ranger(self, dist: int, strength: int) -> None:
+        self.regs.bus.push("lidar_feed", {"dist": dist, "strength": strength,
+                                          "temp": LIDAR_TEMP_WORD})
 
-    def window_read(self, names) -> list[int]:
-        regs = self.regs
-        out = []
-        with self._job():
-            for name in names:
-                regs.write("ENG_ADDR", self.addr[name] if isinstance(name, str) else int(name))
-                regs.write("ENG_CMD", read=1)
-                self._wait_idle()
-                out.append(regs.read_later("ENG_RDATA"))
-        return [r.value for r in out]
+    def wait_interrupt(self, limit: int) -> Reading:
+        self.regs.bus.wait("irq", limit)
+        return self.regs.read_later("IRQ_STATUS")
 
-    def _load(self):
-        ps = self.m
-        items = [(n, float_to_bits(ps.regs[ps.index[n]]) if n in ps.index else 0)
-                 for n in self.addr if not n.startswith("c:") and n not in CAL_REGS]
-        ref = self.setup.reference
-        with self._job() as regs:
-            regs.write("CTRL", enable=0)
-            for name, bits in items:
-                self._window_put(name, bits)
-            # the calibration through the seed's CAL_* registers and CAL_APPLY
-            for reg, word in CAL_REGISTER_OF.items():
-                regs.write(reg, float_to_bits(ps.get(word)))
-            regs.write("CAL_APPLY", apply=1)
-            self._wait_idle()
-            regs.write("REF_LAT", float_to_bits(ref.lat0))
-            regs.write("REF_LON", float_to_bits(ref.lon0))
-            regs.write("REF_ALT", float_to_bits(ref.h0))
-            regs.write("IMU_CFG", spi_div=0, enable=1, dr_sync=1)  # fastest SCLK, DR-paced
-            regs.write("BARO_CFG", spi_div=2, enable=1, int_sync=1)  # fastest SCLK, INT-paced
-            regs.write("IRQ_ENABLE", update=1, error=0)
-            regs.write("CTRL", enable=1)
-            self._wait_idle()
+    def dma_words(self, count: int) -> list[Reading]:
+        # DDR is not a register: the co-simulation's PS reads it through the AXI window
+        return [self.regs.bus.read_later(DMA_WINDOW + 4 * k) for k in range(count)]
 
-    # -- engine calls -----------------------------------------------------------------------------
-    def propagate(self, gyro_words, accel_words) -> None:
-        gw, aw = check_imu_words(gyro_words, accel_words)
-        words = np.concatenate([gw, aw], axis=1)
-        if not (np.all(np.isfinite(words)) and np.all(words == np.round(words))
-                and words.min(initial=0) >= -32768 and words.max(initial=0) <= 32767):
-            raise FpgaSimError("the fpga-sim engine needs the IMU's int16 output words "
-                               "(the ideal sensors' float words have no SPI encoding)")
-        w = words.astype(np.int64)
-        n = w.shape[0]
-        self.propagations += n
-        with self._job() as regs:
-            regs.bus.push("imu_feed", {"gx": w[:, 0], "gy": w[:, 1], "gz": w[:, 2],
-                                       "ax": w[:, 3], "ay": w[:, 4], "az": w[:, 5],
-                                       "temp": np.zeros(n, np.int64),
-                                       "diag": np.zeros(n, np.int64)})
-            regs.wait_until("ENG_STATUS", propagations=self.propagations & 0xFFFFFF, busy=0,
-                            limit=4000 * n + 100_000)
-        self.m.cache.clear()
-        self.samples += n
+    def stats(self) -> dict:
+        return {"simulated_cycles": self.sim.cycles, "bus_batches": self.sim.batches,
+                "bus_commands": self.sim.commands}
 
-    def _update(self, kind, gate_key, apply_key, dof, **inputs) -> UpdateOutcome:
-        gate = self._gate[dof]
-        if dof == 1:
-            regs = {"ALT_MEAS": inputs["h_meas"], "ALT_VAR": inputs["r"], "ALT_GATE": gate}
-            ctrl, status, nis_reg = "ALT_CTRL", "ALT_STATUS", "ALT_NIS"
-        else:
-            regs = {"TRN_POS_N": inputs["y0"], "TRN_POS_E": inputs["y1"],
-                    "TRN_COV_NN": inputs["r00"], "TRN_COV_NE": inputs["r01"],
-                    "TRN_COV_EE": inputs["r11"], "TRN_LAG": inputs["lag"], "TRN_GATE": gate}
-            ctrl, status, nis_reg = "TRN_CTRL", "TRN_STATUS", "TRN_NIS"
-        with self._job() as bus_regs:
-            bus_regs.read_later("IRQ_STATUS")  # clear what is pending (read to clear)
-            for r, v in regs.items():
-                bus_regs.write(r, float_to_bits(to_f32(v)))
-            bus_regs.write(ctrl, start=1)
-            bus_regs.bus.wait("irq", 100_000)
-            out = [bus_regs.read_later(r) for r in ("IRQ_STATUS", status, nis_reg)]
-        irq_status, st, nis_bits = (r.value for r in out)
-        if not irq_status & 1 or st & 0b011 != 0b010:
-            raise FpgaSimError(f"{ctrl}: no update interrupt or not done "
-                               f"(IRQ_STATUS {irq_status:#x}, {status} {st:#x})")
-        self.interrupts += 1
-        nis = bits_to_float(nis_bits)
-        outs = self.image.output_addr(gate_key)
-        if st & 0b100:
-            positive = self.window_read([outs["positive"]])[0]
-            self._count(self.rejected, kind)
-            reason = ("innovation covariance not positive" if positive != 0x3F800000
-                      else "rejected by chi-square gate")
-            return UpdateOutcome(False, nis, np.zeros(15), reason)
-        self.m.cache.clear()
-        dx_addr = self.image.output_addr(apply_key)
-        dx = self.window_read([dx_addr[f"dx{i}"] for i in range(15)])
-        self._count(self.accepted, kind)
-        return UpdateOutcome(True, nis,
-                             np.array([bits_to_float(b) for b in dx]))
+    def close(self) -> None:
+        self.sim.close()
 
-    def _profile_fifo(self):
-        return _DmaProfileFifo(weakref.proxy(self))
 
-    def prepare_baro(self, uncomp_press, uncomp_temp) -> None:
-        """Nothing ahead of time: every sample goes through the pins when its record comes."""
+def imu_fields(w) -> dict:
+    """The ADIS16500 emulator's stream fields for n x 6 IMU words (gx gy gz ax ay az)."""
+    n = w.shape[0]
+    return {"gx": w[:, 0], "gy": w[:, 1], "gz": w[:, 2], "ax": w[:, 3], "ay": w[:, 4],
+            "az": w[:, 5], "temp": np.zeros(n, np.int64), "diag": np.zeros(n, np.int64)}
 
-    def read_baro(self, uncomp_press: int, uncomp_temp: int) -> float:
-        """The sample through the BMP390 emulator, the SPI pins, ``spi_master_baro`` (INT
-        paced) and ``baro_compensation``: push the ADC words, wait until BARO_SAMPLES counts
-        the sample, read BARO_PRESS."""
-        self.baro_samples += 1
-        with self._job() as regs:
-            regs.bus.push("baro_feed", {"up": int(uncomp_press), "ut": int(uncomp_temp)})
-            regs.wait_until("BARO_SAMPLES", count=self.baro_samples & 0xFFFFFFFF,
-                            limit=100_000)
-            press = regs.read_later("BARO_PRESS")
-        return bits_to_float(press.value)
 
-    def read_ranger(self, dist: int, strength: int) -> tuple[int, int]:
-        """The frame through the TF-Luna emulator, the UART pin and ``uart_rx_lidar``: push
-        it, wait until LIDAR_FRAMES counts it, read LIDAR_DATA."""
-        first = not self.lidar_frames
-        self.lidar_frames += 1
-        with self._job() as regs:
-            if first:  # the ranger's receiver is enabled with its first frame
-                regs.write("LIDAR_CFG", baud_div=LIDAR_BIT_CYCLES, enable=1)
-            regs.bus.push("lidar_feed", {"dist": int(dist), "strength": int(strength),
-                                         "temp": LIDAR_TEMP_WORD})
-            regs.wait_until("LIDAR_FRAMES", count=self.lidar_frames & 0xFFFFFFFF,
-                            limit=200 * LIDAR_BIT_CYCLES + 10_000)
-            data = regs.read_later("LIDAR_DATA")
-        word = data.value
-        return word & 0xFFFF, word >> 16
+def start_sim(**options) -> NativeAxiSim:
+    """The native co-simulation of :class:`InsTrnSimTop` (its streams and ``irq`` watched)."""
+    top = InsTrnSimTop()
+    return NativeAxiSim(top, streams=("imu_feed", "lidar_feed", "baro_feed"), watch=("irq",),
+                        verilog=sim_verilog(top), **options)
 
-    def read_cov(self):
-        p = np.empty((15, 15))
-        for i in range(15):
-            for j in range(i, 15):
-                p[i, j] = p[j, i] = self._p(i, j)
-        return p
+
+class FpgaSimEngine(RegisterEngine):
+    """The whole PL in Verilator behind the PlEngine interface (module docstring)."""
+
+    name = "fpga-sim"
+
+    def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
+        if check_pd:  # refused before the simulation starts
+            raise ValueError("check_pd needs the whole of P after every sample, which the "
+                             "fpga-sim engine does not read back (use the fp32 engine)")
+        self.sim = start_sim()
+        super().__init__(setup, SimFabric(self.sim))
 
     @property
     def cycles(self) -> int:
         return self.sim.cycles
-
-    def hardware_stats(self) -> dict:
-        return {"simulated_cycles": self.sim.cycles,
-                "cycles_per_imu_sample": self.sim.cycles / max(self.samples, 1),
-                "update_interrupts": self.interrupts,
-                "profile_dmas": self.profile.fifo.dmas,
-                "profile_entries_pushed": self.profile.pushes,
-                "baro_samples_through_pins": self.baro_samples,
-                "ranger_frames_through_pins": self.lidar_frames,
-                "bus_batches": self.sim.batches, "bus_commands": self.sim.commands}
-
-    def close(self):
-        self._finalizer()

@@ -434,12 +434,12 @@ class Navigator:
 def navigate(stream: RecordStream, cfg, *, engine: str = "reference", dem=None,
              use_trn: bool = True, name: str = "nav", progress=None, trn_link=None,
              trn_latency_s: float = 0.0, realtime: float | None = None,
-             trn: TrnSettings | None = None) -> NavRun:
+             trn: TrnSettings | None = None, engine_options: dict | None = None) -> NavRun:
     """Build the engine from the stream header and run the navigator over the stream
     (``trn_link``: a :class:`~navgate.systems.ins_trn.ps.trn_link.TrnLink` to correlate on
     the Pi's service instead of in this process; ``trn``: the TRN settings, default
-    :class:`TrnSettings`)."""
-    eng = make_engine(engine, engine_setup(stream.header, cfg))
+    :class:`TrnSettings`; ``engine_options``: keyword arguments of the engine)."""
+    eng = make_engine(engine, engine_setup(stream.header, cfg), **(engine_options or {}))
     nav = Navigator(eng, cfg, t0=stream.header["t0"], dem=dem, use_trn=use_trn, name=name,
                     progress=progress, trn_link=trn_link, trn_latency_s=trn_latency_s,
                     realtime=realtime, trn=trn)

@@ -267,9 +267,10 @@ def nav_from_ned(reference: LocalTangent, pn, pe, h, v, q) -> np.ndarray:
     return nav
 
 
-def make_engine(name: str, setup: EngineSetup) -> PlEngine:
-    """The engine registered as ``name`` (:mod:`.engine_registry`), set up with ``setup``."""
+def make_engine(name: str, setup: EngineSetup, **options) -> PlEngine:
+    """The engine registered as ``name`` (:mod:`.engine_registry`), set up with ``setup``
+    (``options``: the engine's own keyword arguments, such as the ``board`` engine's board)."""
     from navgate.systems.ins_trn.ps.engine_registry import engine_class
 
-    return engine_class(name)(setup)
+    return engine_class(name)(setup, **options)
 

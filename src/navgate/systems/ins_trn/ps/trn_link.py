@@ -163,7 +163,8 @@ class TrnLink:
                 # again each second: a serial port opened after the hello was sent (the Pi
                 # still booting) flushes what was waiting in its input
                 self._send(messages.HELLO, {"client": "navgate ps", "version": frames.VERSION,
-                                            "session": self.session})
+                                            "session": self.session,
+                                            "heartbeat_s": self.heartbeat_s})
                 resend = time.monotonic() + HELLO_RESEND_S
             try:
                 frame = self.link.recv(min(0.5, max(deadline - time.monotonic(), 0.01)))
