@@ -10,6 +10,14 @@ For every output option of every command (``--out``, and ``fly --record``):
 - ``OPT FILE/sub`` (the output under a regular file) is one line, exit 2;
 - never a traceback, never an "internal error".
 
+Late failures (:func:`test_failed_run_leaves_previous_results`): a full disk (a ``/dev/full``
+file planted in the staging, so the command's own writer meets a real ENOSPC) and a real
+SIGINT in the middle of writing an output, for every command that writes: one line, exit 2 or
+130, every previous output byte for byte as it was, no staging left.
+
+Absurd numbers (:func:`test_absurd_numbers_are_one_line`): inf, nan, 1e300, 10^30 in every
+numeric option discovered from the group: one line naming the option, exit 2.
+
 A command that writes nothing is listed in :data:`NO_OUTPUTS` with the reason; a command with
 no input file says so in :data:`CASES` (``inputs`` empty). The invocations are the cheapest
 that reach the check (every check fails before the long part of a run).
@@ -227,63 +235,375 @@ def test_hostile_outputs(name, option, tmp_path, navgate_run):
     assert not [p for p in tmp_path.rglob("*navgate-tmp*")]
 
 
-def _disk_full(*args, **kwargs):
-    """A writer that leaves a truncated file and then finds the disk full."""
-    import errno
-
-    target = next(a for a in args if isinstance(a, (str, Path)))
-    Path(target).write_text("truncated,")
-    raise OSError(errno.ENOSPC, "No space left on device", str(target))
+# ---------------------------------------------------------------------------------------------
+# a full disk or a Ctrl-C late in a complete run, for every command that writes a file
 
 
-def _interrupt(*args, **kwargs):
-    raise KeyboardInterrupt
+@dataclass
+class Run:
+    """A complete, cheap run of one command: its arguments (without ``--out``), its ``--out``
+    kind, the files it writes there (planted beforehand as the "previous results"), and the
+    output that finds the disk full (``full``) and the one the Ctrl-C arrives at (``stop``):
+    a name in the output directory, or ``"--out"`` / ``"--record"`` for an output file."""
+
+    args: list
+    kind: str
+    writes: list
+    full: str
+    stop: str
+    record: bool = False
 
 
-# command -> (its case, "module:function" that writes one output late in the run, the
-# outputs planted as previous results: (option, names in the directory or None for a file))
-LATE_WRITERS = {
-    "tinykalman run": ("navgate.cli.tinykalman:_write_roll_pitch",
-                       ["mpu6500_words.csv", "uart.bin", "roll_pitch.csv", "summary.json"]),
-    "tinykalman decode": ("navgate.cli.tinykalman:_write_roll_pitch",
-                          ["roll_pitch.csv", "summary.json"]),
-    "fly": ("navgate.systems.ins_trn.ps.records:write_log", None),
-}
+def _short_log(d: Path) -> Path:
+    """A 2 s INS-only record log written by the library (what ``fly --record`` writes)."""
+    from navgate.cli import main
+
+    log = d / "flight.log"
+    try:
+        main(["fly", "--duration", "2", "--no-trn", "--quiet", "--record", str(log),
+              "--out", str(d / "fly-for-log")])
+    except SystemExit as exit_:
+        assert exit_.code == 0
+    return log
 
 
-@pytest.mark.parametrize("name", sorted(LATE_WRITERS))
-@pytest.mark.parametrize("failure", ["disk full", "interrupt"])
+def _fast_campaign(monkeypatch):
+    """The campaign's LocalCluster with threads, not processes (the write is the same)."""
+    import dask.distributed
+
+    real = dask.distributed.LocalCluster
+    monkeypatch.setattr(dask.distributed, "LocalCluster",
+                        lambda **k: real(**{**k, "processes": False}))
+
+
+def _short_gpsins(monkeypatch):
+    """gpsins simulates 60 s of its (at least 250 s) flight: the writing is the same."""
+    import dataclasses
+
+    from navgate.systems.gpsins import scenario
+
+    real = scenario.simulate
+    monkeypatch.setattr(scenario, "simulate", lambda cfg, progress=None: real(
+        dataclasses.replace(cfg, duration_s=60.0, outage_start_s=40.0, outage_s=10.0),
+        progress))
+
+
+def _canned_report(monkeypatch):
+    """report's table without synthesising 48 blocks (minutes): the file write is the same."""
+    from navgate.cli import build
+
+    monkeypatch.setattr(build, "report_markdown", lambda *a, **k: "| block |\n|---|\n" * 2000)
+
+
+def make_run(name: str, d: Path, monkeypatch) -> Run:
+    if name == "fly":
+        return Run(["fly", "--dem", _dem(d / "dem.tif"), "--duration", 2, "--no-trn",
+                    "--quiet"], "dir", ["summary.json", "trajectory.csv", "trn_fixes.csv",
+                                        "track.png", "errors.png"], "track.png", "--record",
+                   record=True)
+    if name == "replay":
+        return Run(["replay", _short_log(d), "--no-trn", "--quiet"], "dir",
+                   ["summary.json", "trajectory.csv", "track.png", "errors.png"],
+                   "trajectory.csv", "summary.json")
+    if name == "campaign":
+        _fast_campaign(monkeypatch)
+        return Run(["campaign", "--seeds", "0", "--duration", 2, "--dem", _dem(d / "dem.tif"),
+                    "--workers", 1, "--quiet"], "dir",
+                   ["results.csv", "error_cdf.png", "nees_hist.png", "summary.json"],
+                   "nees_hist.png", "results.csv")
+    if name == "ahrs":
+        return Run(["ahrs", _imu_csv(d / "imu.csv"), "--quiet"], "file", [], "--out", "--out")
+    if name == "gpsins":
+        _short_gpsins(monkeypatch)
+        return Run(["gpsins", "--duration", 250, "--outage-start", 200, "--filter", "seed",
+                    "--rate", 20, "--quiet"], "dir",
+                   ["trajectory.csv", "gps.csv", "errors.png", "summary.json"], "errors.png",
+                   "summary.json")
+    if name == "kf2x2":
+        return Run(["kf2x2", "--frames", 200], "dir", ["summary.json", "frames.csv", "rlc.png"],
+                   "rlc.png", "frames.csv")
+    if name == "build":
+        return Run(["build", "fixed_mul"], "dir",
+                   ["fixed_mul.v", "fixed_mul.json", "fixed_mul.utilization.json"],
+                   "fixed_mul.v", "fixed_mul.utilization.json")
+    if name == "report":
+        _canned_report(monkeypatch)
+        return Run(["report"], "file", [], "--out", "--out")
+    if name == "tinykalman run":
+        return Run(["tinykalman", "run", _imu_csv(d / "imu.csv"), "--quiet"], "dir",
+                   ["mpu6500_words.csv", "uart.bin", "roll_pitch.csv", "summary.json"],
+                   "mpu6500_words.csv", "roll_pitch.csv")
+    if name == "tinykalman decode":
+        capture = d / "uart.bin"
+        capture.write_bytes(bytes(range(256)))
+        return Run(["tinykalman", "decode", capture, "--quiet"], "dir",
+                   ["roll_pitch.csv", "summary.json"], "roll_pitch.csv", "summary.json")
+    if name == "tiles split":
+        return Run(["tiles", "split", _dem(d / "dem.tif"), "--into", "1x2", "--quiet"], "dir",
+                   ["tile_r0_c0.tif", "tile_r0_c1.tif", "tiles.json"], "tile_r0_c1.tif",
+                   "tiles.json")
+    if name == "tiles info":
+        tiles = d / "tiles"
+        tiles.mkdir()
+        _dem(tiles / "a.tif")
+        return Run(["tiles", "info", tiles, "--quiet"], "dir", ["tiles.json"], "tiles.json",
+                   "tiles.json")
+    raise KeyError(name)
+
+
+def _full_disk_at(monkeypatch, target: str, final: Path):
+    """The staging of ``final`` (the output directory, or one output file) has its file
+    ``target`` on a full disk: a symbolic link to /dev/full, planted in the staging directory
+    as it is made, so that the command's own writer (csv, numpy, matplotlib, GDAL, json)
+    opens it and the kernel answers ENOSPC."""
+    from navgate.cli import outputs
+
+    real = outputs._stage_beside
+
+    def stage(path, directory):
+        staged = real(path, directory)
+        if Path(path) == final:
+            if directory:
+                (staged / target).symlink_to("/dev/full")
+            else:
+                staged.unlink()
+                staged.symlink_to("/dev/full")
+        return staged
+
+    monkeypatch.setattr(outputs, "_stage_beside", stage)
+
+
+def _ctrl_c_at(monkeypatch, target: str | None, final: Path):
+    """A real SIGINT (the command's own handler catches it) just after the command opens the
+    staged ``target`` (a name in the staged output directory, or None for the staged output
+    file ``final``): the run is interrupted in the middle of writing it."""
+    import builtins
+    import io
+    import signal
+
+    real = builtins.open
+
+    def hit(file) -> bool:
+        if not isinstance(file, (str, Path)):
+            return False
+        p = Path(file)
+        if target is None:
+            return p.name.startswith(f".{final.name}.navgate-tmp-")
+        return p.name == target and p.parent.name.startswith(f".{final.name}.navgate-tmp-")
+
+    def opened(file, *args, **kwargs):
+        handle = real(file, *args, **kwargs)
+        if hit(file):
+            signal.raise_signal(signal.SIGINT)
+        return handle
+
+    monkeypatch.setattr(builtins, "open", opened)
+    monkeypatch.setattr(io, "open", opened)
+
+
+#: every command that writes a file (a new one needs a :func:`make_run`)
+WRITERS = list(COVERED)
+
+
+@pytest.mark.parametrize("failure", ["disk full", "ctrl-c"])
+@pytest.mark.parametrize("name", WRITERS)
 def test_failed_run_leaves_previous_results(name, failure, tmp_path, navgate_run,
                                             monkeypatch):
-    """A full disk or a Ctrl-C late in the run: exit 2 / 130, every previous output
-    byte for byte as it was (the 13.5 MB words file once left at 33 bytes, the record
-    log at 3.7 KB), no staging left."""
-    import importlib
-
-    case = make_case(tuple(name.split()), tmp_path)
-    target, names = LATE_WRITERS[name]
-    out = tmp_path / "out"
-    out.mkdir()
-    planted = [out / n for n in (names or ["summary.json", "trajectory.csv"])]
-    args = [*case.args, "--out", out]
-    if name == "fly":
-        record = tmp_path / "flight.log"
-        planted.append(record)
-        args += ["--record", record]
+    """A full disk or a Ctrl-C late in a complete run of every command: one line, exit 2
+    ("No space left on device", naming the final path, not the staging) or 130, every
+    previous output byte for byte as it was (an old 13.5 MB words file was once left at 33
+    bytes, a record log at 3.7 KB), nothing new in the output directory, no staging left."""
+    if not Path("/dev/full").exists():
+        pytest.skip("no /dev/full to stand for a full disk")
+    run = make_run(name, tmp_path, monkeypatch)
+    out = tmp_path / ("out" if run.kind == "dir" else "out.txt")
+    planted = [out / n for n in run.writes] if run.kind == "dir" else [out]
+    args = [*run.args, "--out", out]
+    finals = {"--out": out}
+    if run.record:
+        finals["--record"] = tmp_path / "flight.log"
+        planted.append(finals["--record"])
+        args += ["--record", finals["--record"]]
     for p in planted:
+        p.parent.mkdir(exist_ok=True)
         p.write_text(f"previous {p.name}\n")
     before = _snapshot(planted)
-    module, attr = target.split(":")
-    monkeypatch.setattr(importlib.import_module(module), attr,
-                        _disk_full if failure == "disk full" else _interrupt)
+    target = run.full if failure == "disk full" else run.stop
+    final = finals.get(target, out)
+    if failure == "disk full":
+        _full_disk_at(monkeypatch, None if target in finals else target, final)
+    else:
+        _ctrl_c_at(monkeypatch, None if target in finals else target, final)
     code, _, err = navgate_run(args)
     line = navgate_run.one_line(err)
     if failure == "disk full":
         assert code == 2 and "No space left on device" in line, line
-        assert "navgate-tmp" not in line  # named by its final path, not the staging path
+        # named by its final path, not the staging path
+        assert str(final) in line and "navgate-tmp" not in line, line
     else:
         assert code == 130 and "interrupted" in line, line
     assert _snapshot(planted) == before
-    assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in planted
-                                                          if p.parent == out)
+    if run.kind == "dir":
+        assert sorted(p.name for p in out.iterdir()) == sorted(run.writes)
     assert not [p for p in tmp_path.rglob("*navgate-tmp*")]
+
+
+# ---------------------------------------------------------------------------------------------
+# absurd numbers in every numeric option of every command
+
+
+ABSURD = {"float": ["inf", "-inf", "nan", "1e300", "-1e300"],
+          "integer": [str(10**30), str(-10**30)]}
+#: options that carry numbers in text
+ABSURD_TEXT = {"--seeds": ["0-1e300", f"0-{10**30}", "1e300"],
+               "--ecp5-seeds": [str(2**31), str(10**30), ",".join(["1"] * 65)],
+               "--nexus-seeds": [str(2**31), str(10**30)],
+               "--into": [f"{10**30}x1", "infxinf", "1e300x2"]}
+
+#: (command, option, value) that are accepted, with the reason (they are not run here)
+ACCEPTED = {
+    **{(c, "--seed", str(10**30)): "any non-negative integer seeds NumPy's generator"
+       for c in ("fly", "gpsins", "kf2x2")},
+    ("tinykalman run", "--limit", str(10**30)): "a limit beyond the log reads all of it",
+    ("trn-serve", "--cache-mb", "1e300"): "a cache larger than the tiles holds them all",
+    ("trn-serve", "--max-requests", str(10**30)): "a service answers until it is stopped",
+}
+
+
+def _absurd_bases(d: Path) -> dict:
+    """Runs that would succeed, so that the value under test is what a refusal is about."""
+    dem = _dem(d / "dem.tif")
+    tiles = d / "tiles"
+    tiles.mkdir()
+    _dem(tiles / "a.tif")
+    return {
+        "fly": ["fly", "--dem", dem, "--duration", 2, "--no-trn", "--quiet"],
+        "replay": ["replay", _record_log(d / "flight.log"), "--no-trn", "--quiet"],
+        "campaign": ["campaign", "--seeds", "0", "--duration", 2, "--dem", dem, "--quiet",
+                     "--workers", 1],
+        "ahrs": ["ahrs", _imu_csv(d / "imu.csv"), "--quiet"],
+        "gpsins": ["gpsins", "--duration", 250, "--outage-start", 200, "--rate", 20,
+                   "--filter", "seed", "--quiet"],
+        "kf2x2": ["kf2x2", "--frames", 10],
+        "build": ["build", "fixed_mul", "--timing"],
+        "report": ["report", "--asic", "sg13g2", "--liberty", _liberty(d / "cells.lib")],
+        "tinykalman run": ["tinykalman", "run", _imu_csv(d / "imu.csv"), "--quiet"],
+        "tinykalman decode": ["tinykalman", "decode", "--serial", "loop://", "--seconds", 1,
+                              "--quiet"],
+        "tiles split": ["tiles", "split", dem, "--into", "1x2", "--quiet"],
+        "tiles info": ["tiles", "info", tiles, "--quiet"],
+        "trn-serve": ["trn-serve", "--tiles", tiles, "--listen", "tcp://127.0.0.1:0"],
+        "cache info": ["cache", "info"],
+        "cache clear": ["cache", "clear"],
+    }
+
+
+def _numeric_options(path: tuple) -> list[tuple[str, str]]:
+    found = []
+    for p in command_of(path).params:
+        if not isinstance(p, click.Option):
+            continue
+        opt = max(p.opts, key=len)
+        kind = p.type.name.split()[0]
+        for value in ABSURD_TEXT.get(opt, ABSURD.get(kind, [])):
+            found.append((opt, value))
+    return found
+
+
+@pytest.mark.parametrize("path", leaves(), ids=" ".join)
+def test_absurd_numbers_are_one_line(path, tmp_path, navgate_run):
+    """inf, nan, 1e300, 10^30 in every numeric option of every command (discovered from
+    the click group): one line naming the option (or the value), exit 2, before the long
+    run; never an internal error (--trn-timeout 1e10 and trn-serve --fd 10^30 overflowed
+    C types; --ecp5-seeds 10^30 reached nextpnr)."""
+    import signal
+
+    name = " ".join(path)
+    base = [str(a) for a in _absurd_bases(tmp_path)[name]]
+    cases = [(o, v) for o, v in _numeric_options(path) if (name, o, v) not in ACCEPTED]
+    if name == "trn-serve":  # --fd and --serial are other ways to serve than --listen
+        cases = [(o, v) for o, v in cases if o != "--fd"] + [("--fd", str(10**30))]
+
+    def hang(*_):
+        raise TimeoutError("no answer within 60 s")
+
+    previous = signal.signal(signal.SIGALRM, hang)
+    try:
+        for opt, value in cases:
+            args = list(base)
+            if opt in args:  # replace the base's value
+                i = args.index(opt)
+                del args[i:i + 2]
+            if name == "trn-serve" and opt == "--fd":
+                args = args[:args.index("--listen")]
+            signal.alarm(60)
+            code, _, err = navgate_run([*args, f"{opt}={value}"])
+            signal.alarm(0)
+            line = navgate_run.one_line(err)
+            assert code == 2, (opt, value, line)
+            try:
+                shown = f"{float(value):g}"
+            except ValueError:
+                shown = value
+            # (an option whose value is optional, fly --realtime [SPEED], takes "-inf" for
+            # another option: click's own one-line refusal)
+            optional = value.startswith("-") and "No such option" in line
+            assert opt in line or shown in line or value in line or optional, (opt, value,
+                                                                               line)
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def test_inputs_that_are_not_regular_files_are_named(tmp_path, navgate_run):
+    """A Liberty file or a tile directory that is a device or a FIFO: "not a regular
+    file" / "not a tile directory", not "not found" (it exists)."""
+    import os
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    for bad in ("/dev/zero", fifo, tmp_path):
+        code, _, err = navgate_run(["build", "fixed_mul", "--asic", "sg13g2", "--liberty", bad])
+        assert code == 2 and "not a regular file" in navgate_run.one_line(err), err
+        code, _, err = navgate_run(["report", "--asic", "sg13g2", "--liberty", bad])
+        assert code == 2 and "not a regular file" in navgate_run.one_line(err), err
+    for bad in ("/dev/zero", fifo):
+        code, _, err = navgate_run(["tiles", "info", bad])
+        assert code == 2 and "not a tile directory" in navgate_run.one_line(err), err
+
+
+def test_no_output_inside_an_input_directory(tmp_path, navgate_run):
+    """README: no output may be "a file inside an input directory" (a tile directory that a
+    later run reads); tiles info --out TILES/sub and fly --record TILES/f.log wrote there."""
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    _dem(tiles / "a.tif")
+    for args in (["tiles", "info", tiles, "--out", tiles / "sub"],
+                 ["fly", "--dem", tiles, "--duration", 2, "--no-trn", "--out", tiles / "x"],
+                 ["fly", "--dem", tiles, "--duration", 2, "--no-trn", "--out", tmp_path / "o",
+                  "--record", tiles / "f.log"]):
+        code, _, err = navgate_run(args)
+        assert code == 2 and "inside the input directory" in navgate_run.one_line(err), err
+    assert sorted(p.name for p in tiles.iterdir()) == ["a.tif"]
+
+
+@pytest.mark.parametrize("name", WRITERS)
+def test_results_on_stdout_notes_on_stderr(name, tmp_path, navgate_run, monkeypatch):
+    """README: results (tables) go to stdout; progress, notes and "wrote ..." lines to stderr
+    (`navgate CMD > run.log` captures the results). A complete run of every command that
+    writes, which also writes every file it declares (tinykalman printed its table on
+    stderr)."""
+    run = make_run(name, tmp_path, monkeypatch)
+    out = tmp_path / ("out" if run.kind == "dir" else "out.txt")
+    args = [*(a for a in run.args if a != "--quiet"), "--out", out]
+    if run.record:
+        args += ["--record", tmp_path / "flight.log"]
+    code, stdout, stderr = navgate_run(args)
+    assert code == 0, stderr
+    assert stdout.strip(), "no result on stdout"
+    assert "wrote" in stderr and "wrote" not in stdout, (stdout, stderr)
+    assert "┏" not in stderr and "Traceback" not in stderr
+    if run.kind == "dir":
+        assert set(run.writes) <= {p.name for p in out.iterdir()}
+    else:
+        assert out.stat().st_size > 0

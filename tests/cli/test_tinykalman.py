@@ -172,3 +172,19 @@ def test_serial_without_pyserial_is_a_clear_error(capsys, monkeypatch, tmp_path)
     code, _, err = run_cli(["decode", "--serial", "/dev/ttyUSB9", "--out", tmp_path / "x"],
                            capsys)
     assert code == 2 and "pyserial" in err
+
+
+def test_dropped_rows_are_counted_in_the_summary(tmp_path, capsys):
+    """Rows the IMU reader drops (a NaN, an impossible 1e300 m/s^2) are counted in summary.json
+    and on the table (issue 31, round 2: an implausible row once vanished without a count)."""
+    log = tmp_path / "imu.csv"
+    write_log(log, plain=True)
+    lines = log.read_text().splitlines()
+    lines[5] = lines[5].rsplit(",", 1)[0] + ",1e300"
+    lines[9] = lines[9].rsplit(",", 1)[0] + ",nan"
+    log.write_text("\n".join(lines) + "\n")
+    code, out, err = run_cli(["run", log, "--out", tmp_path / "o"], capsys)
+    assert code == 0, err
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert (s["samples"], s["skipped_rows"], s["implausible_rows"]) == (38, 1, 1)
+    assert "1 / 1" in out

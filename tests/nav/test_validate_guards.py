@@ -77,3 +77,49 @@ def test_local_tangent_refuses_a_pole_and_absurd_heights(name, args):
 
     # at a pole m_per_rad_lon is 0: to_geodetic would divide by it
     raises_naming(name, LocalTangent, *args)
+
+
+# -- integer words (issue 31: the bit-true models of seeds 001 and 004) -----------------------
+
+
+@pytest.mark.parametrize("bits, signed, lo, hi", [(16, True, -32768, 32767), (1, False, 0, 1),
+                                                  (20, True, -524288, 524287)])
+def test_word_range_and_its_ends(bits, signed, lo, hi):
+    assert validate.word_range(bits, signed) == (lo, hi)
+    assert validate.int_words("w", [lo, hi], bits, signed).tolist() == [lo, hi]
+    for v in (lo - 1, hi + 1):
+        msg = raises_naming("w", validate.int_words, "w", [0, v], bits, signed)
+        assert "index (1,)" in msg and f"{bits}-bit" in msg
+
+
+@pytest.mark.parametrize("v", [NAN, math.inf, 1.5, -0.25, "x", True, [1, None]])
+def test_int_words_refuse_what_a_register_cannot_hold(v):
+    raises_naming("ax", validate.int_words, "ax", v, 16)
+
+
+def test_int_words_accept_integral_floats_as_int64():
+    a = validate.int_words("ax", np.array([1.0, -2.0, 32767.0]), 16)
+    assert a.dtype == np.int64 and a.tolist() == [1, -2, 32767]
+    raises_naming("ax", validate.int_words, "ax", np.zeros((2, 3)), 16, shape=(-1, 7))
+    # unsigned 64-bit input beyond int64 is out of range, not wrapped to a negative number
+    raises_naming("w", validate.int_words, "w", np.array([2**63], np.uint64), 16)
+
+
+@pytest.mark.parametrize("v", [2.5, NAN, math.inf, "3", True, None, -1, 16])
+def test_integer_in_range(v):
+    raises_naming("k_shift", validate.integer, "k_shift", v, 0, 15)
+
+
+def test_integer_accepts_numpy_and_integral_float():
+    assert validate.integer("n", np.int32(7), 0) == 7
+    assert validate.integer("n", 7.0, 0, 7) == 7
+
+
+@pytest.mark.parametrize("v", ["no", "False", 2, -1, 0.5, None])
+def test_flag_refuses_truthy_strings_and_numbers(v):
+    raises_naming("held_input", validate.flag, "held_input", v)
+
+
+def test_flag_accepts_bools_and_0_1():
+    assert validate.flag("f", np.bool_(True)) is True
+    assert validate.flag("f", 0) is False and validate.flag("f", 1) is True

@@ -70,7 +70,7 @@ def ahrs(input_csv, method, out, kp, ki, gain, axes, gyro_unit, no_mag, init, en
         resolve_axes,
     )
 
-    if method == "complementary" and gain > 1:
+    if gain > 1:  # (whatever the filter: an option out of its range is never ignored)
         raise CliError(f"--gain must be between 0 and 1, got {gain:g}")
     table_console, console = consoles(quiet)
     if engine != "reference":

@@ -77,6 +77,11 @@ def _progress(console: Console) -> Progress:
     )
 
 
+#: the largest placer seed (nextpnr's --seed is a C int) and the most seeds one build runs
+MAX_SEED = 2**31 - 1
+MAX_SEEDS = 64
+
+
 def _parse_seeds(text: str, option: str = "--ecp5-seeds") -> tuple[int, ...]:
     try:
         seeds = tuple(int(part) for part in text.split(",") if part.strip())
@@ -84,13 +89,19 @@ def _parse_seeds(text: str, option: str = "--ecp5-seeds") -> tuple[int, ...]:
         raise CliError(f"{option} must be comma-separated integers, got {text!r}") from None
     if not seeds or any(seed < 0 for seed in seeds):
         raise CliError(f"{option} must name at least one non-negative seed, got {text!r}")
+    if any(seed > MAX_SEED for seed in seeds):  # nextpnr reads --seed into a C int
+        raise CliError(f"{option}: a seed is at most {MAX_SEED}, got {max(seeds)}")
+    if len(seeds) > MAX_SEEDS:  # each seed is a full place and route
+        raise CliError(f"{option}: at most {MAX_SEEDS} seeds, got {len(seeds)}")
     return seeds
 
 
 def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Progress, task,
                keep_work: bool = False, ecp5_seeds: tuple[int, ...] = (1,),
                nexus_seeds: tuple[int, ...] = (1,), asic: str | None = None,
-               liberty: Path | None = None):
+               liberty: Path | None = None, shown_as: Path | None = None):
+    """Build one block into ``out_dir``; an OSError is one line naming ``shown_as`` (the
+    final output directory when ``out_dir`` is its staging directory) in place of it."""
     from navgate.hw.flow import build_block
     from navgate.hw.synth import SynthesisError
 
@@ -104,7 +115,12 @@ def _run_build(name: str, out_dir: Path, target: str, timing: bool, progress: Pr
     except SynthesisError as error:
         raise CliError(str(error)) from None
     except OSError as error:
-        raise CliError(f"cannot write build outputs in {out_dir}: {error.strerror}") from None
+        shown = Path(shown_as) if shown_as is not None else Path(out_dir)
+        reason = error.strerror or str(error)
+        name = str(error.filename or "")
+        if name.startswith(str(out_dir)):  # a file of the staging: named by its final path
+            raise CliError(f"cannot write {shown}{name[len(str(out_dir)):]}: {reason}") from None
+        raise CliError(f"cannot write build outputs in {shown}: {reason}") from None
 
 
 @click.command()
@@ -160,7 +176,7 @@ def build(block: str | None, target: str, out: str, timing: bool, ecp5_seeds: st
             console.print(f"[dim]{_yowasp_note(timing)}[/dim]")
         task = progress.add_task(block, total=1)
         built = _run_build(block, stage, target, timing, progress, task, keep_work, seeds,
-                           nx_seeds, asic, liberty_path)
+                           nx_seeds, asic, liberty_path, shown_as=out_dir)
         progress.advance(task)
     use = built["utilization"]
     click.echo(
@@ -201,6 +217,8 @@ def _check_asic(asic: str | None, liberty: str | None) -> Path | None:
     if asic not in ASIC_TECHS:
         raise CliError(f"unknown ASIC technology {asic!r}; known: {', '.join(ASIC_TECHS)}")
     path = Path(liberty) if liberty is not None else default_liberty()
+    if path.exists() and not path.is_file():  # a directory, a device, a FIFO
+        raise CliError(f"cannot read the Liberty file {path}: not a regular file")
     if not path.is_file():
         raise CliError(f"Liberty file not found: {path} (give its path with --liberty)")
     return path.resolve()
@@ -359,3 +377,4 @@ def report(timing: bool, target: str, out: str | None, jobs: int, asic: str | No
     if out_path is not None:
         with atomic_output_file(out_path, inputs=[liberty_path]) as tmp:
             tmp.write_text(table)
+        click.echo(f"wrote {out_path}", err=True)  # as every command says what it wrote

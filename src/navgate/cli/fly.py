@@ -173,6 +173,8 @@ def fly(dem_path, tile_cache_mb, tile_priority, duration, seed, out, ideal_senso
         raise CliError(f"--trn-latency must lie in [0, 60] s, got {trn_latency:g}")
     if not (math.isfinite(link_flip_rate) and 0.0 <= link_flip_rate <= 1.0):
         raise CliError(f"--link-flip-rate must lie in [0, 1], got {link_flip_rate:g}")
+    if not trn_timeout <= 3600.0:  # (positive and finite: its callback) 1e10 s overflowed
+        raise CliError(f"--trn-timeout must lie in (0, 3600] s, got {trn_timeout:g}")
     if not (math.isfinite(trn_heartbeat) and 0.0 <= trn_heartbeat <= 3600.0):
         raise CliError(f"--trn-heartbeat must lie in [0, 3600] s, got {trn_heartbeat:g}")
     if realtime is not None:

@@ -156,6 +156,9 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out, accept_overflow, quiet):
         "r_estimate_before_step": r_fix[step // 2: step].mean(axis=0).tolist(),
         "r_estimate_after_step": r_fix[step + step // 2:].mean(axis=0).tolist(),
         "overflow_frames": int(bt["overflow"].sum()),
+        # measurements/source beyond Q(n, frac), saturated on conversion (as an ADC clips)
+        "input_saturated_words": qframes.saturated,
+        "input_saturated_frames": len(qframes.saturated_frames),
         "div_zero_frames": int(bt["div_zero"].sum()),
         "mismatches_vs_bit_true": mismatches,
         "model_seconds": round(t_model, 3),
@@ -186,6 +189,8 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out, accept_overflow, quiet):
         table.add_row(label, *(f"{v:.4f}" for v in summary[key]))
     table.add_row("overflow frames", f"{overflow} of {frames}"
                   + (" (OVERFLOW: results invalid)" if overflow else ""), "")
+    if qframes.saturated:
+        table.add_row("saturated input frames", f"{len(qframes.saturated_frames)} of {frames}", "")
     table_console.print(table)
     if mismatches is not None:
         table_console.print(f"gateware ({engine}): {mismatches} mismatching frames of {frames}, "

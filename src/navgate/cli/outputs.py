@@ -55,7 +55,8 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def check_not_input(path: str | Path, inputs: Iterable[str | Path | None]) -> None:
-    """Raise CliError if writing ``path`` would overwrite one of ``inputs``."""
+    """Raise CliError if writing ``path`` would overwrite one of ``inputs``, or would put a
+    file inside an input directory (a tile directory: a later run would read it)."""
     p = Path(path)
     for item in inputs:
         if item is None:
@@ -63,6 +64,9 @@ def check_not_input(path: str | Path, inputs: Iterable[str | Path | None]) -> No
         q = Path(item)
         if _same_file(p, q) or p.resolve() == q.resolve():
             raise CliError(f"output {p} is the input {q}; refusing to overwrite an input")
+        if q.is_dir() and p.resolve().is_relative_to(q.resolve()):
+            raise CliError(f"output {p} is inside the input directory {q}; refusing to "
+                           "write into an input")
 
 
 def _set_mode(stage: Path, path: Path) -> None:
@@ -235,6 +239,9 @@ def staged_outputs(out: str | Path | None = None, files: Iterable[str | Path] = 
             for final, path in ((out, stage), *((f, p) for f, p in staged.items())):
                 if path is not None and str(error.filename or "").startswith(str(path)):
                     raise _translate(error, path, final) from None
+            if not error.filename:  # a failed flush or close: name what was being written
+                targets = [str(t) for t in (out, *staged) if t is not None]
+                error.filename = " or ".join(targets) if targets else None
             raise CliError(os_error_message(error)) from None
         moves = []
         if stage is not None:

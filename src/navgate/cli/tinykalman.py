@@ -23,6 +23,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from navgate.cli.console import consoles
 from navgate.cli.errors import CliError
 from navgate.cli.inputs import read_bounded, regular_input
 from navgate.cli.outputs import (
@@ -94,14 +95,13 @@ def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
     # the chip's timing comes from its gateware module (Amaranth) even for --engine model
     require_gateware(f"navgate tinykalman --engine {engine}",
                      SIMULATION if engine == "rtl" and sim == "verilator" else ("amaranth",))
-    from rich.console import Console
     from rich.table import Table
 
     from navgate.sim.imu_log import LogError, read_imu_csv
     from navgate.systems.tinykalman.run import words_from_imu
     from navgate.systems.tinykalman.top import timing
 
-    console = Console(stderr=True, quiet=quiet)
+    table_console, console = consoles(quiet)  # the table to stdout, progress to stderr
     if limit is not None and limit < 1:
         raise CliError(f"--limit must be positive, got {limit}")
     check_out_dir(out)
@@ -126,7 +126,8 @@ def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
         summary = {
             "log": str(log_csv), "samples": n, "log_rate_hz": rate,
             "axes": "frd" if frd else "flu",
-            "skipped_rows": log.skipped_rows, "saturated_words": words.saturated,
+            "skipped_rows": log.skipped_rows, "implausible_rows": log.implausible_rows,
+            "saturated_words": words.saturated,
             "engine": engine, "uart_bytes": len(stream), "packets": stats.packets,
             "skipped_bytes": stats.skipped_bytes, "trailing_bytes": stats.trailing_bytes,
             "final_roll_deg": deg[-1][0] if deg else None,
@@ -141,14 +142,18 @@ def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
     table.add_row("samples", str(n))
     table.add_row("packets", str(stats.packets))
     table.add_row("saturated words", str(words.saturated))
+    if log.skipped_rows or log.implausible_rows:  # rows of the log not run (counted)
+        table.add_row("rows dropped (non-finite / implausible)",
+                      f"{log.skipped_rows} / {log.implausible_rows}")
     if deg:
         table.add_row("final roll / pitch (deg)", f"{deg[-1][0]:.2f} / {deg[-1][1]:.2f}")
     if rtl_info:
         table.add_row("rtl equal to model", str(rtl_info["equal_to_model"]))
         table.add_row("rtl wall time (s)", f"{rtl_info['rtl_seconds']:.1f}")
     table.add_row("wall time (s)", f"{wall:.2f}")
-    console.print(table)
-    console.print(f"wrote {out}/mpu6500_words.csv, uart.bin, roll_pitch.csv, summary.json")
+    table_console.print(table)
+    console.print(f"wrote {out}/mpu6500_words.csv, uart.bin, roll_pitch.csv, summary.json",
+                  highlight=False)
     if rtl_info and not rtl_info["equal_to_model"]:
         raise CliError(f"the chip's stream differs from the model's at byte "
                        f"{rtl_info['first_differing_byte']}")
@@ -231,6 +236,8 @@ def _read_serial(port: str, baud: int, seconds: float) -> bytes:
     return bytes(data)
 
 
+#: the fastest UART --baud names (as trn-serve's --baud)
+MAX_BAUD = 12_000_000
 #: the longest --serial capture (a day) and the largest captured stream read (at 9600 baud a
 #: TinyKalman sends about 1 kB/s: 64 MiB is some 18 hours)
 MAX_CAPTURE_S = 86_400.0
@@ -250,13 +257,13 @@ MAX_READ_S = 10.0
 @click.option("--quiet", is_flag=True)
 def decode(file, port, baud, seconds, out, quiet):
     """Decode a TinyKalman UART stream (FILE) or a live board (--serial PORT)."""
-    from rich.console import Console
-
-    console = Console(stderr=True, quiet=quiet)
+    table_console, console = consoles(quiet)  # results to stdout, notes to stderr
     if (file is None) == (port is None):
         raise CliError("give exactly one of FILE or --serial PORT")
     if baud <= 0 or not seconds > 0:
         raise CliError("--baud and --seconds must be positive")
+    if baud > MAX_BAUD:
+        raise CliError(f"--baud must be at most {MAX_BAUD:,} (a UART), got {baud}")
     if not seconds <= MAX_CAPTURE_S:  # also NaN
         raise CliError(f"--seconds must be at most {MAX_CAPTURE_S:g} s "
                        f"({MAX_CAPTURE_S / 3600:g} h), got {seconds:g}")
@@ -275,11 +282,14 @@ def decode(file, port, baud, seconds, out, quiet):
         summary = {"source": source, "bytes": len(data), "packets": st.packets,
                    "skipped_bytes": st.skipped_bytes, "trailing_bytes": st.trailing_bytes}
         write_summary(staging.dir, summary)
-    console.print(f"{source}: {len(data)} bytes, {st.packets} packets, {st.skipped_bytes} "
-                  f"skipped, {st.trailing_bytes} trailing; wrote {out}/roll_pitch.csv")
+    table_console.print(f"{source}: {len(data)} bytes, {st.packets} packets, "
+                        f"{st.skipped_bytes} skipped, {st.trailing_bytes} trailing",
+                        highlight=False)
     if angles:
         r, p = angles[-1]
-        console.print(f"last roll {r * 180 / 32768:.2f} deg, pitch {p * 180 / 32768:.2f} deg")
+        table_console.print(f"last roll {r * 180 / 32768:.2f} deg, pitch "
+                            f"{p * 180 / 32768:.2f} deg", highlight=False)
+    console.print(f"wrote {out}/roll_pitch.csv, summary.json", highlight=False)
     return np.asarray(angles)
 
 

@@ -35,7 +35,7 @@ def _cache(ctx, param, value):
 @click.option("--serial", "serial_port", default=None, help="Serve over this serial port.")
 @click.option("--baud", type=click.IntRange(1200, 12_000_000), default=921600,
               show_default=True, help="Serial baud rate.")
-@click.option("--fd", type=click.IntRange(0), default=None, hidden=True,
+@click.option("--fd", type=click.IntRange(0, 2**31 - 1), default=None, hidden=True,
               help="Serve over this inherited file descriptor (fly --trn-service spawn).")
 @click.option("--max-requests", type=click.IntRange(1), default=None,
               help="Stop after answering this many profile requests.")

@@ -1,4 +1,4 @@
-"""Argument guards for navgate's public entry points (issue 17).
+"""Argument guards for navgate's public entry points (issue 17; integer words: issue 31).
 
 Each guard raises ``ValueError`` whose message starts with the argument's name, so that a
 caller sees which argument is wrong (``q0: quaternion norm is 0, expected 1``) instead of a
@@ -166,3 +166,78 @@ def nav_latitude(name: str, value) -> float:
 def height_m(name: str, value) -> float:
     """A height above the ellipsoid (m) in :data:`HEIGHT_RANGE_M`."""
     return in_range(name, value, *HEIGHT_RANGE_M, unit=" m")
+
+
+# -- integer (fixed-point) words: the bit-true models of seeds 001 and 004 ---------------------
+
+
+def word_range(bits: int, signed: bool = True) -> tuple[int, int]:
+    """The values a ``bits``-bit register holds: [-2^(bits-1), 2^(bits-1) - 1] signed,
+    [0, 2^bits - 1] unsigned."""
+    return (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
+
+
+def integer(name: str, value, low: int | None = None, high: int | None = None) -> int:
+    """An integer in [low, high] (either end open when None). A float is accepted only when it
+    is integral (2.0, not 2.5); a bool, a string, NaN or inf is a ValueError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or isinstance(value, (str, bytes)):
+        raise ValueError(f"{name}: expected an integer, got {value!r}")
+    if isinstance(value, (int, np.integer)):
+        v = int(value)
+    else:
+        try:
+            f = float(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name}: expected an integer, got {value!r}") from None
+        if not math.isfinite(f) or f != int(f):
+            raise ValueError(f"{name}: expected an integer, got {value!r}")
+        v = int(f)
+    if (low is not None and v < low) or (high is not None and v > high):
+        lo = "-inf" if low is None else str(low)
+        hi = "inf" if high is None else str(high)
+        raise ValueError(f"{name}: {v} is outside [{lo}, {hi}]")
+    return v
+
+
+def int_words(name: str, value, bits: int, signed: bool = True,
+              shape: tuple | None = None) -> np.ndarray:
+    """Raw ``bits``-bit register words as an int64 array: every value an integer (integral
+    floats accepted) inside the word's range (:func:`word_range`). NaN, inf, a fraction or a
+    value the register cannot hold is a ValueError naming ``name`` and the first bad index;
+    ``shape`` as in :func:`finite_array`."""
+    lo, hi = word_range(bits, signed)
+    a = np.asarray(value)
+    if a.dtype == np.bool_ or not (np.issubdtype(a.dtype, np.integer)
+                                   or np.issubdtype(a.dtype, np.floating)):
+        raise ValueError(f"{name}: expected integer words, got {a.dtype} values")
+    if shape is not None and (a.ndim != len(shape) or any(
+            s != -1 and s != d for s, d in zip(shape, a.shape, strict=True))):
+        want = " x ".join("N" if s == -1 else str(s) for s in shape)
+        raise ValueError(f"{name}: expected a {want} array, got shape {a.shape}")
+    if np.issubdtype(a.dtype, np.floating):
+        f = a.astype(np.float64)
+        bad = ~np.isfinite(f) | (f != np.floor(np.where(np.isfinite(f), f, 0.0)))
+        if bad.any():
+            idx = tuple(int(i) for i in np.argwhere(bad)[0])
+            where = f" at index {idx}" if a.ndim else ""
+            raise ValueError(f"{name}: expected integer words, got {f[idx].item()!r}{where}")
+        out_of = (f < lo) | (f > hi)
+    elif a.dtype == np.uint64:
+        out_of = a > np.uint64(hi) if hi >= 0 else np.ones(a.shape, bool)
+    else:
+        out_of = (a < lo) | (a > hi)
+    if np.any(out_of):
+        idx = tuple(int(i) for i in np.argwhere(out_of)[0])
+        where = f" at index {idx}" if a.ndim else ""
+        raise ValueError(f"{name}: {a[idx].item()!r}{where} does not fit a {bits}-bit "
+                         f"{'signed' if signed else 'unsigned'} word [{lo}, {hi}]")
+    return a.astype(np.int64)
+
+
+def flag(name: str, value) -> bool:
+    """A yes/no parameter: a bool (or the integers 0 and 1), never a string such as "no"."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)) and int(value) in (0, 1):
+        return bool(value)
+    raise ValueError(f"{name}: expected True or False, got {value!r}")

@@ -71,8 +71,8 @@ longest latency path from its issue to the segment's end, as
 follow it through the one write port (ranked by the earliest cycle their word can be ready)
 and a load the stores of its array that wait for it; stores then take their array's write
 port in the order their words are ready. Of that schedule and the greedy topological
-placement the shorter is kept (the critical path wins on every seed-000 segment measured:
-docs/seed000-loop-programs.md).
+placement the shorter is kept (the critical path has won on every client segment measured so
+far; the clients' documents give the figures).
 """
 
 from __future__ import annotations

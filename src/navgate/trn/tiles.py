@@ -91,6 +91,8 @@ class TileStore:
 
     def __init__(self, directory, cache_mb: float | None = None, priority: str = "check"):
         directory = Path(directory)
+        if directory.exists() and not directory.is_dir():
+            raise DemError(f"not a tile directory: {directory} (a file, a device or a FIFO)")
         if not directory.is_dir():
             raise DemError(f"tile directory not found: {directory}")
         if priority not in PRIORITIES:
@@ -407,7 +409,7 @@ def load_terrain(path=None, cache_mb: float | None = None, priority: str = "chec
 def split_dem(dem: Dem, rows: int, cols: int, out_dir: Path) -> list[Path]:
     """Cut ``dem`` into ``rows`` x ``cols`` GeoTIFF tiles that share their edge posts (as DTED
     and SRTM cells do), on exactly the DEM's own lattice; returns the files written."""
-    import rasterio
+    from rasterio.io import MemoryFile
     from rasterio.transform import Affine
 
     nrow, ncol = dem.shape
@@ -434,9 +436,13 @@ def split_dem(dem: Dem, rows: int, cols: int, out_dir: Path) -> list[Path]:
             path = out_dir / f"tile_r{a:0{width}d}_c{b:0{width}d}.tif"
             transform = Affine(dlon, 0.0, west + c0 * dlon if c0 else west,
                                0.0, -dlat, north - r0 * dlat if r0 else north)
-            with rasterio.open(path, "w", driver="GTiff", height=block.shape[0],
-                               width=block.shape[1], count=1, dtype="float64",
-                               crs="EPSG:4326", transform=transform, nodata=np.nan) as dst:
-                dst.write(block, 1)
+            # GDAL encodes the tile in memory and Python writes the bytes: GDAL's own file
+            # writer only logs a failed write (a full disk) and carries on, this raises it
+            with MemoryFile() as memory:
+                with memory.open(driver="GTiff", height=block.shape[0], width=block.shape[1],
+                                 count=1, dtype="float64", crs="EPSG:4326",
+                                 transform=transform, nodata=np.nan) as dst:
+                    dst.write(block, 1)
+                path.write_bytes(memory.read())
             written.append(path)
     return written

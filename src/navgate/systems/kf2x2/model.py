@@ -53,14 +53,38 @@ C12-C14) lie before this frame's K (C24) and H Pp H^T (C14) exist; with a memory
 2**shift = 32 frames the one-frame lag is immaterial (docs/seed004-kf2x2.md).
 Both are computed every frame and committed at the end of the frame only when the frame's
 ``adapt_q`` / ``adapt_r`` input is set (otherwise Q and R stay as they are).
+
+Guards (issue 31, :mod:`navgate.nav.validate`), by the kind of value:
+
+* Parameters (:class:`KfParams`) are integers in the gateware's ranges; 20.5, "3" or a bool
+  is a ``ValueError`` naming the field.
+* Raw words given to :func:`run_frame` / :func:`run_frames` (state and frame inputs) are
+  integers that fit Q(N, FRAC): NaN, 1.5 (once silently truncated to 1) or 2^30 is a
+  ``ValueError`` naming the word and the frame; a missing word is named the same way.
+* Overflow *inside* a frame is the filter's documented behaviour: saturated, and counted in
+  the ``overflow`` flag of the frame (the CLI's ``overflow_frames``), never refused.
+* Real values converted to Q(N, FRAC): the model's constants (A, B, H) and the initial state
+  (:func:`init_state`: x, P, Q, R) are configuration: a value the format cannot hold is a
+  ``ValueError`` naming it (silently saturating P = 1e9 would start a different filter).
+  Measurements and inputs (z, u in :func:`quantize_frames`) are data from a sensor: out of
+  range they saturate as an ADC does, counted per word and per frame
+  (:class:`QuantizedFrames`), so one spike does not stop a run. Non-finite values are a
+  ``ValueError`` in both cases.
+* Covariances (P, Q, R of :func:`init_state` and :func:`float_frame`) are symmetric positive
+  semi-definite; S = H Pp H^T + R must be invertible in the float64 reference (a singular S is
+  a ``ValueError`` naming R; the bit-true model flags it as ``div_zero``).
+* Scenario parameters (:func:`rlc_scenario`) are finite and physical: L, C and dt positive,
+  R and the noise levels non-negative, the noise step inside the run.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from navgate.nav import validate
 from navgate.numerics.goldschmidt import goldschmidt_normalised, goldschmidt_reciprocal
 
 __all__ = [
@@ -109,6 +133,11 @@ class KfParams:
     div_seed_bits: int = 8
 
     def __post_init__(self):
+        for name in ("n", "frac", "q_shift", "r_shift", "div_iterations", "div_seed_bits"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+                raise ValueError(f"{name}: expected an integer, got {value!r}")
+            object.__setattr__(self, name, int(value))
         if not 8 <= self.n <= 32:
             raise ValueError(f"n must be in [8, 32], got {self.n}")
         if not 1 <= self.frac <= self.n - 2:
@@ -278,6 +307,16 @@ def _sat(v: int, p: KfParams) -> tuple[int, bool]:
     return v, False
 
 
+def _raw_word(name: str, v, p: KfParams) -> int:
+    """A raw Q(N, FRAC) word: an integer (integral float accepted) in [min_int, max_int]."""
+    if type(v) is int and p.min_int <= v <= p.max_int:  # the common case, fast
+        return v
+    try:
+        return validate.integer(name, v, p.min_int, p.max_int)
+    except ValueError as error:
+        raise ValueError(f"{error} (a raw Q({p.n}, {p.frac}) word)") from None
+
+
 def run_frame(params: KfParams, state: dict, inputs: dict, adapt_q: bool = True,
               adapt_r: bool = True, program: list[Op] | None = None):
     """One frame of the bit-true model.
@@ -289,13 +328,13 @@ def run_frame(params: KfParams, state: dict, inputs: dict, adapt_q: bool = True,
     """
     prog = frame_program(params) if program is None else program
     env: dict[str, int] = {}
-    for name in STATE_NAMES:
-        env[name] = int(state[name])
-    for name in FRAME_INPUTS:
-        env[name] = int(inputs[name])
-    for name, v in env.items():
-        if not params.min_int <= v <= params.max_int:
-            raise ValueError(f"{name}={v} out of range for Q({params.n}, {params.frac})")
+    for what, names, words in (("state", STATE_NAMES, state), ("inputs", FRAME_INPUTS, inputs)):
+        for name in names:
+            try:
+                v = words[name]
+            except (KeyError, TypeError, IndexError):
+                raise ValueError(f"{what}: missing word {name!r}") from None
+            env[name] = _raw_word(f"{what}[{name!r}]", v, params)
     overflow = False
     div_zero = div_over = False
 
@@ -342,15 +381,41 @@ def run_frames(params: KfParams, init_state: dict, frames: list[dict],
     """Run the bit-true model over ``frames`` (dicts of :data:`FRAME_INPUTS`); returns a dict
     of int64 arrays: every state word after each frame, the gains ``k..`` and the flags."""
     prog = frame_program(params)
-    state = {k: int(init_state[k]) for k in STATE_NAMES}
+    adapt_q = validate.flag("adapt_q", adapt_q)
+    adapt_r = validate.flag("adapt_r", adapt_r)
+    state = check_state(params, init_state)
     rows = []
-    for fr in frames:
-        state, values, flags = run_frame(params, state, fr, adapt_q, adapt_r, prog)
+    for index, fr in enumerate(frames):
+        try:
+            state, values, flags = run_frame(params, state, fr, adapt_q, adapt_r, prog)
+        except ValueError as error:
+            raise ValueError(f"frames[{index}]: {error}") from None
         row = dict(state)
         row.update({k: values[k] for k in ("k00", "k01", "k10", "k11", "inv", "det")})
         row.update({k: int(v) for k, v in flags.items()})
         rows.append(row)
     return {k: np.array([r[k] for r in rows], dtype=np.int64) for k in rows[0]} if rows else {}
+
+
+def _missing(what: str, name: str):
+    raise ValueError(f"{what}: missing word {name!r}")
+
+
+def check_state(params: KfParams, state: dict, what: str = "init_state") -> dict:
+    """The state words (:data:`STATE_NAMES`) as ints, each a raw Q(N, FRAC) word."""
+    return {k: _raw_word(f"{what}[{k!r}]", state[k], params) if k in state
+            else _missing(what, k) for k in STATE_NAMES}
+
+
+def check_frames(params: KfParams, frames) -> list[dict]:
+    """The frames' input words (:data:`FRAME_INPUTS`) as ints, each a raw Q(N, FRAC) word;
+    a bad one is a ValueError naming the frame and the word."""
+    out = []
+    for index, fr in enumerate(frames):
+        out.append({k: _raw_word(f"frames[{index}]: inputs[{k!r}]", fr[k], params)
+                    if k in fr else _missing(f"frames[{index}]: inputs", k)
+                    for k in FRAME_INPUTS})
+    return out
 
 
 # ----------------------------------------------------------------------------- float64
@@ -359,15 +424,27 @@ def run_frames(params: KfParams, init_state: dict, frames: list[dict],
 def float_frame(params: KfParams, state: dict, A, B, H, u, z, adapt_q=True, adapt_r=True):
     """One frame of the float64 reference (matrix form, same adaptive scheme, real-valued
     weights 2**-shift). ``state``: dict with x (2,), P, Q, R (2, 2), dq (2,)."""
-    A, B, H = (np.asarray(m, dtype=float) for m in (A, B, H))
-    x, P, Q, R, dq = state["x"], state["P"], state["Q"], state["R"], state["dq"]
-    ep, gp = state.get("ep", np.zeros(2)), state.get("gp", np.zeros(2))
-    xp = A @ x + B @ np.asarray(u, dtype=float)
+    A, B, H = (validate.finite_array(n, m, (2, 2)) for n, m in (("A", A), ("B", B), ("H", H)))
+    u = validate.finite_array("u", u, (2,))
+    z = validate.finite_array("z", z, (2,))
+    for key in ("x", "P", "Q", "R", "dq"):
+        if key not in state:
+            raise ValueError(f"state: missing {key!r}")
+    x = validate.finite_array("state['x']", state["x"], (2,))
+    dq = validate.finite_array("state['dq']", state["dq"], (2,))
+    P, Q, R = (validate.covariance(f"state[{k!r}]", state[k], 2) for k in ("P", "Q", "R"))
+    ep = validate.finite_array("state['ep']", state.get("ep", np.zeros(2)), (2,))
+    gp = validate.finite_array("state['gp']", state.get("gp", np.zeros(2)), (2,))
+    xp = A @ x + B @ u
     Pp = A @ P @ A.T + Q
-    e = np.asarray(z, dtype=float) - H @ xp
+    e = z - H @ xp
     T = Pp @ H.T
     G = H @ T
     S = G + R
+    det = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+    if not abs(det) > 1e-12 * max(float(np.abs(S).max()) ** 2, np.finfo(float).tiny):
+        raise ValueError(f"state['R']: the innovation covariance H Pp H^T + R is singular "
+                         f"(det {det:.3g}); R must make it invertible")
     K = T @ np.linalg.inv(S)
     dx = K @ e
     xn = xp + dx
@@ -448,6 +525,26 @@ def rlc_scenario(frames: int = 4000, seed: int = 0, r_ohm: float = 1.0, l_h: flo
     1/sqrt(LC) = 1000 rad/s, damping 0.5, sqrt(L/C) = 1 ohm, so volts and amperes have the
     same scale.
     """
+    frames = validate.positive_int("frames", frames)
+    seed = validate.integer("seed", seed, 0)
+    r_ohm = validate.non_negative("r_ohm", r_ohm)
+    l_h = validate.positive("l_h", l_h)
+    c_f = validate.positive("c_f", c_f)
+    dt = validate.positive("dt", dt)
+    amplitude = validate.finite_scalar("amplitude", amplitude)
+    source_hz = validate.non_negative("source_hz", source_hz)
+    sigma_meas = validate.finite_array("sigma_meas", sigma_meas, (2,))
+    if (sigma_meas < 0).any():
+        raise ValueError(f"sigma_meas: must be non-negative, got {sigma_meas.tolist()}")
+    if step_frame is not None:
+        step_frame = validate.integer("step_frame", step_frame, 0, frames)
+    step_factor = validate.non_negative("step_factor", step_factor)
+    sigma_process = validate.non_negative("sigma_process", sigma_process)
+    # the exact discretisation exponentiates A_c dt: beyond |A_c dt| ~ 700 it overflows float64
+    stiff = dt * max(1.0 / c_f, 1.0 / l_h, r_ohm / l_h)
+    if stiff > 100.0:
+        raise ValueError(f"dt: {dt:g} s is {stiff:.3g} time constants of the circuit (at most "
+                         "100: the discrete model would over- or underflow)")
     rng = np.random.default_rng(seed)
     Ac = np.array([[0.0, 1.0 / c_f], [-1.0 / l_h, -r_ohm / l_h]])
     Bc = np.array([[0.0], [1.0 / l_h]])
@@ -475,38 +572,70 @@ def rlc_scenario(frames: int = 4000, seed: int = 0, r_ohm: float = 1.0, l_h: flo
                        q_true=np.eye(2) * sigma_process**2, x0=np.zeros(2), dt=dt)
 
 
-def quantize_frames(params: KfParams, scenario: RlcScenario) -> list[dict]:
-    """Frame inputs as raw Q(N, FRAC) integers (round to nearest, saturating)."""
-    def q(v):
-        r = int(np.floor(v * params.scale + 0.5))
-        return min(max(r, params.min_int), params.max_int)
+class QuantizedFrames(list):
+    """The frames of :func:`quantize_frames` (a list of dicts of raw words) and what the
+    conversion saturated: ``saturated`` words, ``saturated_frames`` (their frame indices)."""
 
+    saturated: int = 0
+    saturated_frames: tuple = ()
+
+
+def _to_raw(name: str, v: float, params: KfParams) -> int:
+    """A real value as a raw Q(N, FRAC) word (round half up); out of range is a ValueError."""
+    v = validate.finite_scalar(name, v)
+    r = math.floor(v * params.scale + 0.5)
+    if not params.min_int <= r <= params.max_int:
+        raise ValueError(f"{name}: {v:g} does not fit Q({params.n}, {params.frac}) "
+                         f"[{params.min_int / params.scale:g}, {params.max_int / params.scale:g}]")
+    return r
+
+
+def quantize_frames(params: KfParams, scenario: RlcScenario) -> QuantizedFrames:
+    """Frame inputs as raw Q(N, FRAC) integers (round to nearest).
+
+    A, B, H (the model) must fit the format (a ``ValueError`` naming the entry otherwise);
+    the source u and the measurements z saturate like an ADC, counted in the result's
+    ``saturated`` and ``saturated_frames``. Non-finite values are a ``ValueError``."""
     const = {}
     for name, M in (("A", scenario.A), ("B", scenario.B), ("H", scenario.H)):
+        M = validate.finite_array(f"scenario.{name}", M, (2, 2))
         for i in (0, 1):
             for j in (0, 1):
-                const[f"{name}{i}{j}"] = q(M[i, j])
-    out = []
-    for k in range(scenario.frames):
+                const[f"{name}{i}{j}"] = _to_raw(f"scenario.{name}[{i}, {j}]", M[i, j], params)
+    u = validate.finite_array("scenario.u", scenario.u, (-1, 2))
+    z = validate.finite_array("scenario.z", scenario.z, (-1, 2))
+    if len(u) != len(z):
+        raise ValueError(f"scenario.z: {len(z)} frames, scenario.u has {len(u)}")
+    raw = np.floor(np.column_stack([u, z]) * params.scale + 0.5)
+    clipped = np.clip(raw, params.min_int, params.max_int)
+    hit = clipped != raw
+    words = clipped.astype(np.int64).tolist()
+    out = QuantizedFrames()
+    for k in range(len(u)):
         fr = dict(const)
-        fr.update(u0=q(scenario.u[k, 0]), u1=q(scenario.u[k, 1]),
-                  z0=q(scenario.z[k, 0]), z1=q(scenario.z[k, 1]))
+        fr.update(zip(("u0", "u1", "z0", "z1"), words[k], strict=True))
         out.append(fr)
+    out.saturated = int(hit.sum())
+    out.saturated_frames = tuple(int(k) for k in np.flatnonzero(hit.any(axis=1)))
     return out
 
 
 def init_state(params: KfParams, x=(0.0, 0.0), P=(1.0, 0.0, 1.0), Q=(0.01, 0.0, 0.01),
                R=(0.25, 0.0, 0.25)) -> dict:
-    """Raw initial state from real values (P, Q, R as (00, 01, 11))."""
-    def q(v):
-        return min(max(int(np.floor(v * params.scale + 0.5)), params.min_int), params.max_int)
+    """Raw initial state from real values (P, Q, R as (00, 01, 11)).
 
-    st = {"x0": q(x[0]), "x1": q(x[1]), "dq0": 0, "dq1": 0, "ep0": 0, "ep1": 0, "gp00": 0,
-          "gp11": 0}
+    Every value must fit Q(N, FRAC) (a ``ValueError`` naming it, never a silent saturation)
+    and P, Q, R must be symmetric positive semi-definite."""
+    x = validate.finite_array("x", x, (2,))
+    st = {"x0": _to_raw("x[0]", x[0], params), "x1": _to_raw("x[1]", x[1], params),
+          "dq0": 0, "dq1": 0, "ep0": 0, "ep1": 0, "gp00": 0, "gp11": 0}
     for name, vals in (("P", P), ("Q", Q), ("R", R)):
-        for key, v in zip(("00", "01", "11"), vals, strict=True):
-            st[name + key] = q(v)
+        a, b, c = validate.finite_array(name, vals, (3,))
+        validate.covariance(f"{name} (00, 01, 11)", [[a, b], [b, c]], 2)
+        for key, v in zip(("00", "01", "11"), (a, b, c), strict=True):
+            st[name + key] = _to_raw(f"{name}{key}", v, params)
     return st
 
 
-__all__ += ["init_state", "COMMIT", "reciprocal"]
+__all__ += ["init_state", "COMMIT", "reciprocal", "QuantizedFrames", "check_state",
+            "check_frames"]

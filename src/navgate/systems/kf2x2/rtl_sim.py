@@ -16,7 +16,14 @@ from __future__ import annotations
 import numpy as np
 
 from navgate.gateware import verify as _verify
-from navgate.systems.kf2x2.model import FRAME_INPUTS, STATE_NAMES, KfParams, run_frame
+from navgate.systems.kf2x2.model import (
+    FRAME_INPUTS,
+    STATE_NAMES,
+    KfParams,
+    check_frames,
+    check_state,
+    run_frame,
+)
 from navgate.systems.kf2x2.top import GAIN_NAMES, INIT_NAMES, Kf2x2Stream
 
 __all__ = ["frame_vectors", "stream_model", "verify_frames"]
@@ -68,6 +75,8 @@ def verify_frames(params: KfParams, init: dict, frames: list[dict], *, adapt_q: 
                   keep_outputs: bool = False, **kwargs):
     """Run ``frames`` through the gateware (``backend`` "amaranth" or "verilator") and the
     bit-true model; returns the harness's ``VerifyResult``."""
+    init = check_state(params, init, "init")  # raw words of the format, before any build
+    frames = check_frames(params, frames)
     dut = Kf2x2Stream(n=params.n, frac=params.frac, q_shift=params.q_shift,
                       r_shift=params.r_shift, div_iterations=params.div_iterations,
                       div_seed_bits=params.div_seed_bits)

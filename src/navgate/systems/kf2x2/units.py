@@ -177,6 +177,11 @@ class GoldschmidtSerial(wiring.Component):
     """
 
     def __init__(self, n: int = 20, frac: int = 10, iterations: int = 1, seed_bits: int = 8):
+        from navgate.systems.kf2x2.model import KfParams
+
+        # the filter's own parameter checks (ValueError naming the field): n in [8, 32],
+        # frac in [1, n - 2], iterations in [1, 4], seed_bits in [0, min(8, n - 1)]
+        KfParams(n=n, frac=frac, div_iterations=iterations, div_seed_bits=seed_bits)
         self.n, self.frac, self.iterations, self.seed_bits = n, frac, iterations, seed_bits
         self.F = n
         self.offsets, self.LATENCY = divider_plan(iterations)

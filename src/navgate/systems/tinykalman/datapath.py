@@ -36,6 +36,7 @@ from amaranth.lib import data, enum, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.cordic import CordicAtan2Iterative
+from navgate.nav import validate
 from navgate.systems.tinykalman.model import ANGLE_BITS, ITERATIONS, WIDTH
 
 __all__ = ["TinyKalmanCordic", "KalmanSteady", "TinyKalmanDatapath", "CORDIC_LATENCY"]
@@ -139,7 +140,7 @@ class KalmanSteady(wiring.Component):
 
     def __init__(self, rate_shift: int = 6, k_shift: int = 6):
         for name, v in (("rate_shift", rate_shift), ("k_shift", k_shift)):
-            if not isinstance(v, int) or not 0 <= v <= 15:
+            if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= 15:
                 raise ValueError(f"KalmanSteady: {name} must be an integer in [0, 15], got {v!r}")
         self.rate_shift = rate_shift
         self.k_shift = k_shift
@@ -208,7 +209,12 @@ class TinyKalmanDatapath(wiring.Component):
         #: ``held_input`` (serial chip only): the producer (the SPI master's word register)
         #: holds ``i.payload`` until the output is taken, so gx, gy, ok and ax are read from it
         #: and not copied into registers here
-        self.held_input = held_input
+        self.held_input = held_input = validate.flag("TinyKalmanDatapath: held_input",
+                                                     held_input)
+        if angles_cls is not None and not (isinstance(angles_cls, type) and issubclass(
+                angles_cls, wiring.Component) and hasattr(angles_cls, "LATENCY")):
+            raise ValueError("TinyKalmanDatapath: angles_cls must be an angle block class "
+                             f"(TinyKalmanSerialCordic), got {angles_cls!r}")
         if held_input and angles_cls is None:
             raise ValueError("TinyKalmanDatapath: held_input needs the serial angle block")
         if angles_cls is not None:

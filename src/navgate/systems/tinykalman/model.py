@@ -28,6 +28,13 @@ Datapath (all integers; ``>>>`` is the arithmetic shift, floor):
   so the innovation is the shortest angular difference):
   ``pred = angle + (rate >>> 6)``; ``angle = pred + ((meas - pred) >>> 6)``.
   Roll uses gyro x, pitch gyro y (upstream ``S_UPDATE_K``).
+* Guards (issue 31, :mod:`navgate.nav.validate`): every word argument is an integer that fits
+  its 16-bit register (NaN, inf, 2.5 or 40000 is a ``ValueError`` naming the argument,
+  never a silent truncation or a 17th bit); the gain shifts are integers in [0, 15] (the
+  hardware's :class:`~navgate.systems.tinykalman.datapath.KalmanSteady` limits); the word
+  sequences of one call have one length. Overflow *inside* the chain is the chip's own
+  behaviour and is counted, not refused: ``mag_yz`` saturation (``mag_saturations``) and
+  the MPU words' saturation (:class:`navgate.systems.tinykalman.run.Words.saturated`).
 * UART packet: 6 bytes ``DE AD roll_hi roll_lo pitch_hi pitch_lo`` (:func:`encode_packet`),
   8N1 frames LSB first at 9600 baud (:func:`uart_frame_bits`). The seed's prose says
   8-byte packets but its table lists 6 bytes and the upstream FSM sends 6 (``uart_cnt``
@@ -53,6 +60,7 @@ from navgate.devices.mpu6500 import (
     Mpu6500,
     decode_burst,
 )
+from navgate.nav import validate
 from navgate.numerics.cordic import cordic_vectoring
 
 # The MPU-6500's facts and register model live in navgate.devices.mpu6500 (one place); they are
@@ -63,6 +71,7 @@ __all__ = [
     "ANGLE_BITS", "BAM_PER_DEG", "accel_angles", "kalman_step", "HEADER", "PACKET_LEN", "BAUD",
     "encode_packet", "DecodeStats", "PacketDecoder", "decode_stream", "uart_frame_bits",
     "uart_decode_bits", "bam_to_deg", "TinyKalmanState", "TinyKalman", "run_sequence",
+    "gain_shift",
 ]
 
 # ------------------------------------------------------------------------------- angles
@@ -82,11 +91,9 @@ def _wrap16(v):
 def accel_angles(ax, ay, az):
     """(roll_m, pitch_m, mag_yz, mag_saturated) binary angles from accelerometer words.
 
-    Vectorised over arrays of int16 words.
+    Vectorised over arrays of int16 words (of one shape).
     """
-    ax = np.asarray(ax, dtype=np.int64)
-    ay = np.asarray(ay, dtype=np.int64)
-    az = np.asarray(az, dtype=np.int64)
+    ax, ay, az = _words16(ax=ax, ay=ay, az=az)
     mag, roll = cordic_vectoring(az >> 1, ay >> 1, WIDTH, ITERATIONS, angle_bits=ANGLE_BITS)
     mag = np.asarray(mag)
     sat = mag > 32767
@@ -96,11 +103,31 @@ def accel_angles(ax, ay, az):
     return np.asarray(roll), np.asarray(pitch), mag, sat
 
 
+def _words16(**named) -> list[np.ndarray]:
+    """Each argument as int16 words (:func:`navgate.nav.validate.int_words`), all of one
+    shape (a ValueError naming the first that differs)."""
+    words = [validate.int_words(name, v, WIDTH) for name, v in named.items()]
+    names = list(named)
+    for name, w in zip(names[1:], words[1:], strict=True):
+        if w.shape != words[0].shape:
+            raise ValueError(f"{name}: shape {w.shape} differs from {names[0]}'s "
+                             f"{words[0].shape}")
+    return words
+
+
+def gain_shift(name: str, value) -> int:
+    """A shift of the steady-state filter (gain 2^-shift): an integer in [0, 15], as the
+    gateware's :class:`~navgate.systems.tinykalman.datapath.KalmanSteady` accepts."""
+    return validate.integer(name, value, 0, WIDTH - 1)
+
+
 def kalman_step(angle, rate, meas, rate_shift: int = 6, k_shift: int = 6):
     """One steady-state Kalman update on 16-bit words (vectorised)."""
-    angle = np.asarray(angle, dtype=np.int64)
-    pred = _wrap16(angle + (np.asarray(rate, dtype=np.int64) >> rate_shift))
-    innov = _wrap16(np.asarray(meas, dtype=np.int64) - pred)
+    rate_shift = gain_shift("rate_shift", rate_shift)
+    k_shift = gain_shift("k_shift", k_shift)
+    angle, rate, meas = _words16(angle=angle, rate=rate, meas=meas)
+    pred = _wrap16(angle + (rate >> rate_shift))
+    innov = _wrap16(meas - pred)
     return _wrap16(pred + (innov >> k_shift))
 
 
@@ -113,9 +140,9 @@ BAUD = 9600
 
 def encode_packet(roll: int, pitch: int) -> bytes:
     """DE AD roll(big-endian int16) pitch(big-endian int16)."""
-    for name, v in (("roll", roll), ("pitch", pitch)):
-        if not -32768 <= int(v) <= 32767:
-            raise ValueError(f"{name} {v} does not fit a signed 16-bit word")
+    lo, hi = validate.word_range(WIDTH)
+    roll = validate.integer("roll", roll, lo, hi)
+    pitch = validate.integer("pitch", pitch, lo, hi)
     return HEADER + int(roll).to_bytes(2, "big", signed=True) + int(pitch).to_bytes(
         2, "big", signed=True)
 
@@ -141,6 +168,8 @@ class PacketDecoder:
     _buf: bytearray = field(default_factory=bytearray)
 
     def feed(self, data: bytes) -> list[tuple[int, int]]:
+        if not isinstance(data, (bytes, bytearray, memoryview)):
+            raise ValueError(f"data: expected bytes, got {type(data).__name__}")
         self._buf += data
         out = []
         while True:
@@ -168,6 +197,8 @@ class PacketDecoder:
 
 def decode_stream(data: bytes) -> tuple[list[tuple[int, int]], DecodeStats]:
     """Decode a whole byte stream; returns the (roll, pitch) words and the statistics."""
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise ValueError(f"data: expected bytes, got {type(data).__name__}")
     dec = PacketDecoder()
     out = dec.feed(data)
     dec.close()
@@ -177,6 +208,8 @@ def decode_stream(data: bytes) -> tuple[list[tuple[int, int]], DecodeStats]:
 def uart_frame_bits(data: bytes) -> list[int]:
     """Line levels of 8N1 frames, one entry per bit time: start 0, 8 data bits LSB first,
     stop 1 (what ``uart_tx`` drives)."""
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise ValueError(f"data: expected bytes, got {type(data).__name__}")
     bits = []
     for byte in data:
         bits.append(0)
@@ -188,6 +221,9 @@ def uart_frame_bits(data: bytes) -> list[int]:
 def uart_decode_bits(bits) -> bytes:
     """Inverse of :func:`uart_frame_bits` for an ideal line (framing errors raise)."""
     bits = list(bits)
+    bad = next((k for k, b in enumerate(bits) if isinstance(b, str) or b not in (0, 1)), None)
+    if bad is not None:
+        raise ValueError(f"bits: a line level is 0 or 1, got {bits[bad]!r} at bit {bad}")
     if len(bits) % 10:
         raise ValueError("8N1 stream length must be a multiple of 10 bit times")
     out = bytearray()
@@ -229,6 +265,9 @@ class TinyKalman:
 
     def step(self, burst: bytes, who_am_i: int = WHO_AM_I_VALUE) -> bytes:
         s = self.state
+        who_am_i = validate.integer("who_am_i", who_am_i, 0, 255)  # the byte the chip read
+        if not isinstance(burst, (bytes, bytearray, memoryview)):
+            raise ValueError(f"burst: expected bytes, got {type(burst).__name__}")
         if who_am_i != WHO_AM_I_VALUE:
             s.sensor_faults += 1
             return encode_packet(s.roll, s.pitch)
@@ -245,14 +284,23 @@ def run_sequence(ax, ay, az, gx, gy, valid=None):
     (roll_est, pitch_est, roll_m, pitch_m) arrays. Same arithmetic as :class:`TinyKalman`;
     ``valid`` (bool array, default all true) marks the samples whose WHO_AM_I check passed,
     the others hold the state."""
+    ax, ay, az, gx, gy = _words16(ax=ax, ay=ay, az=az, gx=gx, gy=gy)
+    if ax.ndim != 1:
+        raise ValueError(f"ax: expected a 1-D sequence of words, got shape {ax.shape}")
     roll_m, pitch_m, _, _ = accel_angles(ax, ay, az)
     n = len(roll_m)
     roll = np.empty(n, dtype=np.int64)
     pitch = np.empty(n, dtype=np.int64)
     r = p = 0
-    gx = np.asarray(gx, dtype=np.int64)
-    gy = np.asarray(gy, dtype=np.int64)
-    ok = np.ones(n, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+    if valid is None:
+        ok = np.ones(n, dtype=bool)
+    else:
+        ok = np.asarray(valid)
+        if ok.dtype != np.bool_:  # 0/1 flags as integers (the gateware's ok bit)
+            ok = validate.int_words("valid", ok, 1, signed=False)
+        if ok.shape != (n,):
+            raise ValueError(f"valid: shape {ok.shape} differs from the words' {(n,)}")
+        ok = ok.astype(bool)
     for k in range(n):
         if not ok[k]:
             roll[k] = r

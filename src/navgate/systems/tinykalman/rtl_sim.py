@@ -38,6 +38,7 @@ from navgate.devices.mpu6500 import (
     Mpu6500Bus,
     SpiTiming,
 )
+from navgate.nav import validate
 from navgate.systems.tinykalman.model import PACKET_LEN, TinyKalman
 from navgate.systems.tinykalman.top import TT_MODULE_NAME, TinyKalmanTop, min_sample_period
 
@@ -94,8 +95,8 @@ def expected_stream(log, n_samples: int | None = None) -> tuple[bytes, list[int]
     out = bytearray()
     whos = []
     pairs = [(log[k], log[k + 1]) for k in range(0, len(log) - 1, 2)]
-    if n_samples is not None:
-        pairs = pairs[:n_samples]
+    if n_samples is not None:  # (-1 once meant "all but the last")
+        pairs = pairs[:validate.integer("n_samples", n_samples, 0)]
     for (a0, r0, b0), (a1, r1, b1) in pairs:
         if not (a0 == REG["WHO_AM_I"] and r0 and a1 == REG["ACCEL_XOUT_H"] and r1
                 and len(b0) == 2 and len(b1) == 1 + BURST_LEN):
@@ -151,6 +152,13 @@ def run_amaranth(samples, n_samples: int, config: SimConfig = FAST, *,
                  max_cycles: int | None = None) -> RtlRun:
     """Run ``n_samples`` sample periods of the chip in Amaranth's simulator."""
     from amaranth.sim import Simulator
+
+    n_samples = validate.positive_int("n_samples", n_samples)
+    if isinstance(samples, (list, tuple, np.ndarray)) and not any(
+            isinstance(s, dict) for s in samples):  # (an iterator is read lazily, as it runs)
+        validate.int_words("samples", [list(s) for s in samples], 16, shape=(-1, 7))
+    if max_cycles is not None:
+        max_cycles = validate.positive_int("max_cycles", max_cycles)
 
     top = config.top()
     dev = _device(samples, timing)
@@ -269,12 +277,14 @@ def run_verilator(samples, n_samples: int, config: SimConfig = FAST, *,
 
     from navgate.gateware.verify import VerifyError, _verilator_path
 
+    n_samples = validate.positive_int("n_samples", n_samples)
     build_dir = build_verilator(config)
     cleanup = work_dir is None
     work = Path(work_dir) if work_dir is not None else Path(tempfile.mkdtemp(prefix="tk-vl-"))
     work.mkdir(parents=True, exist_ok=True)
     try:
-        words = np.asarray([list(s) for s in samples], dtype=np.int64).reshape(-1, 7)
+        words = validate.int_words("samples", [list(s) for s in samples], 16,
+                                   shape=(-1, 7))
         np.savetxt(work / "samples.txt", words, fmt="%d")
         job = {
             "samples": str(work / "samples.txt"), "n_samples": int(n_samples),
@@ -338,7 +348,14 @@ def datapath_inputs(words, ok=None) -> dict:
     """Input arrays of the data path block from :class:`~.run.Words`."""
     n = len(words)
     d = {k: words.column(k) for k in ("ax", "ay", "az", "gx", "gy")}
-    d["ok"] = np.ones(n, np.int64) if ok is None else np.asarray(ok, np.int64)
+    if ok is None:
+        d["ok"] = np.ones(n, np.int64)
+    else:
+        ok = np.asarray(ok)
+        d["ok"] = (ok.astype(np.int64) if ok.dtype == np.bool_
+                   else validate.int_words("ok", ok, 1, signed=False))
+        if d["ok"].shape != (n,):
+            raise ValueError(f"ok: shape {d['ok'].shape} differs from the words' {(n,)}")
     return d
 
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navgate.devices.mpu6500 import BURST_WORDS, encode_accel, encode_gyro, encode_temp
+from navgate.nav import validate
 from navgate.sim.imu_log import G0
 
 __all__ = ["Words", "words_from_imu", "synthetic_motion", "model_stream", "AXES"]
@@ -44,13 +45,16 @@ class Words:
 
 
 def words_from_imu(acc_ms2, gyro_rad_s, frd: bool = False) -> Words:
-    """Accelerometer (m/s^2) and gyro (rad/s) arrays (N, 3) -> MPU-6500 words."""
-    acc = np.asarray(acc_ms2, dtype=np.float64) / G0
-    dps = np.degrees(np.asarray(gyro_rad_s, dtype=np.float64))
-    if acc.shape != dps.shape or acc.ndim != 2 or acc.shape[1] != 3:
-        raise ValueError("accelerometer and gyro must be (N, 3) arrays of the same length")
-    if not (np.isfinite(acc).all() and np.isfinite(dps).all()):
-        raise ValueError("non-finite IMU values")
+    """Accelerometer (m/s^2) and gyro (rad/s) arrays (N, 3) -> MPU-6500 words.
+
+    NaN/inf or a wrong shape is a ValueError naming the argument; a finite value beyond the
+    part's full scale (even 1e300) saturates its word and is counted (:attr:`Words.saturated`),
+    as the real part clips."""
+    acc = validate.finite_array("acc_ms2", acc_ms2, (-1, 3)) / G0
+    dps = np.degrees(validate.finite_array("gyro_rad_s", gyro_rad_s, (-1, 3)))
+    if acc.shape != dps.shape:
+        raise ValueError(f"gyro_rad_s: {len(dps)} samples, acc_ms2 has {len(acc)}")
+    frd = validate.flag("frd", frd)
     if frd:
         flip = np.array([1.0, -1.0, -1.0])
         acc, dps = acc * flip, dps * flip
@@ -82,6 +86,9 @@ def synthetic_motion(n: int, seed: int = 0, rate_hz: float = 100.0) -> Words:
     shocks of 2.2 g on y and z (accelerometer words and mag_yz saturate), and 0.01 g
     noise.
     """
+    n = validate.positive_int("n", n)
+    rate_hz = validate.positive("rate_hz", rate_hz)
+    seed = validate.integer("seed", seed, 0)
     rng = np.random.default_rng(seed)
     t = np.arange(n) / rate_hz
     roll = np.radians(200.0 * np.sin(2 * math.pi * 0.05 * t) + 20 * np.sin(2 * math.pi * 0.7 * t))
@@ -104,6 +111,8 @@ def synthetic_motion(n: int, seed: int = 0, rate_hz: float = 100.0) -> Words:
 
 def model_stream(words: Words) -> bytes:
     """The UART byte stream of the integer model for a word sequence (good sensor)."""
+    if not isinstance(words, Words):
+        raise ValueError(f"words: expected a Words, got {type(words).__name__}")
     from navgate.systems.tinykalman.model import encode_packet, run_sequence
 
     roll, pitch, _, _ = run_sequence(words.column("ax"), words.column("ay"),

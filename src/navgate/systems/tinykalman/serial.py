@@ -56,6 +56,7 @@ from amaranth.lib import data, enum, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.parameters import CheckedParameters
+from navgate.nav import validate
 from navgate.numerics.cordic import atan_table
 from navgate.systems.tinykalman.datapath import DATAPATH_IN
 from navgate.systems.tinykalman.model import ANGLE_BITS, ITERATIONS, WIDTH
@@ -109,6 +110,8 @@ class TinyKalmanSerialCordic(CheckedParameters, wiring.Component):
 
     @classmethod
     def check_parameters(cls, held_input, spi_fed):
+        held_input = validate.flag(f"{cls.__name__}: held_input", held_input)
+        spi_fed = validate.flag(f"{cls.__name__}: spi_fed", spi_fed)
         if spi_fed and not held_input:
             raise ValueError(f"{cls.__name__}: spi_fed needs held_input")
 

@@ -48,6 +48,7 @@ BURST_BITS = 8 * (1 + BURST_LEN)  # 120
 
 def spi_cycles(spi_div: int) -> int:
     """System clocks from ``start`` to the result (see the module docstring)."""
+    Mpu6500Spi.check_parameters(spi_div, False, ())  # spi_div 0 once gave 1 clock
     return 1 + ((3 + 2 * WHO_BITS) + (3 + 2 * BURST_BITS)) * spi_div
 
 

@@ -46,6 +46,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.parameters import CheckedParameters
+from navgate.nav import validate
 from navgate.systems.tinykalman.datapath import CORDIC_LATENCY, TinyKalmanDatapath
 from navgate.systems.tinykalman.model import HEADER, PACKET_LEN, WHO_AM_I_VALUE
 from navgate.systems.tinykalman.serial import (
@@ -105,6 +106,7 @@ def lfsr_timer(period: int) -> tuple[int, tuple[int, ...], int, int]:
     (:data:`LFSR_TAPS`) whose sequence from ``seed = 1`` does not come back to the seed within
     ``period`` states; ``last`` is state ``period - 1``, after which the timer reloads the
     seed (so the period is exactly ``period`` clocks)."""
+    period = validate.integer("lfsr_timer: period", period, 2)
     width = next((n for n in sorted(LFSR_TAPS) if (1 << n) - 1 >= period), None)
     if width is None:
         raise ValueError(f"lfsr_timer: period {period} is longer than the widest LFSR")
@@ -122,6 +124,7 @@ def lfsr_timer(period: int) -> tuple[int, tuple[int, ...], int, int]:
 
 def min_sample_period(spi_div: int, baud_div: int, variant: str = "parallel") -> int:
     """Shortest sample period for which a sample's packet is sent before the next starts."""
+    UartPacketTx.check_parameters(PACKET_LEN, baud_div)  # (spi_div: spi_cycles checks it)
     return spi_cycles(spi_div) + datapath_latency(variant) + 7 + 10 * PACKET_LEN * baud_div
 
 
@@ -130,6 +133,8 @@ def timing(spi_div: int = DEFAULT_SPI_DIV, baud_div: int = BAUD_DIV_9600_AT_10MH
            variant: str = "parallel") -> dict:
     """Per-sample schedule in clocks (and seconds): SPI, latency from CS_N rising to the first
     start bit, packet time, busy time and the slack inside the sample period."""
+    _check_chip(spi_div, baud_div, sample_period, variant)  # spi_div 0 divided by zero
+    clk_hz = validate.integer("clk_hz", clk_hz, 1)
     spi = spi_cycles(spi_div)
     # the parallel chip registers the packet before its UART takes the first byte; the serial
     # chip's UART starts on the data path's valid output

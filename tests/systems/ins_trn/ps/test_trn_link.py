@@ -694,3 +694,14 @@ def test_bad_realtime_options_are_one_line_exit_2(navgate_run, tmp_path):
         code, _, err = navgate_run(["fly", "--duration", "5", *args, "--out", tmp_path])
         assert code == 2, err
         assert needle in navgate_run.one_line(err)
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    ({"timeout_s": 1e10}, "timeout_s"),     # overflowed time_t deep in the socket layer
+    ({"timeout_s": 0.0}, "timeout_s"), ({"timeout_s": math.nan}, "timeout_s"),
+    ({"heartbeat_s": 1e300}, "heartbeat_s"), ({"heartbeat_s": -1.0}, "heartbeat_s"),
+])
+def test_link_waits_are_bounded(kwargs, name):
+    """Reply timeouts and heartbeat periods up to an hour (issue 31, round 2)."""
+    with pytest.raises(ValueError, match=f"^{name}"):
+        TrnLink("tcp://127.0.0.1:1", **kwargs)

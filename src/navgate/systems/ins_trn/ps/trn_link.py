@@ -71,16 +71,22 @@ def parse_spec(spec: str) -> tuple:
                     f"got {spec!r}")
 
 
+#: the longest wait (reply timeout, heartbeat period) a link accepts, in seconds
+MAX_WAIT_S = 3600.0
+
+
 class TrnLink:
     """A connection to a TRN service, with counters for the flight's summary."""
 
     def __init__(self, spec: str, *, terrain_path=None, cache_mb: float | None = None,
                  timeout_s: float = 5.0, retries: int = 2, faults: FaultInjector | None = None,
                  fragment_bytes: int = messages.FRAGMENT_BYTES, heartbeat_s: float = 0.0):
-        if not (math.isfinite(timeout_s) and timeout_s > 0):
-            raise ValueError(f"timeout_s must be positive, got {timeout_s!r}")
-        if not (math.isfinite(heartbeat_s) and heartbeat_s >= 0):
-            raise ValueError(f"heartbeat_s must be >= 0, got {heartbeat_s!r}")
+        # at most an hour: a socket timeout of 1e10 s overflowed the platform's time_t
+        if not (math.isfinite(timeout_s) and 0 < timeout_s <= MAX_WAIT_S):
+            raise ValueError(f"timeout_s must lie in (0, {MAX_WAIT_S:g}] s, got {timeout_s!r}")
+        if not (math.isfinite(heartbeat_s) and 0 <= heartbeat_s <= MAX_WAIT_S):
+            raise ValueError(f"heartbeat_s must lie in [0, {MAX_WAIT_S:g}] s, got "
+                             f"{heartbeat_s!r}")
         self.spec = spec
         self.kind = parse_spec(spec)
         self.terrain_path = terrain_path
