@@ -179,10 +179,16 @@ def test_verilator_detects_stream_rule_violation(tmp_path):
 
 
 def test_verilator_build_is_cached(tmp_path, monkeypatch):
-    monkeypatch.setenv("NAVGATE_VERILATOR_CACHE", str(tmp_path / "cache"))
-    text = V.emit_verilog(AddPipe(), "addpipe")
-    first = V._build_model(text, "addpipe")
-    assert (first / "navgate_build.ok").exists() and (first / "addpipe").exists()
+    """A second build of the same Verilog finds the first one's model without running
+    Verilator, and the harness simulates from the cache. The design and top are those of
+    test_verilator_matches_amaranth_cycle_for_cycle, so the suite compiles this model once
+    (issue 32; it used to build its own in a temporary cache on every run). The first call
+    may itself find the model (another test or an earlier run built it); what is checked is
+    that the second never builds."""
+    text = V.emit_verilog(AddPipe(bug=0x33), "dut")
+    first = V._build_model(text, "dut")
+    assert (first / "navgate_build.ok").exists() and (first / "dut").exists()
+    assert first.name == f"dut-{V.model_key(text, 'dut')}"
 
     import cocotb_tools.runner
 
@@ -190,12 +196,33 @@ def test_verilator_build_is_cached(tmp_path, monkeypatch):
         raise AssertionError("rebuilt although cached")
 
     monkeypatch.setattr(cocotb_tools.runner, "get_runner", no_build)
-    assert V._build_model(text, "addpipe") == first
+    assert V._build_model(text, "dut") == first
     monkeypatch.undo()
-    monkeypatch.setenv("NAVGATE_VERILATOR_CACHE", str(tmp_path / "cache"))
-    res = V.verify(AddPipe(), _add_model, _vectors(100, 10), backend="verilator",
-                   top="addpipe", work_dir=tmp_path / "w")
-    res.assert_ok()
+    vec = _vectors(100, 10)
+    vec["a"][::7] = 0x33
+    res = V.verify(AddPipe(bug=0x33), _add_model, vec, backend="verilator",
+                   work_dir=tmp_path / "w")
+    assert res.n_mismatches == int(np.sum(vec["a"] == 0x33)) > 0
+
+
+def test_build_clock_counts_the_children_cpu_and_names_the_test(tmp_path, monkeypatch):
+    """The build record (:data:`V.BUILD_RECORD`, read by benchmarks/bench_verilator_models.py)
+    holds the CPU seconds of the build's child processes, which a child that burns about
+    0.3 s of CPU shows, and the test that asked for the build."""
+    import json
+    import subprocess
+    import sys
+
+    monkeypatch.setenv("PYTEST_CURRENT_TEST", "tests/x.py::test_y (call)")
+    burn = "import time\nt = time.process_time()\nwhile time.process_time() - t < 0.3: pass"
+    with V.build_clock("top", "k" * 24, "cocotb", "module top; endmodule") as record:
+        subprocess.run([sys.executable, "-c", burn], check=True)
+    V.record_build(tmp_path, record)
+    got = json.loads((tmp_path / V.BUILD_RECORD).read_text())
+    assert got["cpu_s"] >= 0.29 and got["wall_s"] >= 0.29
+    assert got["test"] == "tests/x.py::test_y" and got["top"] == "top"
+    assert got["verilog_bytes"] == len("module top; endmodule")
+    V.record_build(tmp_path / "absent", record)  # a model dir that vanished: no error
 
 
 def test_lint_reports_unwaived_warning_and_passes_clean_code(tmp_path):
@@ -209,3 +236,19 @@ def test_lint_reports_unwaived_warning_and_passes_clean_code(tmp_path):
     good = tmp_path / "addpipe.v"
     good.write_text(V.emit_verilog(AddPipe(), "addpipe"))
     assert V.lint_verilog(good) == []
+
+
+def test_native_back_end_refuses_random_gaps_and_verify_names_it():
+    """``native_stream.simulate_native_stream`` as ``verify``'s back end: random valid/ready
+    gaps are refused before anything is built (the native server offers every input at
+    once); an unknown back-end name is refused too."""
+    from navgate.gateware.native_stream import simulate_native_stream
+
+    duts = [AddPipe(), AddPipe()]
+    for dut in duts:
+        V.not_elaborated(dut)  # refused before elaboration
+    with pytest.raises(ValueError, match="random valid/ready gaps"):
+        V.verify(duts[0], _add_model, _vectors(10, 1), backend=simulate_native_stream,
+                 ready_prob=0.5)
+    with pytest.raises(ValueError, match="unknown backend 'icarus'"):
+        V.verify(duts[1], _add_model, _vectors(10, 1), backend="icarus")

