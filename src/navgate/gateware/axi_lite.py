@@ -53,6 +53,7 @@ from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware.parameters import CheckedParameters
 from navgate.hw.regmap import OKAY, SLVERR, RegisterMap
 
 
@@ -68,7 +69,7 @@ def axi_lite_signature(addr_width: int, data_width: int = 32) -> wiring.Signatur
     })
 
 
-class AxiLiteRegisterBank(wiring.Component):
+class AxiLiteRegisterBank(CheckedParameters, wiring.Component):
     """AXI4-Lite register bank of a SystemRDL map (see the module docstring)."""
 
     LATENCY = 2
@@ -76,6 +77,17 @@ class AxiLiteRegisterBank(wiring.Component):
     #: read the plain 32-bit registers from a distributed-RAM copy when the map has at least
     #: this many (a 64-deep copy costs 12 RAM64M, 48 LUTs of distributed RAM)
     RAM_MIN = 8
+
+    @classmethod
+    def check_parameters(cls, regmap: RegisterMap, fabric_reads: tuple[str, ...] = ()) -> None:
+        """Every fabric read must be a register of the RAM copy (before the bank exists)."""
+        if fabric_reads:
+            mirrored, _rows = _mirror(regmap, cls.RAM_MIN)
+            names = {r.name for r in mirrored}
+            missing = [n for n in fabric_reads if n not in names]
+            if missing:
+                raise ValueError("fabric reads need registers of the RAM copy (plain 32-bit "
+                                 f"read-write, reset 0): {', '.join(missing)}")
 
     def __init__(self, regmap: RegisterMap, fabric_reads: tuple[str, ...] = ()):
         self.regmap = regmap
@@ -87,12 +99,6 @@ class AxiLiteRegisterBank(wiring.Component):
         self.fabric_reads = tuple(fabric_reads)
         members = {"axi": In(axi_lite_signature(regmap.address_width))}
         if self.fabric_reads:
-            mirrored, _rows = _mirror(regmap, self.RAM_MIN)
-            names = {r.name for r in mirrored}
-            missing = [n for n in self.fabric_reads if n not in names]
-            if missing:
-                raise ValueError("fabric reads need registers of the RAM copy (plain 32-bit "
-                                 f"read-write, reset 0): {', '.join(missing)}")
             members["fr_word"] = In(regmap.address_width - 2)
             members["fr_data"] = Out(32)
         for reg in regmap.registers:

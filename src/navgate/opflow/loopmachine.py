@@ -49,7 +49,7 @@ from navgate.opflow.loops import (
     iteration_indices,
 )
 
-__all__ = ["LoopMachine", "to_bits", "simulate"]
+__all__ = ["LoopMachine", "to_bits", "simulate", "host_write", "host_run"]
 
 
 def to_bits(values) -> list:
@@ -325,6 +325,43 @@ class LoopMachine(CheckedParameters, wiring.Component):
         return m
 
 
+async def host_write(ctx, dut, memories: dict) -> None:
+    """Testbench step: write ``memories`` (array -> float32 values or uint32 patterns) through
+    the host port of an idle loop or sequence machine."""
+    for name, values in memories.items():
+        for i, w in enumerate(to_bits(values)):
+            ctx.set(dut.host_we, 1)
+            ctx.set(dut.host_addr, dut.host_address(name, i))
+            ctx.set(dut.host_wdata, w)
+            await ctx.tick()
+    ctx.set(dut.host_we, 0)
+
+
+async def host_run(ctx, dut, arrays: dict, limit: int) -> tuple[dict, int]:
+    """Testbench step: pulse ``start``, count the cycles from the start cycle to ``done``
+    (``RuntimeError`` past ``limit``), then read every array of ``arrays`` (name -> words)
+    back through the host port. Returns (array -> uint32 words, cycles)."""
+    ctx.set(dut.start, 1)
+    await ctx.tick()
+    ctx.set(dut.start, 0)
+    n = 1
+    while not ctx.get(dut.done):
+        await ctx.tick()
+        n += 1
+        if n > limit:
+            raise RuntimeError(f"no done within {limit} cycles of the start")
+    await ctx.tick()
+    got = {}
+    for name, words in arrays.items():
+        vals = []
+        for i in range(words):
+            ctx.set(dut.host_addr, dut.host_address(name, i))
+            await ctx.tick()
+            vals.append(ctx.get(dut.host_rdata))
+        got[name] = np.array(vals, np.uint32)
+    return got, n
+
+
 def simulate(schedule: LoopSchedule, memories: dict, runs: int = 1, init: dict | None = None):
     """Run the machine of ``schedule`` in Amaranth's simulator: write ``memories`` (array ->
     float32 values or uint32 patterns) through the host port, then ``runs`` times start the
@@ -336,31 +373,10 @@ def simulate(schedule: LoopSchedule, memories: dict, runs: int = 1, init: dict |
     out: list = []
 
     async def bench(ctx):
-        for name, values in memories.items():
-            for i, w in enumerate(to_bits(values)):
-                ctx.set(dut.host_we, 1)
-                ctx.set(dut.host_addr, dut.host_address(name, i))
-                ctx.set(dut.host_wdata, w)
-                await ctx.tick()
-        ctx.set(dut.host_we, 0)
+        await host_write(ctx, dut, memories)
         for _ in range(runs):
-            ctx.set(dut.start, 1)
-            await ctx.tick()
-            ctx.set(dut.start, 0)
-            n = 1
-            while not ctx.get(dut.done):
-                await ctx.tick()
-                n += 1
-            await ctx.tick()
-            got = {}
-            for name, words in schedule.nest.arrays.items():
-                vals = []
-                for i in range(words):
-                    ctx.set(dut.host_addr, dut.host_address(name, i))
-                    await ctx.tick()
-                    vals.append(ctx.get(dut.host_rdata))
-                got[name] = np.array(vals, np.uint32)
-            out.append((got, n))
+            out.append(await host_run(ctx, dut, schedule.nest.arrays,
+                                      10 * schedule.cycles + 100))
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)

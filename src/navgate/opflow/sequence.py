@@ -72,7 +72,7 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32DivIter, Fp32Mul, Fp32SqrtIter
-from navgate.opflow.loopmachine import to_bits
+from navgate.opflow.loopmachine import host_run, host_write, to_bits
 from navgate.opflow.loops import (
     ADDR_READY,
     Addr,
@@ -671,41 +671,18 @@ def simulate_sequence(schedule: SequenceSchedule, memories: dict, entries: list,
     prog = schedule.program
     out: list = []
 
-    async def write(ctx, mems):
-        for name, values in mems.items():
-            for i, w in enumerate(to_bits(values)):
-                ctx.set(dut.host_we, 1)
-                ctx.set(dut.host_addr, dut.host_address(name, i))
-                ctx.set(dut.host_wdata, w)
-                await ctx.tick()
-        ctx.set(dut.host_we, 0)
-
     async def bench(ctx):
-        await write(ctx, memories)
+        await host_write(ctx, dut, memories)
         for item in entries:
             entry, mems = (item, None) if isinstance(item, str) else item
             if mems:
-                await write(ctx, mems)
+                await host_write(ctx, dut, mems)
             ctx.set(dut.entry, dut.entry_index(entry))
-            ctx.set(dut.start, 1)
-            await ctx.tick()
-            ctx.set(dut.start, 0)
-            n = 1
-            while not ctx.get(dut.done):
-                await ctx.tick()
-                n += 1
-                if n > 10 * schedule.cycles(entry) + 100:
-                    raise RuntimeError(f"{prog.name}: entry {entry} never done")
-            await ctx.tick()
-            got = {}
-            for name, words in prog.arrays.items():
-                vals = []
-                for i in range(words):
-                    ctx.set(dut.host_addr, dut.host_address(name, i))
-                    await ctx.tick()
-                    vals.append(ctx.get(dut.host_rdata))
-                got[name] = np.array(vals, np.uint32)
-            out.append((got, n))
+            try:
+                out.append(await host_run(ctx, dut, prog.arrays,
+                                          10 * schedule.cycles(entry) + 100))
+            except RuntimeError as e:
+                raise RuntimeError(f"{prog.name}: entry {entry}: {e}") from None
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)

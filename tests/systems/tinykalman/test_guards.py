@@ -81,11 +81,13 @@ def test_bad_gain_shifts_are_refused(name, value):
 
 
 def test_gain_shift_bounds_match_the_gateware():
+    from amaranth.hdl import Fragment
+
     from navgate.systems.tinykalman.datapath import KalmanSteady
 
     for k in (0, 15):
         assert model.gain_shift("k_shift", k) == k
-        KalmanSteady(k_shift=k)  # accepted by both
+        Fragment.get(KalmanSteady(k_shift=k), None)  # accepted by both, and it elaborates
     for k in (-1, 16, True):
         with pytest.raises(ValueError, match="k_shift"):
             KalmanSteady(k_shift=k)

@@ -31,6 +31,7 @@ from amaranth import Module, Mux, Signal, signed
 from amaranth.lib import data, stream, wiring
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware.parameters import CheckedParameters
 from navgate.gateware.start_run import start_run_respond
 from navgate.systems.kf2x2.model import COMMIT, FRAME_INPUTS, STATE_NAMES, KfParams
 from navgate.systems.kf2x2.modules import ModulePlan, build_datapath
@@ -49,11 +50,16 @@ def _params_kw(n, frac, q_shift, r_shift, div_iterations, div_seed_bits):
                     div_iterations=div_iterations, div_seed_bits=div_seed_bits)
 
 
-class Kf2x2(wiring.Component):
+class Kf2x2(CheckedParameters, wiring.Component):
     """Seed 004 2x2 adaptive fixed-point Kalman filter, 34 cycles a frame (start/done)."""
 
     LATENCY = FRAME_CYCLES
     THROUGHPUT = Fraction(1, FRAME_CYCLES)
+
+    @classmethod
+    def check_parameters(cls, n, frac, q_shift, r_shift, div_iterations, div_seed_bits) -> None:
+        """The filter's parameter checks (:class:`KfParams`), before the component exists."""
+        _params_kw(n, frac, q_shift, r_shift, div_iterations, div_seed_bits)
 
     def __init__(self, n: int = 20, frac: int = 10, q_shift: int = 5, r_shift: int = 5,
                  div_iterations: int = 1, div_seed_bits: int = 8):

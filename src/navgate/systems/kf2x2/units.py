@@ -31,6 +31,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.goldschmidt import leading_one
+from navgate.gateware.parameters import CheckedParameters
 from navgate.numerics.goldschmidt import goldschmidt_seed_table
 
 __all__ = ["q_mul", "alu_results", "saturate_bits", "ALU_KINDS", "Control",
@@ -155,7 +156,7 @@ def divider_plan(iterations: int) -> tuple[list[int], int]:
     return offsets, offsets[-1] + 3
 
 
-class GoldschmidtSerial(wiring.Component):
+class GoldschmidtSerial(CheckedParameters, wiring.Component):
     """Serial Goldschmidt reciprocal 1/d in Q(n, frac) on a borrowed, pipelined multiplier.
 
     ``start`` is high for one cycle with ``d`` valid (``d`` is registered then). The shared
@@ -176,12 +177,15 @@ class GoldschmidtSerial(wiring.Component):
     word (:class:`Control`).
     """
 
-    def __init__(self, n: int = 20, frac: int = 10, iterations: int = 1, seed_bits: int = 8):
+    @classmethod
+    def check_parameters(cls, n: int, frac: int, iterations: int, seed_bits: int) -> None:
+        """The filter's own parameter checks (ValueError naming the field): n in [8, 32],
+        frac in [1, n - 2], iterations in [1, 4], seed_bits in [0, min(8, n - 1)]."""
         from navgate.systems.kf2x2.model import KfParams
 
-        # the filter's own parameter checks (ValueError naming the field): n in [8, 32],
-        # frac in [1, n - 2], iterations in [1, 4], seed_bits in [0, min(8, n - 1)]
         KfParams(n=n, frac=frac, div_iterations=iterations, div_seed_bits=seed_bits)
+
+    def __init__(self, n: int = 20, frac: int = 10, iterations: int = 1, seed_bits: int = 8):
         self.n, self.frac, self.iterations, self.seed_bits = n, frac, iterations, seed_bits
         self.F = n
         self.offsets, self.LATENCY = divider_plan(iterations)

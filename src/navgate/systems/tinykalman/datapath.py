@@ -36,6 +36,7 @@ from amaranth.lib import data, enum, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.cordic import CordicAtan2Iterative
+from navgate.gateware.parameters import CheckedParameters
 from navgate.nav import validate
 from navgate.systems.tinykalman.model import ANGLE_BITS, ITERATIONS, WIDTH
 
@@ -132,16 +133,19 @@ KALMAN_IN = data.StructLayout({"roll_m": signed(16), "pitch_m": signed(16), "gx"
 KALMAN_OUT = data.StructLayout({"roll": signed(16), "pitch": signed(16)})
 
 
-class KalmanSteady(wiring.Component):
+class KalmanSteady(CheckedParameters, wiring.Component):
     """Steady-state Kalman filter with ``>>> rate_shift`` and ``>>> k_shift`` gains, two axes."""
 
     LATENCY = 1
     THROUGHPUT = 1
 
-    def __init__(self, rate_shift: int = 6, k_shift: int = 6):
+    @classmethod
+    def check_parameters(cls, rate_shift: int, k_shift: int) -> None:
         for name, v in (("rate_shift", rate_shift), ("k_shift", k_shift)):
             if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= 15:
                 raise ValueError(f"KalmanSteady: {name} must be an integer in [0, 15], got {v!r}")
+
+    def __init__(self, rate_shift: int = 6, k_shift: int = 6):
         self.rate_shift = rate_shift
         self.k_shift = k_shift
         super().__init__({
@@ -191,7 +195,7 @@ DATAPATH_OUT = data.StructLayout({"roll": signed(16), "pitch": signed(16),
                                   "sat": unsigned(1), "ok": unsigned(1)})
 
 
-class TinyKalmanDatapath(wiring.Component):
+class TinyKalmanDatapath(CheckedParameters, wiring.Component):
     """One sample in, the filtered angles out: :class:`TinyKalmanCordic` then
     :class:`KalmanSteady` (``ok = 0``: the sample failed the sensor check, state held).
 
@@ -202,6 +206,16 @@ class TinyKalmanDatapath(wiring.Component):
     LATENCY = CORDIC_LATENCY + 1
     THROUGHPUT = Fraction(1, CORDIC_INTERVAL)
 
+    @classmethod
+    def check_parameters(cls, angles_cls=None, held_input: bool = False) -> None:
+        held_input = validate.flag("TinyKalmanDatapath: held_input", held_input)
+        if angles_cls is not None and not (isinstance(angles_cls, type) and issubclass(
+                angles_cls, wiring.Component) and hasattr(angles_cls, "LATENCY")):
+            raise ValueError("TinyKalmanDatapath: angles_cls must be an angle block class "
+                             f"(TinyKalmanSerialCordic), got {angles_cls!r}")
+        if held_input and angles_cls is None:
+            raise ValueError("TinyKalmanDatapath: held_input needs the serial angle block")
+
     def __init__(self, angles_cls=None, held_input: bool = False):
         #: the angle block: :class:`TinyKalmanCordic` (default) or the bit-serial
         #: :class:`~navgate.systems.tinykalman.serial.TinyKalmanSerialCordic`
@@ -209,14 +223,7 @@ class TinyKalmanDatapath(wiring.Component):
         #: ``held_input`` (serial chip only): the producer (the SPI master's word register)
         #: holds ``i.payload`` until the output is taken, so gx, gy, ok and ax are read from it
         #: and not copied into registers here
-        self.held_input = held_input = validate.flag("TinyKalmanDatapath: held_input",
-                                                     held_input)
-        if angles_cls is not None and not (isinstance(angles_cls, type) and issubclass(
-                angles_cls, wiring.Component) and hasattr(angles_cls, "LATENCY")):
-            raise ValueError("TinyKalmanDatapath: angles_cls must be an angle block class "
-                             f"(TinyKalmanSerialCordic), got {angles_cls!r}")
-        if held_input and angles_cls is None:
-            raise ValueError("TinyKalmanDatapath: held_input needs the serial angle block")
+        self.held_input = validate.flag("TinyKalmanDatapath: held_input", held_input)
         if angles_cls is not None:
             self.LATENCY = angles_cls.LATENCY + 1
             self.THROUGHPUT = angles_cls.THROUGHPUT

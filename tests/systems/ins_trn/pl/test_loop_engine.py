@@ -16,7 +16,10 @@ from navgate.opflow.loops import LoopError
 from navgate.opflow.sequence import run_sequence, schedule_sequence, simulate_sequence
 from navgate.systems.ins_trn.pl import fp32_program as fp
 from navgate.systems.ins_trn.pl import loop_engine as E
-from navgate.systems.ins_trn.pl.nav_engines import IMU_WORDS, random_registers
+from navgate.systems.ins_trn.pl.nav_engines import (
+    directed_program_state,
+    random_program_state,
+)
 
 KEYS = E.ENTRIES
 
@@ -26,42 +29,10 @@ def ref():
     return Machine(fp.programs())
 
 
-def _state(rng, key):
-    progs = fp.programs()
-    regs = random_registers(rng, list(fp.STATE_REGS) + list(progs[key].inputs))
-    state = {}
-    for n, w in regs.items():
-        if n in IMU_WORDS:  # the int16 IMU word as a number (cvt)
-            state[n] = float(w - (1 << 32) if w >= 1 << 31 else w)
-        else:
-            state[n] = float(np.uint32(w).view(np.float32))
-    inputs = {n: state.pop(n) for n in progs[key].inputs}
-    return state, inputs
+_state = random_program_state
 
 
-def _directed(rng, key, case):
-    state, inputs = _state(rng, key)
-    p = [(i, j) for i in range(15) for j in range(i, 15)]
-    if case == "zero_rows":  # rows 3..5 and 9 of P zero, with both signs
-        for n, (i, j) in enumerate(p):
-            if i in (3, 4, 5, 9) or j in (3, 4, 5, 9):
-                state[fp.P_REGS[n]] = 0.0 if (i + j) % 2 else -0.0
-                state[fp.CP_REGS[n]] = -0.0
-    elif case == "huge_tiny":  # products overflow to infinity and underflow to zero
-        for n, (i, j) in enumerate(p):
-            state[fp.P_REGS[n]] = (3e38 if (i * 7 + j) % 3 == 0 else
-                                   1e-30 if (i + j) % 3 == 1 else state[fp.P_REGS[n]])
-        state["dt"] = 1e-20 if key == "propagate" else state["dt"]
-    elif case == "nan_inf":
-        state[fp.P_REGS[20]] = float("nan")
-        state[fp.CP_REGS[50]] = float("inf")
-        state[fp.P_REGS[7]] = float("-inf")
-        state["vN"] = float("nan")
-    elif case == "imu_extremes":  # the int16 words' ends (cvt at the boundary)
-        for k, n in enumerate(IMU_WORDS):
-            if n in inputs:
-                inputs[n] = float(-32768 if k % 2 else 32767)
-    return state, inputs
+_directed = directed_program_state
 
 
 def _compare(ref, key, state, inputs, lanes=E.DEFAULT_LANES, compiled=None):

@@ -15,7 +15,10 @@ from navgate.opflow.ir import Builder
 from navgate.opflow.loops import run_nest
 from navgate.systems.ins_trn.pl import fp32_program as fp
 from navgate.systems.ins_trn.pl import loop_programs as L
-from navgate.systems.ins_trn.pl.nav_engines import IMU_WORDS, random_registers
+from navgate.systems.ins_trn.pl.nav_engines import (
+    directed_program_state,
+    random_program_state,
+)
 
 KEYS = ("propagate", "alt_gate", "alt_apply", "trn_gate", "trn_apply")
 
@@ -25,17 +28,7 @@ def ref():
     return Machine(fp.programs())
 
 
-def _state(rng, key):
-    progs = fp.programs()
-    regs = random_registers(rng, list(fp.STATE_REGS) + list(progs[key].inputs))
-    state = {}
-    for n, w in regs.items():
-        if n in IMU_WORDS:
-            state[n] = float(w - (1 << 32) if w >= 1 << 31 else w)
-        else:
-            state[n] = float(np.uint32(w).view(np.float32))
-    inputs = {n: state.pop(n) for n in progs[key].inputs}
-    return state, inputs
+_state = random_program_state
 
 
 def _compare(ref, key, state, inputs, lanes=L.DEFAULT_LANES, variant="fused"):
@@ -77,28 +70,7 @@ def test_other_variants_directed(ref, variant):
             _compare(ref, key, *_directed(rng, key, case), variant=variant)
 
 
-def _directed(rng, key, case):
-    state, inputs = _state(rng, key)
-    p = [(i, j) for i in range(15) for j in range(i, 15)]
-    if case == "zero_rows":  # rows 3..5 and 9 of P zero, with both signs
-        for n, (i, j) in enumerate(p):
-            if i in (3, 4, 5, 9) or j in (3, 4, 5, 9):
-                state[fp.P_REGS[n]] = 0.0 if (i + j) % 2 else -0.0
-                state[fp.CP_REGS[n]] = -0.0
-    elif case == "huge_tiny":  # products overflow to infinity and underflow to zero
-        for n, (i, j) in enumerate(p):
-            state[fp.P_REGS[n]] = (3e38 if (i * 7 + j) % 3 == 0 else
-                                   1e-30 if (i + j) % 3 == 1 else state[fp.P_REGS[n]])
-        state["dt"] = 1e-20 if key == "propagate" else state["dt"]
-    elif case == "nan_inf":
-        state[fp.P_REGS[20]] = float("nan")
-        state[fp.CP_REGS[50]] = float("inf")
-        state[fp.P_REGS[7]] = float("-inf")
-    elif case == "zero_all":
-        for n in range(len(p)):
-            state[fp.P_REGS[n]] = -0.0
-            state[fp.CP_REGS[n]] = 0.0
-    return state, inputs
+_directed = directed_program_state
 
 
 @pytest.mark.parametrize("case", ["zero_rows", "huge_tiny", "nan_inf", "zero_all"])

@@ -26,6 +26,8 @@ from __future__ import annotations
 from amaranth import ClockDomain, ClockSignal, Elaboratable, Instance, Module, ResetSignal, Signal
 from amaranth.lib.cdc import FFSynchronizer
 
+from navgate.gateware.parameters import CheckedParameters
+
 #: the Zybo Z7-20's PL oscillator (pin K17) and the fabric clock
 INPUT_CLOCK_HZ = 125e6
 SYSTEM_CLOCK_HZ = 100e6
@@ -33,7 +35,7 @@ MMCM_PARAMETERS = {"CLKIN1_PERIOD": 8.0, "CLKFBOUT_MULT_F": 8.0, "DIVCLK_DIVIDE"
                    "CLKOUT0_DIVIDE_F": 10.0}
 
 
-class ClockResetGenerator(Elaboratable):
+class ClockResetGenerator(CheckedParameters, Elaboratable):
     """Drives the ``sync`` domain's clock and reset (see the module docstring).
 
     ``clk_in`` is the oscillator pin (synthesis only); ``ext_rst_n`` the active-low external
@@ -43,10 +45,13 @@ class ClockResetGenerator(Elaboratable):
     LATENCY = 0
     THROUGHPUT = 1
 
-    def __init__(self, *, simulation: bool = False, lock_cycles: int = 100_000,
-                 reset_cycles: int = 8, define_domain: bool = True):
+    @classmethod
+    def check_parameters(cls, *, simulation, lock_cycles, reset_cycles, define_domain) -> None:
         if reset_cycles < 1 or lock_cycles < 0:
             raise ValueError("reset_cycles must be >= 1 and lock_cycles >= 0")
+
+    def __init__(self, *, simulation: bool = False, lock_cycles: int = 100_000,
+                 reset_cycles: int = 8, define_domain: bool = True):
         self.simulation = simulation
         self.lock_cycles = lock_cycles
         self.reset_cycles = reset_cycles

@@ -226,6 +226,63 @@ def random_registers(rng: np.random.Generator, names) -> dict:
     return out
 
 
+def random_program_state(rng: np.random.Generator, key: str) -> tuple[dict, dict]:
+    """(state, inputs) as numbers for program ``key`` of :func:`programs`: every state register
+    and input a :func:`random_registers` word, an int16 IMU word as its integer value (the
+    ``cvt`` source), any other word as its float32 value."""
+    prog = programs()[key]
+    state = {}
+    for n, w in random_registers(rng, list(STATE_REGS) + list(prog.inputs)).items():
+        if n in IMU_WORDS:
+            state[n] = float(w - (1 << 32) if w >= 1 << 31 else w)
+        else:
+            state[n] = float(np.uint32(w).view(np.float32))
+    return state, {n: state.pop(n) for n in prog.inputs}
+
+
+#: the directed cases of :func:`directed_program_state`
+DIRECTED_CASES = ("zero_rows", "huge_tiny", "nan_inf", "zero_all", "imu_extremes")
+
+
+def directed_program_state(rng: np.random.Generator, key: str, case: str) -> tuple[dict, dict]:
+    """A :func:`random_program_state` with a directed edge case written into it: ``zero_rows``
+    (rows 3..5 and 9 of P zero with both signs, their compensation words -0), ``huge_tiny``
+    (elements of P near the float32 maximum and minimum, so products overflow and underflow;
+    a tiny dt for ``propagate``), ``nan_inf`` (NaN and infinities in P, cP and the velocity),
+    ``zero_all`` (P all -0, cP all +0), ``imu_extremes`` (the int16 words' ends)."""
+    from navgate.systems.ins_trn.pl.fp32_program import CP_REGS, P_REGS
+
+    if case not in DIRECTED_CASES:
+        raise ValueError(f"case must be one of {DIRECTED_CASES}, got {case!r}")
+    state, inputs = random_program_state(rng, key)
+    upper = [(i, j) for i in range(15) for j in range(i, 15)]
+    if case == "zero_rows":
+        for n, (i, j) in enumerate(upper):
+            if i in (3, 4, 5, 9) or j in (3, 4, 5, 9):
+                state[P_REGS[n]] = 0.0 if (i + j) % 2 else -0.0
+                state[CP_REGS[n]] = -0.0
+    elif case == "huge_tiny":
+        for n, (i, j) in enumerate(upper):
+            state[P_REGS[n]] = (3e38 if (i * 7 + j) % 3 == 0 else
+                                1e-30 if (i + j) % 3 == 1 else state[P_REGS[n]])
+        if key == "propagate":
+            state["dt"] = 1e-20
+    elif case == "nan_inf":
+        state[P_REGS[20]] = float("nan")
+        state[CP_REGS[50]] = float("inf")
+        state[P_REGS[7]] = float("-inf")
+        state["vN"] = float("nan")
+    elif case == "zero_all":
+        for n in range(len(upper)):
+            state[P_REGS[n]] = -0.0
+            state[CP_REGS[n]] = 0.0
+    else:  # imu_extremes
+        for k, n in enumerate(IMU_WORDS):
+            if n in inputs:
+                inputs[n] = float(-32768 if k % 2 else 32767)
+    return state, inputs
+
+
 def command_vectors(image: BankedImage, regs: dict, calls) -> dict:
     """Input arrays for :class:`ScheduledMachineStream`: write every register of ``regs``,
     then per call ``(key, inputs)``: write the inputs, run ``key``, read every persistent
