@@ -49,7 +49,7 @@ from navgate.opflow.loops import (
     iteration_indices,
 )
 
-__all__ = ["LoopMachine", "to_bits", "simulate", "host_write", "host_run"]
+__all__ = ["LoopMachine", "to_bits", "simulate", "host_write", "host_run", "delay_tap"]
 
 
 def to_bits(values) -> list:
@@ -60,6 +60,18 @@ def to_bits(values) -> list:
 
 def _bits(n: int) -> int:
     return max(1, int(n - 1).bit_length())
+
+
+def delay_tap(m: Module, chains: dict, sig, offset: int):
+    """``sig`` (ready at offset :data:`ADDR_READY`) as seen at ``offset``: a tap of its delay
+    line, grown in ``m``'s sync domain as far as needed (``chains`` keeps one line per signal,
+    shared by every consumer)."""
+    chain = chains.setdefault(id(sig), [sig])
+    while len(chain) <= offset - ADDR_READY:
+        d = Signal.like(chain[-1], name=f"{chain[0].name}_d{len(chain)}")
+        m.d.sync += d.eq(chain[-1])
+        chain.append(d)
+    return chain[offset - ADDR_READY]
 
 
 class LoopMachine(CheckedParameters, wiring.Component):
@@ -199,13 +211,7 @@ class LoopMachine(CheckedParameters, wiring.Component):
         chains: dict = {}
 
         def at(sig, offset):
-            """``sig`` (ready at offset ADDR_READY) as seen at ``offset``."""
-            chain = chains.setdefault(id(sig), [sig])
-            while len(chain) <= offset - ADDR_READY:
-                d = Signal.like(chain[-1], name=f"{chain[0].name}_d{len(chain)}")
-                m.d.sync += d.eq(chain[-1])
-                chain.append(d)
-            return chain[offset - ADDR_READY]
+            return delay_tap(m, chains, sig, offset)
 
         # ---- units and read ports: outputs and their delay lines -----------------------
         by_res: dict = {}

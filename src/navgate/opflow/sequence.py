@@ -72,9 +72,8 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32DivIter, Fp32Mul, Fp32SqrtIter
-from navgate.opflow.loopmachine import host_run, host_write, to_bits
+from navgate.opflow.loopmachine import delay_tap, host_run, host_write, to_bits
 from navgate.opflow.loops import (
-    ADDR_READY,
     Addr,
     CompiledNest,
     LoopError,
@@ -430,13 +429,7 @@ class SequenceMachine(wiring.Component):
         chains: dict = {}
 
         def at(sig, offset):
-            """``sig`` (ready at offset ADDR_READY) as seen at ``offset``."""
-            chain = chains.setdefault(id(sig), [sig])
-            while len(chain) <= offset - ADDR_READY:
-                d = Signal.like(chain[-1], name=f"{chain[0].name}_d{len(chain)}")
-                m.d.sync += d.eq(chain[-1])
-                chain.append(d)
-            return chain[offset - ADDR_READY]
+            return delay_tap(m, chains, sig, offset)
 
         # ---- units, read ports and their delay lines -----------------------------------
         used = {s.resource[op.dst] for s, n in zip(scheds, nests, strict=True)
@@ -660,7 +653,7 @@ class SequenceMachine(wiring.Component):
 
 
 def simulate_sequence(schedule: SequenceSchedule, memories: dict, entries: list,
-                      init: dict | None = None, vcd: str | None = None):
+                      init: dict | None = None):
     """Run the sequence machine in Amaranth's simulator: write ``memories`` through the host
     port, then for each item of ``entries`` (an entry name, or (entry, memories to write
     first or None)) start it, count the cycles from the start cycle to ``done`` and read
@@ -687,9 +680,5 @@ def simulate_sequence(schedule: SequenceSchedule, memories: dict, entries: list,
     sim = Simulator(dut)
     sim.add_clock(1e-8)
     sim.add_testbench(bench)
-    if vcd:
-        with sim.write_vcd(vcd):
-            sim.run()
-    else:
-        sim.run()
+    sim.run()
     return out
