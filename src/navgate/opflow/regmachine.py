@@ -1,0 +1,1071 @@
+"""The register machine: a sequence program (:class:`~navgate.opflow.sequence.SequenceProgram`)
+run one instruction per cycle on ONE float32 multiplier, adder, iterative divider, iterative
+square root and comparator, its values in a register file and a data memory addressed by
+the instructions: the smallest engine of opflow's programs.
+
+Reference: issue 29 (the one-lane machine reported beside the lane machines: "the smallest
+seed-000 engine that still meets the 400 Hz rate"); the loop-nest IR and executor of
+:mod:`navgate.opflow.loops` and the sequence programs of :mod:`navgate.opflow.sequence`,
+whose :func:`~navgate.opflow.sequence.run_sequence` defines the results; list scheduling as
+:mod:`navgate.opflow.schedule`; a register file and a block-RAM data memory, as a
+microcoded DSP: load/store, zero-overhead loops, table (indirect) addressing
+(docs/seed000-register-machine.md has the figures).
+
+Why: the lane machines (:mod:`navgate.opflow.sequence`) pass every value through a delay line
+and hold one control row per cycle. A 400 Hz sample is 250,000 cycles at 100 MHz, so a
+machine that issues one op per cycle and keeps its values in memories does the seed-000
+work in a small fraction of it, with a fraction of the logic.
+
+Program form (:func:`compile_program`)
+--------------------------------------
+Every segment of the sequence program becomes a **block**: instruction rows run once per
+iteration, iterations one after another (not overlapped: a block's rows drain every write
+of an iteration before the next starts), ``trips`` the nest's iteration count (1 for a
+straight-line segment). An entry runs its blocks in order.
+
+* **Memories.** Arrays that only straight-line segments touch (the register array of
+  seed 000's programs) live in the **register file** beside the constants, the
+  temporaries and the accumulators; every other array is a region of the **data memory**
+  (block RAM, one read port for loads, one write port for stores). A load from a
+  register-file array is the register itself; a store to one is a ``mov``.
+* **Addresses.** Every load and store address of a nest is materialised for every
+  iteration (:func:`~navgate.opflow.loops.addresses`): constant, ``base + n`` (n the
+  iteration number), or ``base + table[tb + n]`` from the **table ROM** (9-bit entries,
+  identical tables stored once); a store's ``when`` flag is folded into its table (entry
+  :data:`SKIP`: no write), an accumulator's reset into a conditional ``mov`` from its init.
+* **Accumulators.** Iterations do not overlap, so an accumulator is one register: reset
+  by a conditional ``mov acc <- init`` at the start of the iteration, updated by ``mov acc
+  <- update`` after its last read. A nest whose accumulators have distance d > 1 (sums
+  interleaved for a pipelined machine) is first permuted so that each sum's iterations are
+  consecutive (:func:`serialize_chains`): every sum keeps its terms' order, so the results
+  are the same bits.
+* **neg** is a sign flip on an operand path (``na``/``nb``); a flipped value stored or
+  committed goes through a ``mov`` with the flip (NaN in: the canonical NaN out, as
+  :func:`~navgate.numerics.fp32.fp32_neg`).
+
+Timing (issue cycle ``c``: the row is in the instruction register, fetched the cycle before
+from the ROM; a ``nop k`` holds it ``k`` cycles): register reads are presented in ``c``
+(synchronous, data in ``c + 1``), so are the table ROM reads; the operands are flipped and
+registered in ``c + 1``, a unit takes them in ``c + 2`` and its result is written to the
+register file in ``c + 2 + L`` (``L`` its ``LATENCY``), read by a row issued from
+``c + 3 + L``; the data address is registered in ``c + 1``, a load reads the data memory
+in ``c + 2`` and writes the register in ``c + 3``, a store writes the data memory in
+``c + 2``; a ``mov`` writes its register in ``c + 2``. One register write per cycle (the
+scheduler books the write port), the divider and square root ``INTERVAL`` apart. Rows are
+list-scheduled by critical path (as :mod:`navgate.opflow.schedule`); idle cycles become
+``nop k`` rows (one row for ``k`` cycles), so the instruction ROM grows with the ops, not
+the cycles.
+
+Instruction word (:data:`INSTR_BITS` = 36 bits, one block-RAM word): ``kind`` [0:4];
+ops: ``dst`` [4:12], ``a`` [12:20], ``na`` [20], ``b`` [21:29], ``nb`` [29]; ``mov``:
+``dst``, ``a``, ``na``, ``mode`` [22:24], ``tb`` [24:36]; ``load``: ``dst``, ``base``
+[12:22], ``mode``, ``tb``; ``store``: the source register in [4:12], ``base``, ``mode``,
+``tb``; ``nop``: ``count`` [12:28].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal
+from amaranth.lib import wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32DivIter, Fp32Mul, Fp32SqrtIter
+from navgate.opflow.execute import round_fp32
+from navgate.opflow.ir import const_value
+from navgate.opflow.loopmachine import host_run, host_write
+from navgate.opflow.loops import LoopError, LoopNest, addresses, check_nest, flags
+from navgate.opflow.sequence import SequenceProgram, _neg, check_sequence
+
+__all__ = ["RegisterProgram", "Block", "Row", "compile_program", "run_register_program",
+           "serialize_chains", "RegisterMachine", "simulate_register_machine", "SKIP",
+           "INSTR_BITS", "KIND_CODE"]
+
+#: a table entry meaning "no access in this iteration" (a store's ``when`` false, an
+#: accumulator kept)
+SKIP = 511
+TABLE_BITS = 9
+INSTR_BITS = 36
+REG_BITS = 8
+BASE_BITS = 10
+TB_BITS = 12
+COUNT_BITS = 16
+KIND_CODE = {"nop": 0, "add": 1, "sub": 2, "mul": 3, "div": 4, "sqrt": 5, "lt": 6, "le": 7,
+             "load": 8, "store": 9, "mov": 10}
+#: addressing modes of load, store, mov
+M_CONST, M_LINEAR, M_TABLE = 0, 1, 2
+UNIT_OF = {"add": "add", "sub": "add", "mul": "mul", "div": "div", "sqrt": "sqrt",
+           "lt": "cmp", "le": "cmp"}
+UNIT_CLASS = {"add": Fp32Add, "mul": Fp32Mul, "div": Fp32DivIter, "sqrt": Fp32SqrtIter,
+              "cmp": Fp32Compare}
+LATENCY = {u: c.LATENCY for u, c in UNIT_CLASS.items()}
+#: cycles between two issues to a non-pipelined unit
+INTERVAL = {"div": Fp32DivIter.INTERVAL, "sqrt": Fp32SqrtIter.INTERVAL}
+ONE_BITS = 0x3F800000
+QNAN_BITS = 0x7FC00000
+
+
+#: cycles from issue to a store's data-memory write (the address is registered once)
+STORE_WRITE = 2
+
+
+def write_delay(kind: str) -> int:
+    """Cycles from issue to the register write of an instruction of ``kind``: a unit takes
+    its operands from a register stage in ``c + 2``; a load reads the data memory in
+    ``c + 2`` (its address registered); a mov writes in ``c + 2`` (its word and its
+    table flag registered)."""
+    if kind in UNIT_OF:
+        return 2 + LATENCY[UNIT_OF[kind]]
+    return {"load": 3, "mov": 2}[kind]
+
+
+# ------------------------------------------------------------------ program form
+
+
+@dataclass
+class Row:
+    """One instruction row: ``kind``, its fields (see the module docstring), ``cycles``
+    it occupies (``nop`` rows more than one)."""
+
+    kind: str
+    dst: int = 0
+    a: int = 0
+    na: int = 0
+    b: int = 0
+    nb: int = 0
+    mode: int = 0
+    base: int = 0
+    tb: int = 0
+    count: int = 1
+
+    def word(self) -> int:
+        k = KIND_CODE[self.kind]
+        if self.kind == "nop":
+            return k | (self.count << 12)
+        if self.kind in UNIT_OF:
+            return (k | self.dst << 4 | self.a << 12 | self.na << 20 | self.b << 21
+                    | self.nb << 29)
+        if self.kind == "mov":
+            return (k | self.dst << 4 | self.a << 12 | self.na << 20 | self.mode << 22
+                    | self.tb << 24)
+        if self.kind == "load":
+            return k | self.dst << 4 | self.base << 12 | self.mode << 22 | self.tb << 24
+        if self.kind == "store":
+            return k | self.a << 4 | self.base << 12 | self.mode << 22 | self.tb << 24
+        raise LoopError(f"unknown row kind {self.kind!r}")
+
+
+@dataclass
+class Block:
+    name: str
+    trips: int
+    rows: list  #: of Row
+    cycles: int  #: cycles of one iteration (the rows' cycles)
+    ops: int = 0  #: issuing rows (not nop)
+
+
+@dataclass
+class RegisterProgram:
+    """A sequence program compiled for the register machine."""
+
+    program: SequenceProgram
+    blocks: dict  #: segment name -> Block
+    entries: dict  #: entry -> tuple of block names
+    reg_arrays: dict  #: array -> first register
+    data_arrays: dict  #: array -> base address in the data memory
+    constants: dict  #: constant name -> register
+    registers: int  #: registers used
+    reg_init: list  #: register -> uint32 word (constants; zeros elsewhere)
+    table: list  #: table ROM entries
+    data_words: int
+
+    def cycles(self, entry: str) -> int:
+        """Cycles from the start cycle to ``done`` (exact; the machine's)."""
+        return 2 + sum(self.blocks[b].trips * self.blocks[b].cycles
+                       for b in self.entries[entry])
+
+    @property
+    def rows(self) -> int:
+        return sum(len(b.rows) for b in self.blocks.values())
+
+    def words(self) -> list:
+        """The instruction ROM: every block's rows, in block order."""
+        return [r.word() for b in self.blocks.values() for r in b.rows]
+
+
+# ------------------------------------------------------------------ chains
+
+
+def serialize_chains(nest: LoopNest) -> np.ndarray:
+    """The iteration order that makes every accumulator chain consecutive: returns ``perm``
+    (new position -> original iteration). With accumulators of distance ``d``, iteration n
+    continues the chain of n - d unless its reset flag holds; in ``perm`` each chain's
+    iterations follow one another in their order, chains ordered by their first iteration.
+    All accumulators must share distance and reset pattern (LoopError otherwise)."""
+    n_it = nest.iterations
+    if not nest.accs:
+        return np.arange(n_it)
+    d = nest.accs[0].distance
+    reset = flags(nest, nest.accs[0].reset)
+    for a in nest.accs[1:]:
+        if a.distance != d or not np.array_equal(flags(nest, a.reset), reset):
+            raise LoopError(f"{nest.name}: the register machine needs every accumulator of a "
+                            "nest on one chain structure (same distance and reset)")
+    succ = {}
+    for n in range(n_it):
+        if not reset[n]:
+            succ[n - d] = n
+    perm = []
+    for n in range(n_it):
+        if reset[n]:
+            k = n
+            while True:
+                perm.append(k)
+                if k not in succ:
+                    break
+                k = succ[k]
+    if sorted(perm) != list(range(n_it)):
+        raise LoopError(f"{nest.name}: accumulator chains do not cover the iterations once")
+    return np.asarray(perm)
+
+
+# ------------------------------------------------------------------ lowering
+
+
+@dataclass
+class _Item:
+    """One instruction before scheduling."""
+
+    kind: str
+    dst: str | None = None  #: value written (a temporary, or a fixed register's name)
+    srcs: tuple = ()  #: value names read
+    neg: tuple = ()  #: flip bits of srcs
+    mode: int = M_CONST
+    base: int = 0
+    table: tuple | None = None  #: materialised table entries (mode M_TABLE)
+    after: list = field(default_factory=list)  #: (item index, min cycles after its issue)
+    fixed_dst: int | None = None  #: a register (register-file array word, accumulator)
+
+
+class _Compiler:
+    def __init__(self, prog: SequenceProgram, reg_arrays, max_registers: int):
+        self.prog = prog
+        self.reg_arrays = {}
+        nreg = 0
+        for a in reg_arrays:
+            self.reg_arrays[a] = nreg
+            nreg += prog.arrays[a]
+        self.data_arrays = {}
+        base = 0
+        for a, w in prog.arrays.items():
+            if a not in self.reg_arrays:
+                self.data_arrays[a] = base
+                base += w
+        if base > 1 << BASE_BITS:
+            raise LoopError(f"{prog.name}: {base} data words; the machine addresses "
+                            f"{1 << BASE_BITS}")
+        self.data_words = base
+        self.constants: dict = {}
+        self.nfixed = nreg
+        self.max_registers = max_registers
+        self.table: list = []
+        self.table_at: dict = {}
+        self.acc_regs: dict = {}
+        self.acc_init: dict = {}  #: accumulator register -> constant it starts from
+
+    def constant(self, name: str) -> int:
+        if name not in self.constants:
+            self.constants[name] = self.nfixed
+            self.nfixed += 1
+        return self.constants[name]
+
+    def put_table(self, entries) -> int:
+        key = tuple(int(x) for x in entries)
+        if key not in self.table_at:
+            # an identical run already stored (e.g. a prefix) is not searched for: tables
+            # are stored whole, identical ones once
+            self.table_at[key] = len(self.table)
+            self.table.extend(key)
+            if len(self.table) > 1 << TB_BITS:
+                raise LoopError(f"{self.prog.name}: table ROM over {1 << TB_BITS} entries")
+        return self.table_at[key]
+
+    # -- one nest -> items
+    def lower(self, sname: str, nest: LoopNest):
+        check_nest(nest)
+        n_it = nest.iterations
+        perm = serialize_chains(nest)
+        items: list = []
+        producer: dict = {}  # value -> item index
+        flip_of: dict = {}  # value -> (source value, flip) for neg chains and aliases
+        fixed: dict = {}  # value -> register (register-array words, constants, accumulators)
+        reg_readers: dict = {}  # fixed register -> reader item indices
+
+        def addr_mode(array, addr):
+            a = addresses(nest, addr)[perm]
+            if array in self.reg_arrays:
+                if len(set(a.tolist())) != 1:
+                    raise LoopError(f"{sname}: register-file array {array} needs constant "
+                                    "addresses")
+                return ("reg", self.reg_arrays[array] + int(a[0]))
+            base = self.data_arrays[array]
+            if len(set(a.tolist())) == 1:
+                return (M_CONST, base + int(a[0]), None)
+            if np.array_equal(a, a[0] + np.arange(n_it)):
+                return (M_LINEAR, base + int(a[0]), None)
+            if a.max() >= SKIP:
+                raise LoopError(f"{sname}: {array} addresses up to {a.max()}: table entries "
+                                f"hold at most {SKIP - 1}")
+            return (M_TABLE, base, tuple(a.tolist()))
+
+        def resolve(v):
+            flip = 0
+            while v in flip_of:
+                v, f = flip_of[v]
+                flip ^= f
+            return v, flip
+
+        def value(v):
+            """-> (value name, flip); constants get their registers."""
+            v, f = resolve(v)
+            if v.startswith("c:"):
+                fixed[v] = self.constant(v)
+            return v, f
+
+        def add(it: _Item) -> int:
+            items.append(it)
+            k = len(items) - 1
+            for s in it.srcs:
+                if s in producer:
+                    it.after.append((producer[s], None))  # data edge (latency filled later)
+                if s in fixed:
+                    reg_readers.setdefault(fixed[s], []).append(k)
+            if it.dst is not None:
+                producer[it.dst] = k
+            return k
+
+        nest.acc_names()
+        acc_mov: dict = {}
+        for a in nest.accs:
+            key = (sname, a.name)
+            if key not in self.acc_regs:
+                self.acc_regs[key] = self.nfixed
+                self.nfixed += 1
+            fixed[a.name] = self.acc_regs[key]
+        # accumulator resets: mov acc <- init where reset holds (init a constant here; an
+        # init computed in the iteration is moved once it is ready, below)
+        reset_at = {}
+        for a in nest.accs:
+            r = flags(nest, a.reset)[perm]
+            reset_at[a.name] = r
+        pending_resets = {a.name: a for a in nest.accs}
+
+        def emit_reset(a):
+            r = reset_at[a.name]
+            init, f = value(a.init)
+            if r.all():
+                mode, tab = M_CONST, None
+            else:
+                mode, tab = M_TABLE, tuple(0 if x else SKIP for x in r)
+            k = add(_Item("mov", dst=a.name, srcs=(init,), neg=(f,), mode=mode, table=tab,
+                          fixed_dst=fixed[a.name]))
+            acc_mov[a.name] = k
+            del pending_resets[a.name]
+
+        # a constant init whose reset follows exactly the iterations after a conditional
+        # store's (a chained sum: the sum is stored, the next one starts) is re-armed at the
+        # END of the storing iteration by a mov on the store's own table, and after the
+        # last iteration too: the register then holds init whenever the nest starts (its
+        # initial value, and what every run leaves), and no reset table is stored
+        store_on = [np.ones(n_it, bool) if st.when is None else flags(nest, st.when)[perm]
+                    for st in nest.stores]
+        late: dict = {}  # acc -> store index
+        for a in list(pending_resets.values()):
+            if not a.init.startswith("c:"):
+                continue
+            rearm = np.append(reset_at[a.name][1:], True)
+            hit = [i for i, on in enumerate(store_on) if not on.all()
+                   and np.array_equal(on, rearm)]
+            if hit:
+                late[a.name] = hit[0]
+                self.acc_init[fixed[a.name]] = a.init
+                value(a.init)
+                acc_mov[a.name] = None
+                del pending_resets[a.name]
+            else:
+                emit_reset(a)
+        for op in nest.ops:
+            if op.kind == "load":
+                m = addr_mode(op.srcs[0], op.addr)
+                if m[0] == "reg":
+                    fixed[op.dst] = m[1]
+                    continue
+                add(_Item("load", dst=op.dst, mode=m[0], base=m[1], table=m[2]))
+                continue
+            if op.kind == "neg":
+                flip_of[op.dst] = (op.srcs[0], 1)
+                continue
+            srcs, negs = [], []
+            for s in op.srcs:
+                if s in pending_resets:
+                    raise LoopError(f"{sname}: accumulator {s} read before its init is ready")
+                v, f = value(s)
+                srcs.append(v)
+                negs.append(f)
+            k = add(_Item(op.kind, dst=op.dst, srcs=tuple(srcs), neg=tuple(negs)))
+            for s in srcs:
+                if acc_mov.get(s) is not None:
+                    items[k].after.append((acc_mov[s], 2))
+            for a in list(pending_resets.values()):
+                if a.init == op.dst:
+                    emit_reset(a)
+        # accumulator updates: mov acc <- update after every read of acc
+        update_mov = {}
+        for a in nest.accs:
+            upd, f = value(a.update)
+            k = add(_Item("mov", dst=None, srcs=(upd,), neg=(f,), fixed_dst=fixed[a.name]))
+            update_mov[a.name] = k
+            for r in reg_readers.get(fixed[a.name], []):
+                if r != k:
+                    items[k].after.append((r, 1))
+        store_items = {}
+        # stores
+        loads_of: dict = {}
+        for k, it in enumerate(items):
+            if it.kind == "load":
+                loads_of.setdefault(it.base if it.mode != M_TABLE else ("t", it.base),
+                                    []).append(k)
+        for st in nest.stores:
+            v, f = value(st.src)
+            m = addr_mode(st.array, st.addr)
+            on = np.ones(n_it, bool) if st.when is None else flags(nest, st.when)[perm]
+            if m[0] == "reg":
+                if not on.all():
+                    raise LoopError(f"{sname}: conditional store to register-file array "
+                                    f"{st.array}")
+                reg = m[1]
+                k = add(_Item("mov", srcs=(v,), neg=(f,), fixed_dst=reg))
+                for r in reg_readers.get(reg, []):
+                    if r != k:
+                        items[k].after.append((r, 1))
+                continue
+            if f:  # a flipped value is stored through a mov with the flip
+                tmp = f"{v}__neg_{len(items)}"
+                add(_Item("mov", dst=tmp, srcs=(v,), neg=(1,)))
+                v = tmp
+            mode, base, tab = m
+            if not on.all():
+                if mode == M_CONST:
+                    tab = tuple(base - self.data_arrays[st.array] for _ in range(n_it))
+                elif mode == M_LINEAR:
+                    off = base - self.data_arrays[st.array]
+                    tab = tuple(off + i for i in range(n_it))
+                base = self.data_arrays[st.array]
+                tab = tuple(x if o else SKIP for x, o in zip(tab, on, strict=False))
+                mode = M_TABLE
+            k = add(_Item("store", srcs=(v,), neg=(0,), mode=mode, base=base, table=tab))
+            store_items[len(store_items)] = k
+            # a store follows every load of its array (reads see the words at the start)
+            lo, hi = self.data_arrays[st.array], self.data_arrays[st.array] + \
+                self.prog.arrays[st.array]
+            for j, it in enumerate(items[:k]):
+                if it.kind == "load" and lo <= it.base < hi:
+                    items[k].after.append((j, 1))
+        for name, si in late.items():  # re-arm after the update, on the store's table
+            st_item = items[store_items[si]]
+            init, _ = value(self._acc_init_name(fixed[name]))
+            k = add(_Item("mov", srcs=(init,), neg=(0,), mode=M_TABLE, table=st_item.table,
+                          fixed_dst=fixed[name]))
+            items[k].after.append((update_mov[name], 1))
+        return items, fixed, n_it
+
+    def _acc_init_name(self, reg: int) -> str:
+        return self.acc_init[reg]
+
+    # -- schedule one block
+    def schedule(self, sname: str, items: list, fixed: dict):
+        n = len(items)
+        ready_delay = []
+        for it in items:
+            if it.kind == "store":
+                ready_delay.append(None)
+            else:
+                ready_delay.append(write_delay(it.kind) + 1)
+        preds = [[] for _ in range(n)]
+        for k, it in enumerate(items):
+            for j, d in it.after:
+                preds[k].append((j, ready_delay[j] if d is None else d))
+        succs = [[] for _ in range(n)]
+        for k in range(n):
+            for j, d in preds[k]:
+                succs[j].append((k, d))
+        # priority: longest path to the end (latency-weighted)
+        height = [0] * n
+        for k in reversed(range(n)):
+            own = ready_delay[k] if ready_delay[k] is not None else 2
+            height[k] = max([own] + [d + height[s] for s, d in succs[k]])
+        issue = [None] * n
+        earliest = [0] * n
+        npred = [len(p) for p in preds]
+        ready = [k for k in range(n) if npred[k] == 0]
+        writes: set = set()
+        unit_busy: dict = {}
+        c = 0
+        done = 0
+        while done < n:
+            best = None
+            for k in ready:
+                if earliest[k] > c:
+                    continue
+                it = items[k]
+                if it.kind != "store":
+                    w = c + write_delay(it.kind)
+                    if w in writes:
+                        continue
+                u = UNIT_OF.get(it.kind)
+                if u in INTERVAL and unit_busy.get(u, -10**9) + INTERVAL[u] > c:
+                    continue
+                if best is None or (height[k], -k) > (height[best], -best):
+                    best = k
+            if best is not None:
+                it = items[best]
+                issue[best] = c
+                if it.kind != "store":
+                    writes.add(c + write_delay(it.kind))
+                u = UNIT_OF.get(it.kind)
+                if u in INTERVAL:
+                    unit_busy[u] = c
+                ready.remove(best)
+                done += 1
+                for s, d in succs[best]:
+                    earliest[s] = max(earliest[s], c + d)
+                    npred[s] -= 1
+                    if npred[s] == 0:
+                        ready.append(s)
+            c += 1
+            if c > 10**6:
+                raise LoopError(f"{sname}: scheduling did not converge")
+        end = 0
+        for k, it in enumerate(items):
+            if it.kind == "store":
+                end = max(end, issue[k] + STORE_WRITE + 1)
+            else:
+                end = max(end, issue[k] + write_delay(it.kind) + 1)
+        return issue, max(end, 1)
+
+    # -- registers
+    def allocate(self, sname, items, issue, fixed):
+        """Temporaries -> registers above the fixed ones: a value holds its register from
+        its write to its last read (interval allocation in write order)."""
+        last_read: dict = {}
+        for k, it in enumerate(items):
+            for s in it.srcs:
+                last_read[s] = max(last_read.get(s, -1), issue[k])
+        reg_of = dict(fixed)
+        temps = []
+        for k, it in enumerate(items):
+            if it.dst is not None and it.fixed_dst is None and it.dst not in fixed:
+                temps.append((issue[k] + write_delay(it.kind), last_read.get(it.dst, -1), it.dst))
+        temps.sort()
+        free_at: list = []  # (cycle the register is free from, register)
+        import heapq
+        pool: list = []
+        next_reg = self.nfixed
+        top = next_reg
+        for w, r, name in temps:
+            while free_at and free_at[0][0] <= w:
+                _, reg = heapq.heappop(free_at)
+                heapq.heappush(pool, reg)
+            if pool:
+                reg = heapq.heappop(pool)
+            else:
+                reg = next_reg
+                next_reg += 1
+            reg_of[name] = reg
+            # free once its last read is past: a later write lands after that read
+            heapq.heappush(free_at, (max(r, w) + 1, reg))
+            top = max(top, next_reg)
+        return reg_of, top
+
+    def block(self, sname: str, lowered) -> Block:
+        """Schedule, allocate and encode a lowered nest (every nest is lowered first, so
+        that the constants and accumulators own their registers before any temporary is
+        placed above them)."""
+        items, fixed, n_it = lowered
+        issue, length = self.schedule(sname, items, fixed)
+        reg_of, top = self.allocate(sname, items, issue, fixed)
+        self.top = max(getattr(self, "top", 0), top)
+        if top > self.max_registers:
+            raise LoopError(f"{sname}: needs {top} registers; the machine has "
+                            f"{self.max_registers}")
+        by_cycle = {issue[k]: k for k in range(len(items))}
+        rows: list = []
+        c = 0
+        while c < length:
+            if c in by_cycle:
+                it = items[by_cycle[c]]
+                rows.append(self.row(it, reg_of))
+                c += 1
+                continue
+            k = c
+            while k < length and k not in by_cycle and k - c < (1 << COUNT_BITS) - 1:
+                k += 1
+            rows.append(Row("nop", count=k - c))
+            c = k
+        return Block(sname, n_it, rows, length, len(items))
+
+    def row(self, it: _Item, reg_of: dict) -> Row:
+        tb = self.put_table(it.table) if it.table is not None else 0
+        if it.kind in UNIT_OF:
+            a = reg_of[it.srcs[0]]
+            b = reg_of[it.srcs[-1]]
+            return Row(it.kind, dst=reg_of[it.dst], a=a, na=it.neg[0], b=b,
+                       nb=it.neg[-1])
+        if it.kind == "mov":
+            dst = it.fixed_dst if it.fixed_dst is not None else reg_of[it.dst]
+            return Row("mov", dst=dst, a=reg_of[it.srcs[0]], na=it.neg[0], mode=it.mode,
+                       tb=tb)
+        if it.kind == "load":
+            return Row("load", dst=reg_of[it.dst], base=it.base, mode=it.mode, tb=tb)
+        if it.kind == "store":
+            return Row("store", a=reg_of[it.srcs[0]], base=it.base, mode=it.mode, tb=tb)
+        raise LoopError(f"unknown item {it.kind}")
+
+
+def compile_program(prog: SequenceProgram, reg_arrays=None,
+                    max_registers: int = 1 << REG_BITS) -> RegisterProgram:
+    """Compile ``prog`` for the register machine. ``reg_arrays``: the arrays kept in the
+    register file (default: those only straight-line segments touch, by constant
+    addresses)."""
+    check_sequence(prog)
+    if reg_arrays is None:
+        in_nests = {a for s in prog.segments.values() if s.trips for a in s.arrays}
+        reg_arrays = [a for a in prog.arrays if a not in in_nests]
+    comp = _Compiler(prog, reg_arrays, max_registers)
+    used = dict.fromkeys(s for segs in prog.entries.values() for s in segs)
+    lowered = {s: comp.lower(s, prog.segments[s]) for s in used}
+    blocks = {s: comp.block(s, low) for s, low in lowered.items()}
+    init = [0] * max(comp.top, comp.nfixed)
+    for name, reg in comp.constants.items():
+        init[reg] = _bits_of(const_value(name))
+    for reg, name in comp.acc_init.items():
+        init[reg] = _bits_of(const_value(name))
+    return RegisterProgram(prog, blocks, dict(prog.entries), dict(comp.reg_arrays),
+                           dict(comp.data_arrays), dict(comp.constants), len(init), init,
+                           list(comp.table), comp.data_words)
+
+
+def _bits_of(x: float) -> int:
+    return int(np.array([x], np.float32).view(np.uint32)[0])
+
+
+def _float_of(w: int) -> float:
+    return float(np.array([w], np.uint32).view(np.float32)[0])
+
+
+# ------------------------------------------------------------------ instruction-level model
+
+
+def _flush(w: int) -> int:
+    return w & 0x80000000 if (w >> 23) & 0xFF == 0 else w
+
+
+def _flip(w: int, f: int) -> int:
+    """As the machine's operand path (:func:`navgate.opflow.sequence._neg`): NaN -> the
+    canonical NaN, a subnormal -> the zero of the flipped sign."""
+    if not f:
+        return w
+    if (w >> 23) & 0xFF == 0xFF and w & 0x7FFFFF:
+        return QNAN_BITS
+    if (w >> 23) & 0xFF == 0:
+        return (w & 0x80000000) ^ 0x80000000
+    return w ^ 0x80000000
+
+
+def _unit(kind: str, a: int, b: int) -> int:
+    x, y = _float_of(_flush(a)), _float_of(_flush(b))
+    if kind in ("lt", "le"):
+        hold = (x < y) if kind == "lt" else (x <= y)
+        return ONE_BITS if hold else 0
+    if kind == "add":
+        r = x + y
+    elif kind == "sub":
+        r = x - y
+    elif kind == "mul":
+        r = x * y
+    elif kind == "div":
+        with np.errstate(all="ignore"):
+            r = float(np.float64(x) / np.float64(y))
+    else:  # sqrt
+        r = math.sqrt(x) if x >= 0.0 or x != x else (x if x == 0.0 else math.nan)
+    with np.errstate(all="ignore"):
+        r = round_fp32(r)
+    if r != r:
+        return QNAN_BITS
+    return _bits_of(r)
+
+
+def run_register_program(rp: RegisterProgram, memories: dict, entry: str) -> tuple[dict, int]:
+    """Run ``entry`` of the compiled program cycle by cycle as the machine does (rows,
+    register writes at their cycles, table entries, skips): returns (array -> uint32 words,
+    cycles from start to done). The check of the compiler against
+    :func:`~navgate.opflow.sequence.run_sequence`, and of the machine against this."""
+    prog = rp.program
+    regs = list(rp.reg_init) + [0] * 0
+    data = [0] * max(rp.data_words, 1)
+    for a, w in prog.arrays.items():
+        v = np.asarray(memories.get(a, np.zeros(w)))
+        words = [_flush(int(x)) for x in (v if v.dtype == np.uint32 else
+                                          np.asarray(v, np.float32).view(np.uint32))]
+        if a in rp.reg_arrays:
+            for i, x in enumerate(words):
+                regs[rp.reg_arrays[a] + i] = x
+        else:
+            for i, x in enumerate(words):
+                data[rp.data_arrays[a] + i] = x
+    cycle = 2
+    for bname in rp.entries[entry]:
+        blk = rp.blocks[bname]
+        for n in range(blk.trips):
+            pending: dict = {}  # cycle -> (register, word)
+            stores: dict = {}
+            c = 0
+            for row in blk.rows:
+                if row.kind == "nop":
+                    for t in range(c, c + row.count):
+                        _land(pending, stores, t, regs, data)
+                    c += row.count
+                    continue
+                entry_v = rp.table[row.tb + n] if row.mode == M_TABLE else 0
+                if row.kind in UNIT_OF:
+                    w = _unit(row.kind, _flip(regs[row.a], row.na), _flip(regs[row.b], row.nb))
+                    pending.setdefault(c + write_delay(row.kind), []).append((row.dst, w))
+                elif row.kind == "mov":
+                    if entry_v != SKIP:
+                        pending.setdefault(c + write_delay("mov"), []).append(
+                            (row.dst, _flip(regs[row.a], row.na)))
+                elif row.kind == "load":
+                    addr = _address(row, n, entry_v)
+                    pending.setdefault(c + 2, []).append((row.dst, data[addr]))
+                elif row.kind == "store":
+                    if entry_v != SKIP:
+                        stores.setdefault(c + STORE_WRITE, []).append((_address(row, n,
+                                                                                entry_v),
+                                                             regs[row.a]))
+                # the row read the registers as they were before this cycle's writes
+                _land(pending, stores, c, regs, data)
+                c += 1
+            for t in sorted(set(pending) | set(stores)):
+                if t >= c:
+                    raise LoopError(f"{bname}: a write at {t} after the block's {c} cycles")
+                _land(pending, stores, t, regs, data)
+            cycle += c
+    out = {}
+    for a, w in prog.arrays.items():
+        if a in rp.reg_arrays:
+            out[a] = np.array(regs[rp.reg_arrays[a]:rp.reg_arrays[a] + w], np.uint32)
+        else:
+            out[a] = np.array(data[rp.data_arrays[a]:rp.data_arrays[a] + w], np.uint32)
+    return out, cycle
+
+
+def _address(row: Row, n: int, entry_v: int) -> int:
+    if row.mode == M_CONST:
+        return row.base
+    if row.mode == M_LINEAR:
+        return row.base + n
+    return row.base + entry_v
+
+
+def _land(pending, stores, t, regs, data):
+    for reg, w in pending.pop(t, []):
+        regs[reg] = w
+    for addr, w in stores.pop(t, []):
+        data[addr] = w
+
+
+# ------------------------------------------------------------------ the machine
+
+
+def _layout(rp: RegisterProgram):
+    """Instruction ROM words (identical blocks stored once), block -> (first row, last row),
+    and the steps: for each entry its blocks as (first row, last row, trips - 1)."""
+    words: list = []
+    at: dict = {}
+    where: dict = {}
+    for name, blk in rp.blocks.items():
+        key = (tuple(r.word() for r in blk.rows))
+        if key not in at:
+            at[key] = len(words)
+            words.extend(key)
+        where[name] = (at[key], at[key] + len(blk.rows) - 1)
+    steps, first = [], {}
+    for e, blocks in rp.entries.items():
+        first[e] = len(steps)
+        for k, b in enumerate(blocks):
+            steps.append((*where[b], rp.blocks[b].trips - 1, int(k == len(blocks) - 1)))
+    return words, where, steps, first
+
+
+class RegisterMachine(wiring.Component):
+    """The register machine of a :class:`RegisterProgram` (module docstring).
+
+    Handshake: ``start`` (one cycle, while ``busy`` is low; ``entry``: the entry's number,
+    :meth:`entry_index`) runs the entry; ``done`` is high for one cycle
+    :meth:`RegisterProgram.cycles` cycles after the start cycle. Host port, while idle:
+    ``host_addr`` = 1 << 10 | register, or a data-memory word (:meth:`host_address`);
+    ``host_rdata`` holds the word of the address presented in the cycle before; written words
+    are flushed (a subnormal becomes the zero of its sign)."""
+
+    HOST_REG = 1 << BASE_BITS
+
+    def __init__(self, rp: RegisterProgram):
+        self.rp = rp
+        self.words, self.where, self.steps, self.first = _layout(rp)
+        self.entry_names = list(rp.entries)
+        super().__init__({"start": In(1), "entry": In(max(1, (len(rp.entries) - 1)
+                                                          .bit_length())),
+                          "busy": Out(1), "done": Out(1),
+                          "host_addr": In(BASE_BITS + 1), "host_wdata": In(32),
+                          "host_we": In(1), "host_rdata": Out(32)})
+
+    def host_address(self, array: str, word: int) -> int:
+        if array in self.rp.reg_arrays:
+            return self.HOST_REG | (self.rp.reg_arrays[array] + word)
+        return self.rp.data_arrays[array] + word
+
+    def entry_index(self, entry: str) -> int:
+        return self.entry_names.index(entry)
+
+    @property
+    def instruction_rows(self) -> int:
+        return len(self.words)
+
+    def elaborate(self, platform):  # noqa: C901 - one datapath, read top to bottom
+        rp = self.rp
+        m = Module()
+        nreg = max(rp.registers, 2)
+        irom = Memory(shape=INSTR_BITS, depth=max(len(self.words), 2),
+                      init=self.words + [0] * (max(len(self.words), 2) - len(self.words)))
+        trom = Memory(shape=TABLE_BITS, depth=max(len(rp.table), 2),
+                      init=list(rp.table) + [0] * (max(len(rp.table), 2) - len(rp.table)))
+        # the register file in LUT RAM (two read ports, one write port), so that block RAM
+        # holds the instruction ROM, the table ROM and the data memory only
+        regs = Memory(shape=32, depth=nreg, init=list(rp.reg_init) + [0] * (nreg - len(
+            rp.reg_init)), attrs={"ram_style": "distributed"})
+        data = Memory(shape=32, depth=max(rp.data_words, 2), init=[])
+        m.submodules.irom, m.submodules.trom = irom, trom
+        m.submodules.regs, m.submodules.data = regs, data
+        ir_port = irom.read_port()
+        tr_port = trom.read_port()
+        ra = regs.read_port(transparent_for=())
+        rb = regs.read_port(transparent_for=())
+        rw = regs.write_port()
+        dr = data.read_port(transparent_for=())
+        dw = data.write_port()
+
+        # ---- sequencer: a fetch stage (the row at the ROM's output, ``f_*``) and an issue
+        # stage (the row in the instruction register ``ir``, ``i_*``). Branches are decided
+        # at fetch from registers; a ``nop k`` in the instruction register holds both
+        # stages for k cycles (the ROM's read enable low), decided from the register. So
+        # no path runs from the ROM's output back to its address.
+        steps = self.steps
+        sw = max(1, (len(steps) - 1).bit_length())
+        pcw = max(1, (len(self.words) - 1).bit_length())
+        nw = max(1, max(s[2] for s in steps).bit_length())
+        st_first = Array([Const(s[0], pcw) for s in steps])
+        st_last = Array([Const(s[1], pcw) for s in steps])
+        st_trips = Array([Const(s[2], nw) for s in steps])
+        st_end = Array([Const(s[3], 1) for s in steps])
+        en_first = Array([Const(self.first[e], sw) for e in self.entry_names])
+        f_valid, f_last = Signal(), Signal()
+        f_step = Signal(sw)
+        f_pc = Signal(pcw)
+        f_n = Signal(nw)
+        i_valid, i_last = Signal(), Signal()
+        ir = Signal(INSTR_BITS)
+        n = Signal(nw)
+        wc = Signal(COUNT_BITS)
+        kind = ir[0:4]
+        is_nop = kind == KIND_CODE["nop"]
+        count = ir[12:28]
+        hold = Signal()
+        m.d.comb += hold.eq(i_valid & is_nop & (wc + 1 < count))
+        m.d.comb += self.busy.eq(f_valid | i_valid)
+        m.d.sync += self.done.eq(0)
+        # the next row to fetch after f_pc (from registers only)
+        block_end = f_pc == st_last[f_step]
+        last_iter = f_n == st_trips[f_step]
+        nx_pc, nx_n, nx_step = Signal(pcw), Signal(nw), Signal(sw)
+        nx_valid, nx_last = Signal(), Signal()
+        with m.If(block_end & last_iter):
+            m.d.comb += [nx_pc.eq(st_first[f_step + 1]), nx_n.eq(0),
+                         nx_step.eq(f_step + 1), nx_valid.eq(~st_end[f_step])]
+        with m.Elif(block_end):
+            m.d.comb += [nx_pc.eq(st_first[f_step]), nx_n.eq(f_n + 1), nx_step.eq(f_step),
+                         nx_valid.eq(1)]
+        with m.Else():
+            m.d.comb += [nx_pc.eq(f_pc + 1), nx_n.eq(f_n), nx_step.eq(f_step),
+                         nx_valid.eq(1)]
+        # the row after nx is the entry's end: nx is the entry's final row
+        m.d.comb += nx_last.eq((nx_pc == st_last[nx_step]) & (nx_n == st_trips[nx_step])
+                               & st_end[nx_step])
+        with m.If(hold):
+            m.d.sync += wc.eq(wc + 1)
+            m.d.comb += ir_port.en.eq(0)
+        with m.Else():
+            m.d.sync += [wc.eq(0), ir.eq(ir_port.data), n.eq(f_n), i_valid.eq(f_valid),
+                         i_last.eq(f_valid & f_last)]
+            m.d.comb += ir_port.en.eq(1)
+            with m.If(i_valid & i_last):
+                m.d.sync += self.done.eq(1)
+            with m.If(f_valid):
+                m.d.comb += ir_port.addr.eq(nx_pc)
+                m.d.sync += [f_pc.eq(nx_pc), f_n.eq(nx_n), f_step.eq(nx_step),
+                             f_valid.eq(nx_valid & ~f_last), f_last.eq(nx_last)]
+            with m.Elif(self.start & ~i_valid):
+                first = en_first[self.entry]
+                m.d.comb += ir_port.addr.eq(st_first[first])
+                m.d.sync += [f_pc.eq(st_first[first]), f_n.eq(0), f_step.eq(first),
+                             f_valid.eq(1),
+                             f_last.eq((st_first[first] == st_last[first])
+                                       & (st_trips[first] == 0) & st_end[first])]
+        active = Signal()
+        m.d.comb += active.eq(i_valid)
+
+        # ---- issue (cycle c): register and table reads
+        issue = Signal()
+        m.d.comb += issue.eq(i_valid & ~is_nop)
+        is_store = kind == KIND_CODE["store"]
+        f_dst, f_a, f_na, f_b, f_nb = ir[4:12], ir[12:20], ir[20], ir[21:29], ir[29]
+        f_base, f_mode, f_tb = ir[12:22], ir[22:24], ir[24:36]
+        host_reg = self.host_addr[BASE_BITS]
+        with m.If(active):
+            m.d.comb += [ra.addr.eq(Mux(is_store, f_dst, f_a)), rb.addr.eq(f_b)]
+        with m.Else():
+            m.d.comb += ra.addr.eq(self.host_addr[:REG_BITS])
+        m.d.comb += tr_port.addr.eq(f_tb + n)
+        # stage 1 (c + 1)
+        s1_valid = Signal()
+        s1_kind = Signal(4)
+        s1_dst = Signal(REG_BITS)
+        s1_na, s1_nb = Signal(), Signal()
+        s1_mode = Signal(2)
+        s1_base = Signal(BASE_BITS)
+        s1_n = Signal(nw)
+        m.d.sync += [s1_valid.eq(issue), s1_kind.eq(kind), s1_dst.eq(f_dst), s1_na.eq(f_na),
+                     s1_nb.eq(f_nb), s1_mode.eq(f_mode), s1_base.eq(f_base), s1_n.eq(n)]
+        op_a = Mux(s1_na, _neg(m, ra.data), ra.data)
+        op_b = Mux(s1_nb, _neg(m, rb.data), rb.data)
+        entry_v = tr_port.data
+        skip = (s1_mode == M_TABLE) & (entry_v == SKIP)
+        daddr = Signal(BASE_BITS)
+        m.d.sync += daddr.eq(s1_base + Mux(s1_mode == M_LINEAR, s1_n,
+                                           Mux(s1_mode == M_TABLE, entry_v, 0)))
+        k1 = {k: s1_valid & (s1_kind == KIND_CODE[k]) for k in KIND_CODE}
+        # stage 2 (c + 2): the operands registered for the units, the store's word and
+        # enable and the data address registered for the data memory
+        s2_valid, s2_kind, s2_dst = Signal(), Signal(4), Signal(REG_BITS)
+        s2_a, s2_b = Signal(32), Signal(32)
+        s2_store, s2_load = Signal(), Signal()
+        s2_word = Signal(32)  # a store's word: bit 20 of its row is an address bit, not na
+        m.d.sync += [s2_valid.eq(s1_valid), s2_kind.eq(s1_kind), s2_dst.eq(s1_dst),
+                     s2_a.eq(op_a), s2_b.eq(op_b), s2_word.eq(ra.data),
+                     s2_store.eq(k1["store"] & ~skip),
+                     s2_load.eq(k1["load"])]
+        k2 = {k: s2_valid & (s2_kind == KIND_CODE[k]) for k in KIND_CODE}
+
+        # ---- units
+        used = {UNIT_OF[r.kind] for b in rp.blocks.values() for r in b.rows
+                if r.kind in UNIT_OF}
+        writes = []  # (enable, register, word)
+        for u in ("mul", "add", "div", "sqrt", "cmp"):
+            if u not in used:
+                continue
+            core = UNIT_CLASS[u]()
+            m.submodules[u] = core
+            kinds = [k for k, uu in UNIT_OF.items() if uu == u]
+            go = Signal(name=f"{u}_go")
+            m.d.comb += go.eq(Cat(*[k2[k] for k in kinds]).any())
+            m.d.comb += [core.i.valid.eq(go), core.o.ready.eq(1), core.i.payload.a.eq(s2_a)]
+            if u != "sqrt":
+                m.d.comb += core.i.payload.b.eq(s2_b)
+            if u == "add":
+                m.d.comb += core.i.payload.sub.eq(s2_kind == KIND_CODE["sub"])
+            # the destination (and a comparison's kind) ride a delay line of the latency
+            v_line, d_line, le_line = go, s2_dst, s2_kind == KIND_CODE["le"]
+            for t in range(LATENCY[u]):
+                v2, d2, l2 = Signal(name=f"{u}_v{t}"), Signal(REG_BITS, name=f"{u}_d{t}"), \
+                    Signal(name=f"{u}_le{t}")
+                m.d.sync += [v2.eq(v_line), d2.eq(d_line), l2.eq(le_line)]
+                v_line, d_line, le_line = v2, d2, l2
+            if u == "cmp":
+                p = core.o.payload
+                word = Mux(p.lt | (le_line & p.equal), ONE_BITS, 0)
+            else:
+                word = core.o.payload.r
+            writes.append((v_line, d_line, word))
+        # mov: c + 2
+        s2_mov = Signal()
+        m.d.sync += s2_mov.eq(k1["mov"] & ~skip)
+        writes.append((s2_mov, s2_dst, s2_a))
+        # load: data read in c + 2, register write in c + 3
+        s3_load = Signal()
+        s3_dst = Signal(REG_BITS)
+        m.d.sync += [s3_load.eq(s2_load), s3_dst.eq(s2_dst)]
+        writes.append((s3_load, s3_dst, dr.data))
+
+        # ---- host port (idle) and the write ports
+        hw = self.host_wdata
+        host_word = Signal(32)
+        m.d.comb += host_word.eq(Mux(hw[23:31] == 0, Cat(Const(0, 31), hw[31]), hw))
+        # every write of a block lands within it (the compiler's rule), so the host port
+        # has the write ports whenever the machine is idle
+        with m.If(active):
+            for en, reg, word in writes:
+                with m.If(en):
+                    m.d.comb += [rw.en.eq(1), rw.addr.eq(reg), rw.data.eq(word)]
+        with m.Elif(self.host_we & host_reg):
+            m.d.comb += [rw.en.eq(1), rw.addr.eq(self.host_addr[:REG_BITS]),
+                         rw.data.eq(host_word)]
+        with m.If(active):
+            m.d.comb += [dr.addr.eq(daddr), dw.addr.eq(daddr), dw.data.eq(s2_word),
+                         dw.en.eq(s2_store)]
+        with m.Else():
+            m.d.comb += [dr.addr.eq(self.host_addr[:BASE_BITS]),
+                         dw.addr.eq(self.host_addr[:BASE_BITS]), dw.data.eq(host_word),
+                         dw.en.eq(self.host_we & ~host_reg & ~active)]
+        host_sel = Signal()
+        m.d.sync += host_sel.eq(host_reg)
+        m.d.comb += self.host_rdata.eq(Mux(host_sel, ra.data, dr.data))
+        return m
+
+
+def simulate_register_machine(rp: RegisterProgram, memories: dict, entries: list):
+    """Run the register machine in Amaranth's simulator: write ``memories`` through the host
+    port, then for each item of ``entries`` (an entry name, or (entry, memories to write
+    first)) start it, count the cycles from the start cycle to ``done`` and read every array
+    back. Returns one (array -> uint32 words, cycles) per entry run."""
+    from amaranth.sim import Simulator
+
+    dut = RegisterMachine(rp)
+    out: list = []
+
+    async def bench(ctx):
+        await host_write(ctx, dut, memories)
+        for item in entries:
+            entry, mems = (item, None) if isinstance(item, str) else item
+            if mems:
+                await host_write(ctx, dut, mems)
+            ctx.set(dut.entry, dut.entry_index(entry))
+            out.append(await host_run(ctx, dut, rp.program.arrays, 2 * rp.cycles(entry) + 100))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    return out

@@ -1,0 +1,227 @@
+"""opflow's register machine (navgate.opflow.regmachine): the compiler and its
+instruction-level model against the sequence executor (run_sequence) on seed 000's programs
+and on hand-made nests, the machine in Amaranth's simulator against both (bit for bit, cycle
+for cycle), and the programs it refuses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from navgate.opflow import regmachine as RM
+from navgate.opflow.ir import const_name
+from navgate.opflow.loops import Acc, Addr, Cond, LoopError, LoopNest, LOp, Store
+from navgate.opflow.sequence import SequenceProgram, run_sequence
+from navgate.systems.ins_trn.pl.register_engine import register_engine
+
+QNAN = 0x7FC00000
+
+
+def canon(v) -> np.ndarray:
+    """uint32 words as the machine keeps them: every NaN the canonical one (the executors'
+    NaN), a subnormal the zero of its sign (the host port flushes what it writes; the
+    executor keeps the subnormal of a word no segment reads)."""
+    v = np.asarray(v)
+    b = (v if v.dtype == np.uint32 else np.asarray(v, np.float32).view(np.uint32)).copy()
+    nan = ((b >> 23) & 0xFF == 0xFF) & (b & 0x7FFFFF != 0)
+    b[nan] = QNAN
+    sub = (b >> 23) & 0xFF == 0
+    b[sub] &= np.uint32(0x80000000)
+    return b
+
+
+def memories(prog, seed: int, special: bool = False) -> dict:
+    rng = np.random.default_rng(seed)
+    mem = {a: rng.normal(size=w).astype(np.float32) for a, w in prog.arrays.items()}
+    if special:  # NaN, infinities, signed zeros, subnormals (flushed) and huge values
+        pool = np.array([np.nan, np.inf, -np.inf, 0.0, -0.0, 1e-40, -1e-40, 3e38, -3e38,
+                         1.0, -1.0], np.float32)
+        for _a, v in mem.items():
+            k = rng.random(len(v)) < 0.15
+            v[k] = rng.choice(pool, int(k.sum()))
+    return mem
+
+
+def mismatches(prog, ref: dict, got: dict) -> dict:
+    bad = {a: int((canon(ref[a]) != canon(got[a])).sum()) for a in prog.arrays}
+    return {a: n for a, n in bad.items() if n}
+
+
+@pytest.fixture(scope="module")
+def seed000():
+    rp, _, _ = register_engine()
+    return rp
+
+
+#: cycles from start to done of every entry (exact: the compiler's schedule, which the
+#: machine runs; asserted below against the machine in simulation)
+SEED000_CYCLES = {"propagate": 42271, "alt_gate": 64, "alt_apply": 6523, "trn_gate": 164,
+                  "trn_apply": 11293}
+
+
+def test_seed000_fits_the_machine(seed000):
+    rp = seed000
+    m = RM.RegisterMachine(rp)
+    # one BRAM36 each for the instruction ROM (1024 x 36), the table ROM (4096 x 9) and the
+    # data memory (1024 x 32); the register file within the 8-bit register field
+    assert m.instruction_rows <= 1024
+    assert len(rp.table) <= 4096
+    assert rp.data_words <= 1024
+    assert rp.registers <= 256
+    assert {e: rp.cycles(e) for e in rp.entries} == SEED000_CYCLES
+    # a 400 Hz sample at 100 MHz is 250,000 cycles: an IMU sample and a 2-D update fit
+    assert rp.cycles("propagate") + rp.cycles("trn_apply") < 250_000 // 4
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("special", [False, True])
+def test_seed000_model_equals_run_sequence(seed000, seed, special):
+    rp = seed000
+    prog = rp.program
+    mem = memories(prog, seed, special)
+    for e in prog.entries:
+        got, cycles = RM.run_register_program(rp, mem, e)
+        assert mismatches(prog, run_sequence(prog, mem, e), got) == {}, e
+        assert cycles == rp.cycles(e)
+
+
+def test_seed000_model_runs_twice(seed000):
+    """Accumulators re-armed at the end of a nest: a second run starts from init."""
+    rp = seed000
+    prog = rp.program
+    mem = memories(prog, 5)
+    once, _ = RM.run_register_program(rp, mem, "propagate")
+    twice = run_sequence(prog, run_sequence(prog, mem, "propagate"), "propagate")
+    got = {a: np.asarray(v) for a, v in once.items()}
+    got, _ = RM.run_register_program(rp, got, "propagate")
+    assert mismatches(prog, twice, got) == {}
+
+
+def test_seed000_machine_updates(seed000):
+    """The machine in Amaranth's simulator: the gates and the 1-D update, bit for bit and
+    cycle for cycle (the IMU sample and the 2-D update under -m slow)."""
+    rp = seed000
+    prog = rp.program
+    mem = memories(prog, 3, special=True)
+    entries = ["alt_gate", "trn_gate", "alt_apply"]
+    out = RM.simulate_register_machine(rp, mem, entries)
+    cur = {a: np.asarray(v) for a, v in mem.items()}
+    for e, (got, cycles) in zip(entries, out, strict=False):
+        ref = run_sequence(prog, cur, e)
+        assert mismatches(prog, ref, got) == {}, e
+        assert cycles == rp.cycles(e)
+        cur = got
+
+
+@pytest.mark.slow
+def test_seed000_machine_imu_sample_and_2d_update(seed000):
+    rp = seed000
+    prog = rp.program
+    mem = memories(prog, 4)
+    entries = ["propagate", "trn_apply", "propagate"]
+    out = RM.simulate_register_machine(rp, mem, entries)
+    cur = {a: np.asarray(v) for a, v in mem.items()}
+    for e, (got, cycles) in zip(entries, out, strict=False):
+        assert mismatches(prog, run_sequence(prog, cur, e), got) == {}, e
+        assert cycles == rp.cycles(e)
+        cur = got
+
+
+# ------------------------------------------------------------------ hand-made nests
+
+
+def _dot_nest(distance: int) -> LoopNest:
+    """Four sums of three products each, interleaved over ``distance`` tracks (a chained
+    sum as a lane machine wants it), each stored when it ends."""
+    sums = [[(i, (i + k) % 6) for k in range(3)] for i in range(4)]
+    it_a, it_b, reset, last, dest = [], [], [], [], []
+    order = []
+    for t in range(3):
+        for s in range(4):
+            order.append((s, t))
+    # iteration n: sum n % distance-track layout; keep it simple with distance 4
+    assert distance == 4
+    for s_t in order:
+        s, t = s_t
+        a, b = sums[s][t]
+        it_a.append(a)
+        it_b.append(b)
+        reset.append(int(t == 0))
+        last.append(int(t == 2))
+        dest.append(s)
+    n = len(order)
+    return LoopNest("dot", (n,), {"A": 6, "B": 6, "Y": 4},
+                    {"ta": it_a, "tb": it_b, "reset": reset, "last": last, "dest": dest},
+                    [LOp("a", "load", ("A",), Addr("ta", (1,))),
+                     LOp("b", "load", ("B",), Addr("tb", (1,))),
+                     LOp("p", "mul", ("a", "b")),
+                     LOp("s", "add", ("acc", "p"))],
+                    [Acc("acc", const_name(-0.0), "s", Cond("table", "reset"), distance)],
+                    [Store("Y", Addr("dest", (1,)), "s", Cond("table", "last"))])
+
+
+def test_chains_are_serialised_and_exact():
+    nest = _dot_nest(4)
+    perm = RM.serialize_chains(nest)
+    # each sum's three iterations consecutive, in their order
+    assert [int(x) for x in perm] == [0, 4, 8, 1, 5, 9, 2, 6, 10, 3, 7, 11]
+    prog = SequenceProgram("dot", dict(nest.arrays), {"dot": nest}, {"run": ("dot",)})
+    rp = RM.compile_program(prog)
+    mem = {"A": np.float32([1.5, -2.0, 3.25, 1e20, -1e20, 7.0]),
+           "B": np.float32([2.0, 0.5, -1.0, 1e20, 3.0, -0.125]), "Y": np.zeros(4, np.float32)}
+    got, _ = RM.run_register_program(rp, mem, "run")
+    assert mismatches(prog, run_sequence(prog, mem, "run"), got) == {}
+    (hw, cycles), = RM.simulate_register_machine(rp, mem, ["run"])
+    assert mismatches(prog, run_sequence(prog, mem, "run"), hw) == {}
+    assert cycles == rp.cycles("run")
+
+
+def test_accumulators_on_two_chain_structures_are_refused():
+    nest = _dot_nest(4)
+    nest.accs.append(Acc("acc2", const_name(0.0), "p", Cond("table", "last"), 1))
+    with pytest.raises(LoopError, match="one chain structure"):
+        RM.serialize_chains(nest)
+
+
+def test_straight_line_with_every_kind_and_flipped_store():
+    body = [LOp("x", "load", ("R",), Addr(None, (), 0)),
+            LOp("y", "load", ("R",), Addr(None, (), 1)),
+            LOp("s", "add", ("x", "y")), LOp("d", "sub", ("x", "y")),
+            LOp("q", "div", ("s", "d")), LOp("r", "sqrt", ("q",)),
+            LOp("l", "lt", ("x", "y")), LOp("e", "le", ("y", "x")),
+            LOp("nq", "neg", ("q",)), LOp("m", "mul", ("nq", "r"))]
+    stores = [Store("R", Addr(None, (), 0), "m"), Store("R", Addr(None, (), 1), "x"),
+              Store("D", Addr(None, (), 0), "nq"), Store("D", Addr(None, (), 1), "l"),
+              Store("D", Addr(None, (), 2), "e")]
+    nest = LoopNest("seg", (), {"R": 2, "D": 4}, {}, body, [], stores)
+    other = LoopNest("touch", (2,), {"D": 4}, {}, [LOp("v", "load", ("D",), Addr(None, (1,)))],
+                     [], [Store("D", Addr(None, (1,), 2), "v")])
+    prog = SequenceProgram("kinds", {"R": 2, "D": 4}, {"seg": nest, "touch": other},
+                           {"run": ("seg", "touch")})
+    rp = RM.compile_program(prog)
+    assert rp.reg_arrays == {"R": 0} and "D" in rp.data_arrays
+    for x, y in [(9.0, 4.0), (-1.0, 0.0), (np.nan, 1.0), (np.inf, np.inf), (0.0, -0.0)]:
+        mem = {"R": np.float32([x, y]), "D": np.float32([1, 2, 3, 4])}
+        ref = run_sequence(prog, mem, "run")
+        got, _ = RM.run_register_program(rp, mem, "run")
+        assert mismatches(prog, ref, got) == {}, (x, y)
+    (hw, cycles), = RM.simulate_register_machine(rp, mem, ["run"])
+    assert mismatches(prog, ref, hw) == {}
+    assert cycles == rp.cycles("run")
+
+
+def test_programs_the_machine_cannot_hold_are_refused(seed000):
+    prog = seed000.program
+    with pytest.raises(LoopError, match="registers"):
+        RM.compile_program(prog, max_registers=64)
+    big = SequenceProgram("big", {"A": 2000}, {"s": LoopNest("s", (), {"A": 2000}, {},
+                          [LOp("x", "load", ("A",), Addr(None, (), 0))], [],
+                          [Store("A", Addr(None, (), 1), "x")])}, {"run": ("s",)})
+    with pytest.raises(LoopError, match="data words"):
+        RM.compile_program(big, reg_arrays=[])
+    cond = LoopNest("c", (2,), {"R": 2}, {"f": [1, 0]},
+                    [LOp("x", "load", ("R",), Addr(None, (), 0))], [],
+                    [Store("R", Addr(None, (), 1), "x", Cond("table", "f"))])
+    with pytest.raises(LoopError, match="register-file array"):
+        RM.compile_program(SequenceProgram("c", {"R": 2}, {"c": cond}, {"run": ("c",)}),
+                           reg_arrays=["R"])
