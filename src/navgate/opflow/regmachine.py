@@ -192,6 +192,12 @@ class RegisterProgram:
     def rows(self) -> int:
         return sum(len(b.rows) for b in self.blocks.values())
 
+    def host_address(self, array: str, word: int) -> int:
+        """The machine's host-port address of ``array[word]`` (:class:`RegisterMachine`)."""
+        if array in self.reg_arrays:
+            return (1 << BASE_BITS) | (self.reg_arrays[array] + word)
+        return self.data_arrays[array] + word
+
     def words(self) -> list:
         """The instruction ROM: every block's rows, in block order."""
         return [r.word() for b in self.blocks.values() for r in b.rows]
@@ -834,9 +840,7 @@ class RegisterMachine(wiring.Component):
                           "host_we": In(1), "host_rdata": Out(32)})
 
     def host_address(self, array: str, word: int) -> int:
-        if array in self.rp.reg_arrays:
-            return self.HOST_REG | (self.rp.reg_arrays[array] + word)
-        return self.rp.data_arrays[array] + word
+        return self.rp.host_address(array, word)
 
     def entry_index(self, entry: str) -> int:
         return self.entry_names.index(entry)

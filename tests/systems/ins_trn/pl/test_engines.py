@@ -14,6 +14,7 @@ from navgate.systems.ins_trn.pl.nav_engines import (
     engine_image,
     engine_programs,
     random_registers,
+    reference_calls,
     simulate_calls,
 )
 
@@ -64,30 +65,8 @@ def test_schedule_invariants():
             assert w >= last_read.get(reg, -1)
 
 
-def _words_to_inputs(prog, regs):
-    inputs = {}
-    for n in prog.inputs:
-        if n in IMU_WORDS:
-            w = regs[n]
-            inputs[n] = float(w - (1 << 32) if w >= 1 << 31 else w)
-        else:
-            inputs[n] = np.uint32(regs[n])
-    return inputs
-
-
 def _reference_sequence(regs, calls):
-    regs = dict(regs)
-    out = []
-    allp = engine_programs()
-    for key, inputs in calls:
-        regs.update(inputs)
-        p = allp[key]
-        state = {n: regs[n] for n in regs if n not in p.inputs}
-        new, outs, _ = run_bittrue(p, state, _words_to_inputs(p, regs))
-        regs.update({k: int(v[0]) for k, v in new.items()})
-        regs.update({k: int(v[0]) for k, v in outs.items() if k in regs})
-        out.append((dict(regs), {k: int(v[0]) for k, v in outs.items()}))
-    return out
+    return reference_calls(regs, calls)
 
 
 def _check(regs, calls, which="ins_engines"):

@@ -30,7 +30,7 @@ from navgate.systems.ins_trn.pl.fp32_program import RESET_MODULE, STATE_REGS, pr
 __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePropagator",
            "split_program", "engine_programs", "command_vectors", "stream_model",
            "ENGINE_UNITS", "PROGRAM_SETS", "fixed_names", "engine_image", "IMU_WORDS",
-           "simulate_program", "simulate_calls", "random_registers"]
+           "simulate_program", "simulate_calls", "random_registers", "reference_calls"]
 
 #: issue slots and banks of the engines (counts chosen against the 2-D update's cycle
 #: target); the misc slot (div, sqrt, compare, convert, mov) writes into the eight mul/add
@@ -207,6 +207,31 @@ def simulate_calls(image: BankedImage, regs: dict, calls, vcd: str | None = None
     else:
         sim.run()
     return results
+
+
+def reference_calls(regs: dict, calls) -> list:
+    """What ``calls`` (as :func:`simulate_calls`) give in the bit-true interpreter: one
+    (registers: name -> word, outputs: name -> word) per call; the IMU words are int16 in
+    32-bit two's complement."""
+    from navgate.opflow.execute import run_bittrue
+
+    regs = dict(regs)
+    out = []
+    allp = engine_programs()
+    for key, inputs in calls:
+        regs.update(inputs)
+        p = allp[key]
+        state = {n: regs[n] for n in regs if n not in p.inputs}
+        ins = {}
+        for n in p.inputs:
+            w = regs[n]
+            ins[n] = (float(w - (1 << 32) if w >= 1 << 31 else w) if n in IMU_WORDS
+                      else np.uint32(w))
+        new, outs, _ = run_bittrue(p, state, ins)
+        regs.update({k: int(v[0]) for k, v in new.items()})
+        regs.update({k: int(v[0]) for k, v in outs.items() if k in regs})
+        out.append((dict(regs), {k: int(v[0]) for k, v in outs.items()}))
+    return out
 
 
 def simulate_program(image: BankedImage, key: str, regs: dict):

@@ -16,10 +16,16 @@ from __future__ import annotations
 
 from functools import lru_cache
 
+from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal
+from amaranth.lib import wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
 from navgate.opflow.regmachine import RegisterProgram, compile_program
 from navgate.systems.ins_trn.pl import loop_programs as L
 
-__all__ = ["register_engine", "VARIANT"]
+__all__ = ["register_engine", "VARIANT", "RegisterEngineImage", "RegisterEngineCore",
+           "register_engine_image"]
 
 #: loop_programs' variant the machine runs: every nest in a step of its own (the fused
 #: variant's long straight-line segments exist to fill a lane machine's idle slots)
@@ -32,3 +38,172 @@ def register_engine(variant: str = VARIANT) -> tuple[RegisterProgram, dict, dict
     lps = L.loop_programs(1, variant)
     prog, reg_index = L.to_sequence(lps)
     return compile_program(prog), reg_index, lps
+
+
+# ------------------------------------------------------------------ behind ins_trn_top
+
+
+def int16_to_fp32(m, word):
+    """The float32 of the int16 in ``word[0:16]`` (exact: 16 bits fit the significand), as
+    the fp32 programs' ``cvt`` of an IMU word; combinational (a leading-one search and a
+    shift)."""
+    x = word[:16].as_signed()
+    sign = x < 0
+    mag = Signal(16, name="cvt_mag")
+    m.d.comb += mag.eq(Mux(sign, -x, x))
+    out = Signal(32, name="cvt_word")
+    with m.If(mag != 0):
+        for p in range(16):  # the last true condition wins: the leading one
+            with m.If(mag[p]):
+                m.d.comb += out.eq(Cat((mag << (23 - p))[:23], Const(127 + p, 8), sign))
+    return out
+
+
+class RegisterEngineImage:
+    """The register machine seen as the banked engine image (``engine_image("ins_engines")``)
+    by the sequencer, the stream wrapper and the PS: the same programs, register addresses
+    and output addresses (so the register map and the PS are unchanged), the register
+    machine's cycles, and :meth:`machine` the adapter core (:class:`RegisterEngineCore`)."""
+
+    def __init__(self):
+        from navgate.systems.ins_trn.pl.nav_engines import engine_image
+
+        self.banked = engine_image("ins_engines")
+        self.rp, self.reg_index, _ = register_engine()
+        self.programs = self.banked.programs
+        self.layout = self.banked.layout
+        self.fields = self.banked.fields
+        missing = [k for k in self.programs if k not in self.rp.entries]
+        if missing:
+            raise ValueError(f"register machine lacks entries {missing}")
+
+    def cycles(self, key: str) -> int:
+        """Cycles from the start to ``done`` minus one (the banked machine's convention):
+        the adapter's registered start, then the register machine's entry."""
+        return self.rp.cycles(key)
+
+    def output_addr(self, key: str) -> dict:
+        return self.banked.output_addr(key)
+
+    def machine(self, init: dict | None = None):
+        if init:
+            raise ValueError("the register engine has no initial register contents")
+        return RegisterEngineCore(self)
+
+    def new_address(self, name: str) -> int | None:
+        """The register machine host address of a register or output name (None: not held
+        by the register machine, e.g. the banked engine's gate-to-apply registers)."""
+        rp = self.rp
+        if name in self.reg_index:
+            return rp.host_address(L.REG_ARRAY, self.reg_index[name])
+        if name in L.STATE_WORDS:
+            return rp.host_address(*L.STATE_WORDS[name])
+        if name.startswith("dx") and name[2:].isdigit():
+            return rp.host_address("DX", int(name[2:]))
+        return None
+
+    def translation(self) -> tuple[list, dict]:
+        """(ROM: banked address -> valid << 12 | imu << 11 | register machine host address,
+        overrides: (update kind, banked address) -> that word) where an output address of
+        one program is another name's in another (the dx words of the two applies)."""
+        aw = self.fields.aw
+        rom = [0] * (1 << aw)
+
+        def word(name):
+            a = self.new_address(name)
+            if a is None:
+                return 0
+            return 1 << 12 | int(name in IMU_REGS) << 11 | a
+
+        for name, a in self.layout.fixed.items():
+            if not name.startswith("c:"):
+                rom[a] = word(name)
+        overrides = {}
+        for kind in ("alt", "trn"):
+            for key in (f"{kind}_gate", f"{kind}_apply"):
+                for name, a in self.output_addr(key).items():
+                    w = word(name)
+                    if rom[a] == 0:
+                        rom[a] = w
+                    elif rom[a] != w:
+                        overrides[(kind, a)] = w
+        for (kind, a), w in list(overrides.items()):
+            other = "trn" if kind == "alt" else "alt"
+            overrides.setdefault((other, a), rom[a])
+        return rom, overrides
+
+
+#: the IMU word registers (int16 in, float32 in the register machine)
+IMU_REGS = ("wg0", "wg1", "wg2", "wa0", "wa1", "wa2")
+
+
+class RegisterEngineCore(wiring.Component):
+    """The banked machine's ports (``start``/``prog``/``busy``/``done``, ``host_we``,
+    ``host_waddr``, ``host_wdata``, ``host_raddr``, ``host_rdata`` with one cycle of read
+    latency) on the register machine: banked addresses translated by a ROM, IMU words
+    converted from int16 to float32 on the way in, host writes and ``start`` registered once
+    (so a start follows the writes before it)."""
+
+    def __init__(self, image: RegisterEngineImage):
+        self.image = image
+        aw = image.fields.aw
+        self.keys = list(image.programs)
+        super().__init__({"start": In(1), "prog": In(range(max(2, len(self.keys)))),
+                          "busy": Out(1), "done": Out(1),
+                          "host_we": In(1), "host_waddr": In(aw), "host_wdata": In(32),
+                          "host_raddr": In(aw), "host_rdata": Out(32)})
+
+    def elaborate(self, platform):
+        from navgate.opflow.regmachine import RegisterMachine
+
+        m = Module()
+        img = self.image
+        m.submodules.rm = rm = RegisterMachine(img.rp)
+        rom, overrides = img.translation()
+        trom = Memory(shape=13, depth=len(rom), init=rom)
+        m.submodules.translate = trom
+        # reads: combinational ROM (the register machine's read is the one cycle); writes:
+        # the ROM word registered with the data
+        rd = trom.read_port(domain="comb")
+        wr = trom.read_port(domain="comb")
+        trn_ctx = Signal()  # the last update run was a TRN one (for the overrides)
+
+        def mapped(port, addr):
+            m.d.comb += port.addr.eq(addr)
+            w = Signal(13, name=f"map_{port.addr.name}")
+            m.d.comb += w.eq(port.data)
+            for (kind, a), word in overrides.items():
+                with m.If((addr == a) & (trn_ctx == (kind == "trn"))):
+                    m.d.comb += w.eq(word)
+            return w
+
+        rword = mapped(rd, self.host_raddr)
+        wword = mapped(wr, self.host_waddr)
+        w_pending = Signal()
+        w_addr = Signal(11)
+        w_data = Signal(32)
+        cvt = int16_to_fp32(m, self.host_wdata)
+        m.d.sync += [w_pending.eq(self.host_we & wword[12]), w_addr.eq(wword[:11]),
+                     w_data.eq(Mux(wword[11], cvt, self.host_wdata))]
+        m.d.comb += [rm.host_we.eq(w_pending), rm.host_wdata.eq(w_data),
+                     rm.host_addr.eq(Mux(w_pending, w_addr, rword[:11]))]
+        # a name the register machine does not hold reads as 0
+        r_valid = Signal()
+        m.d.sync += r_valid.eq(rword[12])
+        m.d.comb += self.host_rdata.eq(Mux(r_valid, rm.host_rdata, 0))
+        entry_of = Array([Const(rm.entry_index(k), len(rm.entry)) for k in self.keys])
+        is_trn = Array([Const(int(k.startswith("trn")), 1) for k in self.keys])
+        is_update = Array([Const(int(k.startswith(("trn", "alt"))), 1) for k in self.keys])
+        start_d = Signal()
+        entry_d = Signal(len(rm.entry))
+        m.d.sync += [start_d.eq(self.start), entry_d.eq(entry_of[self.prog])]
+        with m.If(self.start & is_update[self.prog]):
+            m.d.sync += trn_ctx.eq(is_trn[self.prog])
+        m.d.comb += [rm.start.eq(start_d), rm.entry.eq(entry_d), self.done.eq(rm.done),
+                     self.busy.eq(rm.busy | start_d)]
+        return m
+
+
+@lru_cache(maxsize=1)
+def register_engine_image() -> RegisterEngineImage:
+    return RegisterEngineImage()
