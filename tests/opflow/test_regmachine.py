@@ -30,7 +30,9 @@ def canon(v) -> np.ndarray:
     return b
 
 
-def memories(prog, seed: int, special: bool = False) -> dict:
+def memories(prog, seed: int, special: bool = False, rom: dict | None = None) -> dict:
+    """Random words for every array (NaN, infinities, zeros, subnormals among them with
+    ``special``), the words of ``rom`` (array -> {word: value}) set."""
     rng = np.random.default_rng(seed)
     mem = {a: rng.normal(size=w).astype(np.float32) for a, w in prog.arrays.items()}
     if special:  # NaN, infinities, signed zeros, subnormals (flushed) and huge values
@@ -39,7 +41,19 @@ def memories(prog, seed: int, special: bool = False) -> dict:
         for _a, v in mem.items():
             k = rng.random(len(v)) < 0.15
             v[k] = rng.choice(pool, int(k.sum()))
+    for a, words in (rom or {}).items():
+        for i, x in words.items():
+            mem[a][i] = x
     return mem
+
+
+def seed000_rom() -> dict:
+    _, _, lps = register_engine()
+    rom: dict = {}
+    for lp in lps.values():
+        for a, words in lp.rom.items():
+            rom.setdefault(a, {}).update(words)
+    return rom
 
 
 def mismatches(prog, ref: dict, got: dict) -> dict:
@@ -83,6 +97,27 @@ def test_seed000_model_equals_run_sequence(seed000, seed, special):
         got, cycles = RM.run_register_program(rp, mem, e)
         assert mismatches(prog, run_sequence(prog, mem, e), got) == {}, e
         assert cycles == rp.cycles(e)
+
+
+def test_seed000_constant_words_from_configuration(seed000):
+    """The programs' constant words (1.0, -0.0 in F and M) are the data memory's initial
+    contents: a run whose host writes everything else equals run_sequence with them."""
+    rp = seed000
+    prog = rp.program
+    rom = seed000_rom()
+    assert rom and any(v == 1.0 for w in rom.values() for v in w.values())
+    mem = memories(prog, 8, rom=rom)
+    given = {a: v for a, v in mem.items() if a not in rom}
+    for a, words in rom.items():  # never written: zeros and the constant words
+        mem[a] = np.zeros(prog.arrays[a], np.float32)
+        for i, x in words.items():
+            mem[a][i] = x
+    got, _ = RM.run_register_program(rp, given, "propagate")
+    assert mismatches(prog, run_sequence(prog, mem, "propagate"), got) == {}
+    (hw, _), = RM.simulate_register_machine(rp, given, ["alt_gate"])
+    for a, words in rom.items():
+        for i, x in words.items():
+            assert hw[a][i] == canon(np.float32([x]))[0], (a, i)
 
 
 def test_seed000_model_runs_twice(seed000):

@@ -182,6 +182,7 @@ class RegisterProgram:
     reg_init: list  #: register -> uint32 word (constants; zeros elsewhere)
     table: list  #: table ROM entries
     data_words: int
+    data_init: list = field(default_factory=list)  #: data memory words at configuration
 
     def cycles(self, entry: str) -> int:
         """Cycles from the start cycle to ``done`` (exact; the machine's)."""
@@ -643,11 +644,15 @@ class _Compiler:
 
 
 def compile_program(prog: SequenceProgram, reg_arrays=None,
-                    max_registers: int = 1 << REG_BITS) -> RegisterProgram:
+                    max_registers: int = 1 << REG_BITS, init: dict | None = None
+                    ) -> RegisterProgram:
     """Compile ``prog`` for the register machine. ``reg_arrays``: the arrays kept in the
     register file (default: those only straight-line segments touch, by constant
-    addresses)."""
+    addresses). ``init``: array -> {word: value}, the words the memories hold from
+    configuration (constants of the program's arrays, e.g. a table's 1.0), which no run
+    and no host write needs to rewrite."""
     check_sequence(prog)
+    rom = init
     if reg_arrays is None:
         in_nests = {a for s in prog.segments.values() if s.trips for a in s.arrays}
         reg_arrays = [a for a in prog.arrays if a not in in_nests]
@@ -660,9 +665,20 @@ def compile_program(prog: SequenceProgram, reg_arrays=None,
         init[reg] = _bits_of(const_value(name))
     for reg, name in comp.acc_init.items():
         init[reg] = _bits_of(const_value(name))
+    data_init = [0] * comp.data_words
+    for array, words in (rom or {}).items():
+        if array not in prog.arrays:
+            raise LoopError(f"{prog.name}: initial words for unknown array {array!r}")
+        for word, value in words.items():
+            if not 0 <= int(word) < prog.arrays[array]:
+                raise LoopError(f"{prog.name}: initial word {array}[{word}] out of range")
+            if array in comp.reg_arrays:
+                init[comp.reg_arrays[array] + int(word)] = _flush(_bits_of(value))
+            else:
+                data_init[comp.data_arrays[array] + int(word)] = _flush(_bits_of(value))
     return RegisterProgram(prog, blocks, dict(prog.entries), dict(comp.reg_arrays),
                            dict(comp.data_arrays), dict(comp.constants), len(init), init,
-                           list(comp.table), comp.data_words)
+                           list(comp.table), comp.data_words, data_init)
 
 
 def _bits_of(x: float) -> int:
@@ -716,15 +732,16 @@ def _unit(kind: str, a: int, b: int) -> int:
 
 
 def run_register_program(rp: RegisterProgram, memories: dict, entry: str) -> tuple[dict, int]:
-    """Run ``entry`` of the compiled program cycle by cycle as the machine does (rows,
+    """Run ``entry`` of the compiled program cycle by cycle as the machine does from its
+    initial memories with ``memories`` (array -> words) written over them (rows,
     register writes at their cycles, table entries, skips): returns (array -> uint32 words,
     cycles from start to done). The check of the compiler against
     :func:`~navgate.opflow.sequence.run_sequence`, and of the machine against this."""
     prog = rp.program
-    regs = list(rp.reg_init) + [0] * 0
-    data = [0] * max(rp.data_words, 1)
-    for a, w in prog.arrays.items():
-        v = np.asarray(memories.get(a, np.zeros(w)))
+    regs = list(rp.reg_init)
+    data = list(rp.data_init) + [0] * max(0, 1 - rp.data_words)
+    for a, v in memories.items():  # what the host writes; the rest keeps its initial words
+        v = np.asarray(v)
         words = [_flush(int(x)) for x in (v if v.dtype == np.uint32 else
                                           np.asarray(v, np.float32).view(np.uint32))]
         if a in rp.reg_arrays:
@@ -861,7 +878,7 @@ class RegisterMachine(wiring.Component):
         # holds the instruction ROM, the table ROM and the data memory only
         regs = Memory(shape=32, depth=nreg, init=list(rp.reg_init) + [0] * (nreg - len(
             rp.reg_init)), attrs={"ram_style": "distributed"})
-        data = Memory(shape=32, depth=max(rp.data_words, 2), init=[])
+        data = Memory(shape=32, depth=max(rp.data_words, 2), init=rp.data_init)
         m.submodules.irom, m.submodules.trom = irom, trom
         m.submodules.regs, m.submodules.data = regs, data
         ir_port = irom.read_port()

@@ -25,7 +25,7 @@ from navgate.opflow.regmachine import RegisterProgram, compile_program
 from navgate.systems.ins_trn.pl import loop_programs as L
 
 __all__ = ["register_engine", "VARIANT", "RegisterEngineImage", "RegisterEngineCore",
-           "register_engine_image"]
+           "register_engine_image", "PL_ENGINES", "pl_engine_image", "ins_engines_compact"]
 
 #: loop_programs' variant the machine runs: every nest in a step of its own (the fused
 #: variant's long straight-line segments exist to fill a lane machine's idle slots)
@@ -37,7 +37,11 @@ def register_engine(variant: str = VARIANT) -> tuple[RegisterProgram, dict, dict
     """(compiled program, register index of array ``R``, loop programs) of seed 000."""
     lps = L.loop_programs(1, variant)
     prog, reg_index = L.to_sequence(lps)
-    return compile_program(prog), reg_index, lps
+    rom: dict = {}
+    for lp in lps.values():
+        for array, words in lp.rom.items():
+            rom.setdefault(array, {}).update(words)
+    return compile_program(prog, init=rom), reg_index, lps
 
 
 # ------------------------------------------------------------------ behind ins_trn_top
@@ -127,7 +131,7 @@ class RegisterEngineImage:
                         rom[a] = w
                     elif rom[a] != w:
                         overrides[(kind, a)] = w
-        for (kind, a), w in list(overrides.items()):
+        for kind, a in list(overrides):
             other = "trn" if kind == "alt" else "alt"
             overrides.setdefault((other, a), rom[a])
         return rom, overrides
@@ -207,3 +211,26 @@ class RegisterEngineCore(wiring.Component):
 @lru_cache(maxsize=1)
 def register_engine_image() -> RegisterEngineImage:
     return RegisterEngineImage()
+
+
+#: the PL engines ``ins_trn_top`` can carry: the banked scheduled datapath
+#: (:mod:`navgate.systems.ins_trn.pl.nav_engines`, the default) or the register machine
+PL_ENGINES = ("banked", "register")
+
+
+def pl_engine_image(kind: str = "banked"):
+    """The engine image of ``kind`` (:data:`PL_ENGINES`): what the sequencer, the stream
+    wrapper and the PS read (programs, register and output addresses, cycles, machine)."""
+    if kind == "banked":
+        from navgate.systems.ins_trn.pl.nav_engines import engine_image
+
+        return engine_image("ins_engines")
+    if kind == "register":
+        return register_engine_image()
+    raise ValueError(f"unknown PL engine {kind!r}; choose from {', '.join(PL_ENGINES)}")
+
+
+def ins_engines_compact():
+    """``navgate build ins_engines_compact``: the register machine of seed 000 behind the
+    banked engine's ports (the adapter core), the engine ``ins_trn_top_compact`` carries."""
+    return RegisterEngineCore(register_engine_image())

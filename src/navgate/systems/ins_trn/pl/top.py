@@ -49,7 +49,7 @@ from navgate.systems.ins_trn.pl.sequencer import (
     job_cycles,
 )
 
-__all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "CAL_REGISTER_OF"]
+__all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "CAL_REGISTER_OF", "ins_trn_top_compact"]
 
 #: the top's pin ports (board pins; docs/seed000-top.md)
 PIN_PORTS = ("imu_sclk", "imu_mosi", "imu_miso", "imu_cs_n", "imu_dr",
@@ -111,11 +111,14 @@ class InsTrnTop(wiring.Component):
     """Seed 000's PL (module docstring): AXI4-Lite slave ``axi``, DMA master ``dma``,
     interrupt ``irq``, sensor pins and four status LEDs, in the ``sync`` domain."""
 
-    def __init__(self, *, tick_cycles: int = 100):
-        from navgate.systems.ins_trn.pl.nav_engines import engine_image
+    def __init__(self, *, tick_cycles: int = 100, engine: str = "banked"):
+        from navgate.systems.ins_trn.pl.register_engine import pl_engine_image
 
         self.tick_cycles = tick_cycles
-        self.image = engine_image("ins_engines")
+        #: the PL engine (register_engine.PL_ENGINES): the banked datapath or the register
+        #: machine (``ins_trn_top_compact``); the register map and the PS are the same
+        self.engine = engine
+        self.image = pl_engine_image(engine)
         regmap = register_map()
         members = {
             "axi": In(axi_lite_signature(regmap.address_width)),
@@ -423,4 +426,7 @@ class ZyboInsTrnTop(wiring.Component):
         return m
 
 
-
+def ins_trn_top_compact() -> InsTrnTop:
+    """``navgate build ins_trn_top_compact``: ``ins_trn_top`` carrying the register machine
+    (docs/seed000-register-machine.md) in place of the banked engines."""
+    return InsTrnTop(engine="register")

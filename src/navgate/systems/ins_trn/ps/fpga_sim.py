@@ -82,8 +82,9 @@ class InsTrnSimTop(wiring.Component):
     everything else goes to the bank. The window is read-only and the co-simulation's PS never
     writes there (writes are decoded by the bank's 11 address bits)."""
 
-    def __init__(self):
-        self.top = InsTrnTop()
+    def __init__(self, engine: str = "banked"):
+        self.engine = engine
+        self.top = InsTrnTop(engine=engine)
         super().__init__({
             "axi": In(axi_lite_signature(register_map().address_width + 1)),
             "imu_feed": In(stream.Signature(IMU_SAMPLE)),
@@ -187,7 +188,8 @@ def sim_verilog(top: InsTrnSimTop) -> str:
     gateware: from navgate's Verilog cache (:func:`navgate.cache.cached_verilog`, keyed by
     the contents of every source file of the navgate package and the Amaranth version;
     ``InsTrnSimTop`` takes no parameters). Emitting it takes tens of seconds."""
-    return V.emit_verilog(top, "dut", design="InsTrnSimTop", params={})
+    params = {} if top.engine == "banked" else {"engine": top.engine}
+    return V.emit_verilog(top, "dut", design="InsTrnSimTop", params=params)
 
 
 class SimFabric(Fabric):
@@ -244,9 +246,10 @@ def imu_fields(w) -> dict:
             "az": w[:, 5], "temp": np.zeros(n, np.int64), "diag": np.zeros(n, np.int64)}
 
 
-def start_sim(**options) -> NativeAxiSim:
-    """The native co-simulation of :class:`InsTrnSimTop` (its streams and ``irq`` watched)."""
-    top = InsTrnSimTop()
+def start_sim(engine: str = "banked", **options) -> NativeAxiSim:
+    """The native co-simulation of :class:`InsTrnSimTop` carrying the PL engine ``engine``
+    (its streams and ``irq`` watched)."""
+    top = InsTrnSimTop(engine)
     return NativeAxiSim(top, streams=("imu_feed", "lidar_feed", "baro_feed"), watch=("irq",),
                         verilog=sim_verilog(top), **options)
 
@@ -259,10 +262,18 @@ class FpgaSimEngine(RegisterEngine):
     def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
         if check_pd:  # refused before the simulation starts
             raise ValueError("check_pd needs the whole of P after every sample, which the "
-                             "fpga-sim engine does not read back (use the fp32 engine)")
-        self.sim = start_sim()
+                             f"{self.name} engine does not read back (use the fp32 engine)")
+        self.sim = start_sim(self.pl_engine)
         super().__init__(setup, SimFabric(self.sim))
 
     @property
     def cycles(self) -> int:
         return self.sim.cycles
+
+
+class FpgaSimCompactEngine(FpgaSimEngine):
+    """``fpga-sim`` with ``ins_trn_top_compact``: the whole PL carrying the register machine
+    (docs/seed000-register-machine.md); the same PS, register map and bus traffic."""
+
+    name = "fpga-sim-compact"
+    pl_engine = "register"

@@ -49,7 +49,7 @@ from navgate.hw.regmap import Reading, Registers, RegisterTimeout
 from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.systems.ins_trn.pl.fp32_exec import to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CAL_REGS, N_STATES, NAV_REGS, p_reg
-from navgate.systems.ins_trn.pl.nav_engines import engine_image
+from navgate.systems.ins_trn.pl.register_engine import pl_engine_image
 from navgate.systems.ins_trn.pl.top import CAL_REGISTER_OF
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.ps.pl_interface import EngineSetup, UpdateOutcome, check_imu_words
@@ -239,6 +239,9 @@ class RegisterEngine(Fp32Engine):
     (module docstring). Subclasses make the fabric: ``fpga-sim``, ``board``."""
 
     needs_imu_words = True
+    #: the PL engine the fabric carries (register_engine.PL_ENGINES): its cycles; its
+    #: register and output addresses are the banked engine's either way
+    pl_engine = "banked"
 
     def __init__(self, setup: EngineSetup, fabric: Fabric, *, check_pd: bool = False):
         if check_pd:
@@ -250,7 +253,7 @@ class RegisterEngine(Fp32Engine):
         #: the fabric's sample counters at set-up (a board's keep counting between flights)
         self.base_counts = {"propagations": 0, "baro": 0, "lidar": 0}
         super().__init__(setup, check_pd=False)
-        self.image = engine_image("ins_engines")
+        self.image = pl_engine_image(self.pl_engine)
         self.addr = self.image.layout.fixed
         self.baro_samples = 0
         self.lidar_frames = 0

@@ -25,7 +25,8 @@ from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.opflow.machine import CMD_READ, CMD_START, CMD_WRITE, ScheduledMachineStream
 from navgate.systems.ins_trn.pl.fp32_exec import to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CONFIG_REGS, STATE_REGS
-from navgate.systems.ins_trn.pl.nav_engines import ENGINE_UNITS, IMU_WORDS, engine_image
+from navgate.systems.ins_trn.pl.nav_engines import ENGINE_UNITS, IMU_WORDS
+from navgate.systems.ins_trn.pl.register_engine import pl_engine_image
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
 from navgate.systems.ins_trn.ps.pl_interface import EngineSetup, check_imu_words
 
@@ -158,15 +159,17 @@ class RtlEngine(Fp32Engine):
     """The gateware of seed 000's PL engines in Verilator behind the PlEngine interface."""
 
     name = "rtl"
+    #: the PL engine in Verilator (register_engine.PL_ENGINES)
+    pl_engine = "banked"
 
     def __init__(self, setup: EngineSetup, *, check_pd: bool = False):
         super().__init__(setup, check_pd=check_pd)
-        image = engine_image("ins_engines")
-        # the image is engine_image's defaults: its programs and ENGINE_UNITS, all in the
-        # source that the Verilog cache's key covers
-        self.link = NativeLink(image, design="ScheduledMachineStream",
-                               params={"engine_image": "ins_engines",
-                                       "units": dataclasses.asdict(ENGINE_UNITS)})
+        image = pl_engine_image(self.pl_engine)
+        # the image is engine_image's defaults (its programs and ENGINE_UNITS) or the
+        # register machine's, all in the source that the Verilog cache's key covers
+        params = ({"engine_image": "ins_engines", "units": dataclasses.asdict(ENGINE_UNITS)}
+                  if self.pl_engine == "banked" else {"engine_image": self.pl_engine})
+        self.link = NativeLink(image, design="ScheduledMachineStream", params=params)
         self._finalizer = weakref.finalize(self, self.link.close)
         self.m = _RtlMachine(self.m, image, self.link)
         self.m.load()
@@ -183,3 +186,11 @@ class RtlEngine(Fp32Engine):
 
     def close(self):
         self._finalizer()
+
+
+class RtlCompactEngine(RtlEngine):
+    """``rtl`` with the register machine (docs/seed000-register-machine.md) in Verilator,
+    behind the same ports and addresses."""
+
+    name = "rtl-compact"
+    pl_engine = "register"
