@@ -75,10 +75,9 @@ SEED000_CYCLES = {"propagate": 42271, "alt_gate": 64, "alt_apply": 6523, "trn_ga
 
 def test_seed000_fits_the_machine(seed000):
     rp = seed000
-    m = RM.RegisterMachine(rp)
     # one BRAM36 each for the instruction ROM (1024 x 36), the table ROM (4096 x 9) and the
     # data memory (1024 x 32); the register file within the 8-bit register field
-    assert m.instruction_rows <= 1024
+    assert len(rp.layout()[0]) <= 1024
     assert len(rp.table) <= 4096
     assert rp.data_words <= 1024
     assert rp.registers <= 256

@@ -1,20 +1,19 @@
 """The register machine: a sequence program (:class:`~navgate.opflow.sequence.SequenceProgram`)
 run one instruction per cycle on ONE float32 multiplier, adder, iterative divider, iterative
 square root and comparator, its values in a register file and a data memory addressed by
-the instructions: the smallest engine of opflow's programs.
+the instructions: the smallest machine of opflow's programs.
 
-Reference: issue 29 (the one-lane machine reported beside the lane machines: "the smallest
-seed-000 engine that still meets the 400 Hz rate"); the loop-nest IR and executor of
-:mod:`navgate.opflow.loops` and the sequence programs of :mod:`navgate.opflow.sequence`,
-whose :func:`~navgate.opflow.sequence.run_sequence` defines the results; list scheduling as
-:mod:`navgate.opflow.schedule`; a register file and a block-RAM data memory, as a
-microcoded DSP: load/store, zero-overhead loops, table (indirect) addressing
-(docs/seed000-register-machine.md has the figures).
+Reference: the loop-nest IR and executor of :mod:`navgate.opflow.loops` and the sequence
+programs of :mod:`navgate.opflow.sequence`, whose :func:`~navgate.opflow.sequence.run_sequence`
+defines the results; list scheduling as :mod:`navgate.opflow.schedule`; the organisation of a
+microcoded DSP (load/store over a register file, zero-overhead loops, table-indirect
+addressing). docs/opflow-register-machine.md describes it and gives its figures.
 
 Why: the lane machines (:mod:`navgate.opflow.sequence`) pass every value through a delay line
-and hold one control row per cycle. A 400 Hz sample is 250,000 cycles at 100 MHz, so a
-machine that issues one op per cycle and keeps its values in memories does the seed-000
-work in a small fraction of it, with a fraction of the logic.
+and hold one control row per cycle, which costs logic in proportion to the program's cycles.
+Where the time budget is loose (a navigation filter's sample period is hundreds of
+thousands of cycles), a machine that issues one op per cycle and keeps its values in
+memories does the work in a fraction of the period with a fraction of the logic.
 
 Program form (:func:`compile_program`)
 --------------------------------------
@@ -24,7 +23,7 @@ of an iteration before the next starts), ``trips`` the nest's iteration count (1
 straight-line segment). An entry runs its blocks in order.
 
 * **Memories.** Arrays that only straight-line segments touch (the register array of
-  seed 000's programs) live in the **register file** beside the constants, the
+  programs' scalar registers) live in the **register file** beside the constants, the
   temporaries and the accumulators; every other array is a region of the **data memory**
   (block RAM, one read port for loads, one write port for stores). A load from a
   register-file array is the register itself; a store to one is a ``mov``.
@@ -199,9 +198,25 @@ class RegisterProgram:
             return (1 << BASE_BITS) | (self.reg_arrays[array] + word)
         return self.data_arrays[array] + word
 
-    def words(self) -> list:
-        """The instruction ROM: every block's rows, in block order."""
-        return [r.word() for b in self.blocks.values() for r in b.rows]
+    def layout(self):
+        """The instruction ROM words (identical blocks stored once), block -> (first row,
+        last row), the steps (for each entry its blocks as (first row, last row, trips - 1,
+        last of the entry)) and entry -> its first step."""
+        words: list = []
+        at: dict = {}
+        where: dict = {}
+        for name, blk in self.blocks.items():
+            key = tuple(r.word() for r in blk.rows)
+            if key not in at:
+                at[key] = len(words)
+                words.extend(key)
+            where[name] = (at[key], at[key] + len(blk.rows) - 1)
+        steps, first = [], {}
+        for e, blocks in self.entries.items():
+            first[e] = len(steps)
+            for k, b in enumerate(blocks):
+                steps.append((*where[b], self.blocks[b].trips - 1, int(k == len(blocks) - 1)))
+        return words, where, steps, first
 
 
 # ------------------------------------------------------------------ chains
@@ -814,26 +829,6 @@ def _land(pending, stores, t, regs, data):
 # ------------------------------------------------------------------ the machine
 
 
-def _layout(rp: RegisterProgram):
-    """Instruction ROM words (identical blocks stored once), block -> (first row, last row),
-    and the steps: for each entry its blocks as (first row, last row, trips - 1)."""
-    words: list = []
-    at: dict = {}
-    where: dict = {}
-    for name, blk in rp.blocks.items():
-        key = (tuple(r.word() for r in blk.rows))
-        if key not in at:
-            at[key] = len(words)
-            words.extend(key)
-        where[name] = (at[key], at[key] + len(blk.rows) - 1)
-    steps, first = [], {}
-    for e, blocks in rp.entries.items():
-        first[e] = len(steps)
-        for k, b in enumerate(blocks):
-            steps.append((*where[b], rp.blocks[b].trips - 1, int(k == len(blocks) - 1)))
-    return words, where, steps, first
-
-
 class RegisterMachine(wiring.Component):
     """The register machine of a :class:`RegisterProgram` (module docstring).
 
@@ -848,7 +843,7 @@ class RegisterMachine(wiring.Component):
 
     def __init__(self, rp: RegisterProgram):
         self.rp = rp
-        self.words, self.where, self.steps, self.first = _layout(rp)
+        self.words, self.where, self.steps, self.first = rp.layout()
         self.entry_names = list(rp.entries)
         super().__init__({"start": In(1), "entry": In(max(1, (len(rp.entries) - 1)
                                                           .bit_length())),
