@@ -77,7 +77,18 @@ from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32DivIter, Fp32Mul, Fp
 from navgate.opflow.execute import round_fp32
 from navgate.opflow.ir import const_value
 from navgate.opflow.loopmachine import host_run, host_write
-from navgate.opflow.loops import LoopError, LoopNest, addresses, check_nest, flags
+from navgate.opflow.loops import (
+    Acc,
+    Addr,
+    Cond,
+    LoopError,
+    LoopNest,
+    LOp,
+    Store,
+    addresses,
+    check_nest,
+    flags,
+)
 from navgate.opflow.sequence import SequenceProgram, _neg, check_sequence
 
 __all__ = ["RegisterProgram", "Block", "Row", "compile_program", "run_register_program",
@@ -222,6 +233,65 @@ class RegisterProgram:
 # ------------------------------------------------------------------ chains
 
 
+def unroll_copies(nest: LoopNest, copies: int) -> LoopNest:
+    """``nest`` with ``copies`` consecutive iterations in one (copy ``u`` of iteration ``k``
+    is the original iteration ``k * copies + u``): every address and flag materialised per
+    copy as a table, temporaries and accumulators renamed per copy (``name@u``). An
+    accumulator of distance ``copies`` (sums interleaved over that many tracks) becomes one of
+    distance 1 in each copy: copy u's predecessor is copy u one iteration before. The
+    iteration count must divide; the results are the same (the nest carries nothing through
+    memory between iterations, :func:`~navgate.opflow.loops.check_nest`).
+
+    On this machine, whose iterations do not overlap, the copies are what the scheduler
+    interleaves: ``copies`` independent chains share one drain."""
+    check_nest(nest)
+    n_it = nest.iterations
+    if copies < 1 or n_it % copies:
+        raise LoopError(f"{nest.name}: {n_it} iterations do not divide into {copies} copies")
+    for a in nest.accs:
+        if a.distance != copies:
+            raise LoopError(f"{nest.name}: accumulator {a.name} has distance {a.distance}; "
+                            f"{copies} copies need distance {copies}")
+    if copies == 1 and len(nest.trips) <= 1:
+        return nest
+    k_it = n_it // copies
+    tables: dict = {}
+    tab_of: dict = {}
+
+    def table(values) -> str:
+        key = tuple(int(x) for x in values)
+        if key not in tab_of:
+            tab_of[key] = f"t{len(tab_of)}"
+            tables[tab_of[key]] = np.asarray(key, np.int64)
+        return tab_of[key]
+
+    def addr(a: Addr, u: int) -> Addr:
+        vals = addresses(nest, a)[u::copies]
+        if len(set(vals.tolist())) == 1:
+            return Addr(None, (), int(vals[0]))
+        return Addr(table(vals), (1,), 0)
+
+    def cond(c, u: int):
+        if c is None:
+            return None
+        return Cond("table", table(flags(nest, c)[u::copies].astype(np.int64)))
+
+    ops, accs, stores = [], [], []
+    for u in range(copies):
+        def rn(x, u=u):
+            return x if x.startswith("c:") else f"{x}@{u}"
+        for op in nest.ops:
+            if op.kind == "load":
+                ops.append(LOp(rn(op.dst), "load", op.srcs, addr(op.addr, u)))
+            else:
+                ops.append(LOp(rn(op.dst), op.kind, tuple(rn(x) for x in op.srcs)))
+        for a in nest.accs:
+            accs.append(Acc(rn(a.name), rn(a.init), rn(a.update), cond(a.reset, u), 1))
+        for st in nest.stores:
+            stores.append(Store(st.array, addr(st.addr, u), rn(st.src), cond(st.when, u)))
+    return LoopNest(nest.name, (k_it,), dict(nest.arrays), tables, ops, accs, stores)
+
+
 def serialize_chains(nest: LoopNest) -> np.ndarray:
     """The iteration order that makes every accumulator chain consecutive: returns ``perm``
     (new position -> original iteration). With accumulators of distance ``d``, iteration n
@@ -229,7 +299,7 @@ def serialize_chains(nest: LoopNest) -> np.ndarray:
     iterations follow one another in their order, chains ordered by their first iteration.
     All accumulators must share distance and reset pattern (LoopError otherwise)."""
     n_it = nest.iterations
-    if not nest.accs:
+    if all(a.distance == 1 for a in nest.accs):  # every chain already consecutive
         return np.arange(n_it)
     d = nest.accs[0].distance
     reset = flags(nest, nest.accs[0].reset)
@@ -659,13 +729,15 @@ class _Compiler:
 
 
 def compile_program(prog: SequenceProgram, reg_arrays=None,
-                    max_registers: int = 1 << REG_BITS, init: dict | None = None
-                    ) -> RegisterProgram:
+                    max_registers: int = 1 << REG_BITS, init: dict | None = None,
+                    unroll: dict | None = None) -> RegisterProgram:
     """Compile ``prog`` for the register machine. ``reg_arrays``: the arrays kept in the
     register file (default: those only straight-line segments touch, by constant
     addresses). ``init``: array -> {word: value}, the words the memories hold from
     configuration (constants of the program's arrays, e.g. a table's 1.0), which no run
-    and no host write needs to rewrite."""
+    and no host write needs to rewrite. ``unroll``: segment -> copies (:func:`unroll_copies`:
+    that many iterations in one, for the scheduler to interleave; a nest of interleaved sums
+    takes its track count)."""
     check_sequence(prog)
     rom = init
     if reg_arrays is None:
@@ -673,7 +745,12 @@ def compile_program(prog: SequenceProgram, reg_arrays=None,
         reg_arrays = [a for a in prog.arrays if a not in in_nests]
     comp = _Compiler(prog, reg_arrays, max_registers)
     used = dict.fromkeys(s for segs in prog.entries.values() for s in segs)
-    lowered = {s: comp.lower(s, prog.segments[s]) for s in used}
+    unroll = dict(unroll or {})
+    unknown = set(unroll) - set(prog.segments)
+    if unknown:
+        raise LoopError(f"{prog.name}: unroll names unknown segments {sorted(unknown)}")
+    lowered = {s: comp.lower(s, unroll_copies(prog.segments[s], unroll.get(s, 1))
+                             if unroll.get(s, 1) > 1 else prog.segments[s]) for s in used}
     blocks = {s: comp.block(s, low) for s, low in lowered.items()}
     init = [0] * max(comp.top, comp.nfixed)
     for name, reg in comp.constants.items():

@@ -372,11 +372,13 @@ def _propagate() -> LoopProgram:
          ("c2", "sub", "t1", "y")],
         [("P", range(n), "t"), ("cP", range(n), "c2")], arrays)
 
-    def build(u):
+    def build(u, tracks=None):
         return LoopProgram("propagate", [
             head,
-            chain_sums("cov_M", m_sums, "P", "F", "M", arrays, (P_ONE, F_NEGZERO), u),
-            chain_sums("cov_E", e_sums, "M", "F", "E", arrays, (M_ONE, F_NEGZERO), u),
+            chain_sums("cov_M", m_sums, "P", "F", "M", arrays, (P_ONE, F_NEGZERO), u,
+                       tracks),
+            chain_sums("cov_E", e_sums, "M", "F", "E", arrays, (M_ONE, F_NEGZERO), u,
+                       tracks),
             kahan], arrays, rom)
 
     return build
@@ -491,11 +493,13 @@ def _propagate_fused() -> LoopProgram:
     e_sums = [(k, t) for k, t in _e_sums(g_rows)
                if e_val[k] == f"E{k}"]
 
-    def build(u):
+    def build(u, tracks=None):
         return LoopProgram("propagate", [
             head,
-            chain_sums("cov_M", m_sums, "P", "F", "M", arrays, (P_ONE, F_NEGZERO), u),
-            chain_sums("cov_E", e_sums, "M", "F", "E", arrays, (M_ONE, F_NEGZERO), u),
+            chain_sums("cov_M", m_sums, "P", "F", "M", arrays, (P_ONE, F_NEGZERO), u,
+                       tracks),
+            chain_sums("cov_E", e_sums, "M", "F", "E", arrays, (M_ONE, F_NEGZERO), u,
+                       tracks),
             tail], arrays, rom)
 
     return build
@@ -741,9 +745,12 @@ def fuse_programs(first: Program, second: Program, name: str) -> Program:
 
 
 @lru_cache(maxsize=16)
-def loop_programs(lanes: int = DEFAULT_LANES, variant: str = "fused") -> dict:
+def loop_programs(lanes: int = DEFAULT_LANES, variant: str = "fused",
+                  tracks: int | None = None) -> dict:
     """The loop programs of the fp32 engine's five programs; ``lanes`` sets the terms per
-    iteration of the chained sums (one per multiplier + adder lane)."""
+    iteration of the chained sums (one per multiplier + adder lane), ``tracks`` the sums
+    they interleave (default: enough for one iteration per cycle on a lane machine; a
+    machine that does not overlap iterations wants 1, no padding)."""
     if variant not in VARIANTS:
         raise ValueError(f"unknown variant {variant!r}; known: {', '.join(VARIANTS)}")
     fused = variant != "plain"
@@ -757,7 +764,7 @@ def loop_programs(lanes: int = DEFAULT_LANES, variant: str = "fused") -> dict:
         trn_apply = LoopProgram("trn_apply", [Segment(fuse_programs(
             progs["trn_gate"], progs["trn_apply"], "trn_update"))],
             {"P": P_WORDS, "cP": P_WORDS})
-    prop = (_propagate_fused if fused else _propagate)()(lanes)
+    prop = (_propagate_fused if fused else _propagate)()(lanes, tracks)
     return {"propagate": prop, "alt_gate": alt_gate, "alt_apply": alt_apply,
             "trn_gate": trn_gate, "trn_apply": trn_apply}
 
