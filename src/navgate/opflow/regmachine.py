@@ -78,13 +78,8 @@ from navgate.opflow.execute import round_fp32
 from navgate.opflow.ir import const_value
 from navgate.opflow.loopmachine import host_run, host_write
 from navgate.opflow.loops import (
-    Acc,
-    Addr,
-    Cond,
     LoopError,
     LoopNest,
-    LOp,
-    Store,
     addresses,
     check_nest,
     flags,
@@ -176,6 +171,7 @@ class Block:
     rows: list  #: of Row
     cycles: int  #: cycles of one iteration (the rows' cycles)
     ops: int = 0  #: issuing rows (not nop)
+    step: int = 1  #: n's step per iteration (the copies of an unrolled nest)
 
 
 @dataclass
@@ -211,8 +207,8 @@ class RegisterProgram:
 
     def layout(self):
         """The instruction ROM words (identical blocks stored once), block -> (first row,
-        last row), the steps (for each entry its blocks as (first row, last row, trips - 1,
-        last of the entry)) and entry -> its first step."""
+        last row), the steps (for each entry its blocks as (first row, last row, n of the
+        last iteration, last of the entry, n's step)) and entry -> its first step."""
         words: list = []
         at: dict = {}
         where: dict = {}
@@ -226,70 +222,13 @@ class RegisterProgram:
         for e, blocks in self.entries.items():
             first[e] = len(steps)
             for k, b in enumerate(blocks):
-                steps.append((*where[b], self.blocks[b].trips - 1, int(k == len(blocks) - 1)))
+                blk = self.blocks[b]
+                steps.append((*where[b], (blk.trips - 1) * blk.step, int(k == len(blocks) - 1),
+                              blk.step))
         return words, where, steps, first
 
 
 # ------------------------------------------------------------------ chains
-
-
-def unroll_copies(nest: LoopNest, copies: int) -> LoopNest:
-    """``nest`` with ``copies`` consecutive iterations in one (copy ``u`` of iteration ``k``
-    is the original iteration ``k * copies + u``): every address and flag materialised per
-    copy as a table, temporaries and accumulators renamed per copy (``name@u``). An
-    accumulator of distance ``copies`` (sums interleaved over that many tracks) becomes one of
-    distance 1 in each copy: copy u's predecessor is copy u one iteration before. The
-    iteration count must divide; the results are the same (the nest carries nothing through
-    memory between iterations, :func:`~navgate.opflow.loops.check_nest`).
-
-    On this machine, whose iterations do not overlap, the copies are what the scheduler
-    interleaves: ``copies`` independent chains share one drain."""
-    check_nest(nest)
-    n_it = nest.iterations
-    if copies < 1 or n_it % copies:
-        raise LoopError(f"{nest.name}: {n_it} iterations do not divide into {copies} copies")
-    for a in nest.accs:
-        if a.distance != copies:
-            raise LoopError(f"{nest.name}: accumulator {a.name} has distance {a.distance}; "
-                            f"{copies} copies need distance {copies}")
-    if copies == 1 and len(nest.trips) <= 1:
-        return nest
-    k_it = n_it // copies
-    tables: dict = {}
-    tab_of: dict = {}
-
-    def table(values) -> str:
-        key = tuple(int(x) for x in values)
-        if key not in tab_of:
-            tab_of[key] = f"t{len(tab_of)}"
-            tables[tab_of[key]] = np.asarray(key, np.int64)
-        return tab_of[key]
-
-    def addr(a: Addr, u: int) -> Addr:
-        vals = addresses(nest, a)[u::copies]
-        if len(set(vals.tolist())) == 1:
-            return Addr(None, (), int(vals[0]))
-        return Addr(table(vals), (1,), 0)
-
-    def cond(c, u: int):
-        if c is None:
-            return None
-        return Cond("table", table(flags(nest, c)[u::copies].astype(np.int64)))
-
-    ops, accs, stores = [], [], []
-    for u in range(copies):
-        def rn(x, u=u):
-            return x if x.startswith("c:") else f"{x}@{u}"
-        for op in nest.ops:
-            if op.kind == "load":
-                ops.append(LOp(rn(op.dst), "load", op.srcs, addr(op.addr, u)))
-            else:
-                ops.append(LOp(rn(op.dst), op.kind, tuple(rn(x) for x in op.srcs)))
-        for a in nest.accs:
-            accs.append(Acc(rn(a.name), rn(a.init), rn(a.update), cond(a.reset, u), 1))
-        for st in nest.stores:
-            stores.append(Store(st.array, addr(st.addr, u), rn(st.src), cond(st.when, u)))
-    return LoopNest(nest.name, (k_it,), dict(nest.arrays), tables, ops, accs, stores)
 
 
 def serialize_chains(nest: LoopNest) -> np.ndarray:
@@ -387,32 +326,45 @@ class _Compiler:
         return self.table_at[key]
 
     # -- one nest -> items
-    def lower(self, sname: str, nest: LoopNest):
+    def lower(self, sname: str, nest: LoopNest, copies: int = 1):
+        """``nest`` -> (items, fixed registers, block trips, step of n). With ``copies`` > 1,
+        that many consecutive iterations in one block iteration (copy ``u`` of block
+        iteration ``k`` is iteration ``k * copies + u``; n steps by ``copies``, so a table
+        serves every copy at offset ``u`` and ``base + n`` stays linear); an accumulator of
+        distance ``copies`` (sums interleaved over that many tracks) is then one register per
+        copy, continued by that copy in the next block iteration."""
         check_nest(nest)
-        n_it = nest.iterations
-        perm = serialize_chains(nest)
+        n_full = nest.iterations
+        if copies < 1 or n_full % copies:
+            raise LoopError(f"{sname}: {n_full} iterations do not divide into {copies} copies")
+        if copies > 1 and any(a.distance != copies for a in nest.accs):
+            raise LoopError(f"{sname}: {copies} copies need accumulators of distance "
+                            f"{copies}")
+        perm = np.arange(n_full) if copies > 1 else serialize_chains(nest)
+        n_it = n_full // copies
         items: list = []
         producer: dict = {}  # value -> item index
         flip_of: dict = {}  # value -> (source value, flip) for neg chains and aliases
         fixed: dict = {}  # value -> register (register-array words, constants, accumulators)
         reg_readers: dict = {}  # fixed register -> reader item indices
 
-        def addr_mode(array, addr):
-            a = addresses(nest, addr)[perm]
+        def addr_mode(array, addr, u):
+            a_full = addresses(nest, addr)[perm]
+            a = a_full[u::copies]
             if array in self.reg_arrays:
-                if len(set(a.tolist())) != 1:
+                if len(set(a_full.tolist())) != 1:
                     raise LoopError(f"{sname}: register-file array {array} needs constant "
                                     "addresses")
                 return ("reg", self.reg_arrays[array] + int(a[0]))
             base = self.data_arrays[array]
             if len(set(a.tolist())) == 1:
                 return (M_CONST, base + int(a[0]), None)
-            if np.array_equal(a, a[0] + np.arange(n_it)):
-                return (M_LINEAR, base + int(a[0]), None)
-            if a.max() >= SKIP:
-                raise LoopError(f"{sname}: {array} addresses up to {a.max()}: table entries "
-                                f"hold at most {SKIP - 1}")
-            return (M_TABLE, base, tuple(a.tolist()))
+            if np.array_equal(a_full, a_full[0] + np.arange(n_full)):
+                return (M_LINEAR, base + int(a_full[0]) + u, None)
+            if a_full.max() >= SKIP:
+                raise LoopError(f"{sname}: {array} addresses up to {a_full.max()}: table "
+                                f"entries hold at most {SKIP - 1}")
+            return (M_TABLE, base, (tuple(a_full.tolist()), u))
 
         def resolve(v):
             flip = 0
@@ -440,140 +392,132 @@ class _Compiler:
                 producer[it.dst] = k
             return k
 
-        nest.acc_names()
-        acc_mov: dict = {}
-        for a in nest.accs:
-            key = (sname, a.name)
-            if key not in self.acc_regs:
-                self.acc_regs[key] = self.nfixed
-                self.nfixed += 1
-            fixed[a.name] = self.acc_regs[key]
-        # accumulator resets: mov acc <- init where reset holds (init a constant here; an
-        # init computed in the iteration is moved once it is ready, below)
-        reset_at = {}
-        for a in nest.accs:
-            r = flags(nest, a.reset)[perm]
-            reset_at[a.name] = r
-        pending_resets = {a.name: a for a in nest.accs}
+        resets_full = {a.name: flags(nest, a.reset)[perm] for a in nest.accs}
+        on_full = [np.ones(n_full, bool) if st.when is None else flags(nest, st.when)[perm]
+                   for st in nest.stores]
+        for u in range(copies):
+            def rn(x, u=u):
+                return x if copies == 1 or x.startswith("c:") else f"{x}@{u}"
 
-        def emit_reset(a):
-            r = reset_at[a.name]
-            init, f = value(a.init)
-            if r.all():
-                mode, tab = M_CONST, None
-            else:
-                mode, tab = M_TABLE, tuple(0 if x else SKIP for x in r)
-            k = add(_Item("mov", dst=a.name, srcs=(init,), neg=(f,), mode=mode, table=tab,
-                          fixed_dst=fixed[a.name]))
-            acc_mov[a.name] = k
-            del pending_resets[a.name]
+            acc_mov: dict = {}
+            for a in nest.accs:
+                key = (sname, rn(a.name))
+                if key not in self.acc_regs:
+                    self.acc_regs[key] = self.nfixed
+                    self.nfixed += 1
+                fixed[rn(a.name)] = self.acc_regs[key]
+            pending_resets = {rn(a.name): a for a in nest.accs}
 
-        # a constant init whose reset follows exactly the iterations after a conditional
-        # store's (a chained sum: the sum is stored, the next one starts) is re-armed at the
-        # END of the storing iteration by a mov on the store's own table, and after the
-        # last iteration too: the register then holds init whenever the nest starts (its
-        # initial value, and what every run leaves), and no reset table is stored
-        store_on = [np.ones(n_it, bool) if st.when is None else flags(nest, st.when)[perm]
-                    for st in nest.stores]
-        late: dict = {}  # acc -> store index
-        for a in list(pending_resets.values()):
-            if not a.init.startswith("c:"):
-                continue
-            rearm = np.append(reset_at[a.name][1:], True)
-            hit = [i for i, on in enumerate(store_on) if not on.all()
-                   and np.array_equal(on, rearm)]
-            if hit:
-                late[a.name] = hit[0]
-                self.acc_init[fixed[a.name]] = a.init
-                value(a.init)
-                acc_mov[a.name] = None
-                del pending_resets[a.name]
-            else:
-                emit_reset(a)
-        for op in nest.ops:
-            if op.kind == "load":
-                m = addr_mode(op.srcs[0], op.addr)
-                if m[0] == "reg":
-                    fixed[op.dst] = m[1]
-                    continue
-                add(_Item("load", dst=op.dst, mode=m[0], base=m[1], table=m[2]))
-                continue
-            if op.kind == "neg":
-                flip_of[op.dst] = (op.srcs[0], 1)
-                continue
-            srcs, negs = [], []
-            for s in op.srcs:
-                if s in pending_resets:
-                    raise LoopError(f"{sname}: accumulator {s} read before its init is ready")
-                v, f = value(s)
-                srcs.append(v)
-                negs.append(f)
-            k = add(_Item(op.kind, dst=op.dst, srcs=tuple(srcs), neg=tuple(negs)))
-            for s in srcs:
-                if acc_mov.get(s) is not None:
-                    items[k].after.append((acc_mov[s], 2))
+            def emit_reset(a, u=u, rn=rn, acc_mov=acc_mov, pending_resets=pending_resets):
+                r_full = resets_full[a.name]
+                init, f = value(rn(a.init))
+                if r_full[u::copies].all():
+                    mode, tab = M_CONST, None
+                else:
+                    mode, tab = M_TABLE, (tuple(0 if x else SKIP for x in r_full), u)
+                k = add(_Item("mov", dst=rn(a.name), srcs=(init,), neg=(f,), mode=mode,
+                              table=tab, fixed_dst=fixed[rn(a.name)]))
+                acc_mov[rn(a.name)] = k
+                del pending_resets[rn(a.name)]
+
+            # a constant init whose reset follows exactly the iterations after a
+            # conditional store's (a chained sum: the sum is stored, the next one starts) is
+            # re-armed at the END of the storing iteration by a mov on the store's own
+            # table, and after the last iteration too: the register then holds init
+            # whenever the nest starts (its initial value, and what every run leaves), and
+            # no reset table is stored
+            late: dict = {}  # acc -> store index
             for a in list(pending_resets.values()):
-                if a.init == op.dst:
+                if not a.init.startswith("c:"):
+                    continue
+                rearm = np.append(resets_full[a.name][u::copies][1:], True)
+                hit = [i for i, on in enumerate(on_full) if not on[u::copies].all()
+                       and np.array_equal(on[u::copies], rearm)]
+                if hit:
+                    late[rn(a.name)] = hit[0]
+                    self.acc_init[fixed[rn(a.name)]] = a.init
+                    value(a.init)
+                    acc_mov[rn(a.name)] = None
+                    del pending_resets[rn(a.name)]
+                else:
                     emit_reset(a)
-        # accumulator updates: mov acc <- update after every read of acc
-        update_mov = {}
-        for a in nest.accs:
-            upd, f = value(a.update)
-            k = add(_Item("mov", dst=None, srcs=(upd,), neg=(f,), fixed_dst=fixed[a.name]))
-            update_mov[a.name] = k
-            for r in reg_readers.get(fixed[a.name], []):
-                if r != k:
-                    items[k].after.append((r, 1))
-        store_items = {}
-        # stores
-        loads_of: dict = {}
-        for k, it in enumerate(items):
-            if it.kind == "load":
-                loads_of.setdefault(it.base if it.mode != M_TABLE else ("t", it.base),
-                                    []).append(k)
-        for st in nest.stores:
-            v, f = value(st.src)
-            m = addr_mode(st.array, st.addr)
-            on = np.ones(n_it, bool) if st.when is None else flags(nest, st.when)[perm]
-            if m[0] == "reg":
-                if not on.all():
-                    raise LoopError(f"{sname}: conditional store to register-file array "
-                                    f"{st.array}")
-                reg = m[1]
-                k = add(_Item("mov", srcs=(v,), neg=(f,), fixed_dst=reg))
-                for r in reg_readers.get(reg, []):
+            for op in nest.ops:
+                if op.kind == "load":
+                    m = addr_mode(op.srcs[0], op.addr, u)
+                    if m[0] == "reg":
+                        fixed[rn(op.dst)] = m[1]
+                        continue
+                    add(_Item("load", dst=rn(op.dst), mode=m[0], base=m[1], table=m[2]))
+                    continue
+                if op.kind == "neg":
+                    flip_of[rn(op.dst)] = (rn(op.srcs[0]), 1)
+                    continue
+                srcs, negs = [], []
+                for s in op.srcs:
+                    if rn(s) in pending_resets:
+                        raise LoopError(f"{sname}: accumulator {s} read before its init is "
+                                        "ready")
+                    v, f = value(rn(s))
+                    srcs.append(v)
+                    negs.append(f)
+                k = add(_Item(op.kind, dst=rn(op.dst), srcs=tuple(srcs), neg=tuple(negs)))
+                for s in srcs:
+                    if acc_mov.get(s) is not None:
+                        items[k].after.append((acc_mov[s], 2))
+                for a in list(pending_resets.values()):
+                    if a.init == op.dst:
+                        emit_reset(a)
+            # accumulator updates: mov acc <- update after every read of acc
+            update_mov = {}
+            for a in nest.accs:
+                upd, f = value(rn(a.update))
+                k = add(_Item("mov", dst=None, srcs=(upd,), neg=(f,),
+                              fixed_dst=fixed[rn(a.name)]))
+                update_mov[rn(a.name)] = k
+                for r in reg_readers.get(fixed[rn(a.name)], []):
                     if r != k:
                         items[k].after.append((r, 1))
-                continue
-            if f:  # a flipped value is stored through a mov with the flip
-                tmp = f"{v}__neg_{len(items)}"
-                add(_Item("mov", dst=tmp, srcs=(v,), neg=(1,)))
-                v = tmp
-            mode, base, tab = m
-            if not on.all():
-                if mode == M_CONST:
-                    tab = tuple(base - self.data_arrays[st.array] for _ in range(n_it))
-                elif mode == M_LINEAR:
-                    off = base - self.data_arrays[st.array]
-                    tab = tuple(off + i for i in range(n_it))
-                base = self.data_arrays[st.array]
-                tab = tuple(x if o else SKIP for x, o in zip(tab, on, strict=False))
-                mode = M_TABLE
-            k = add(_Item("store", srcs=(v,), neg=(0,), mode=mode, base=base, table=tab))
-            store_items[len(store_items)] = k
-            # a store follows every load of its array (reads see the words at the start)
-            lo, hi = self.data_arrays[st.array], self.data_arrays[st.array] + \
-                self.prog.arrays[st.array]
-            for j, it in enumerate(items[:k]):
-                if it.kind == "load" and lo <= it.base < hi:
-                    items[k].after.append((j, 1))
-        for name, si in late.items():  # re-arm after the update, on the store's table
-            st_item = items[store_items[si]]
-            init, _ = value(self._acc_init_name(fixed[name]))
-            k = add(_Item("mov", srcs=(init,), neg=(0,), mode=M_TABLE, table=st_item.table,
-                          fixed_dst=fixed[name]))
-            items[k].after.append((update_mov[name], 1))
-        return items, fixed, n_it
+            store_items = {}
+            for si, st in enumerate(nest.stores):
+                v, f = value(rn(st.src))
+                m = addr_mode(st.array, st.addr, u)
+                on = on_full[si]
+                if m[0] == "reg":
+                    if not on.all():
+                        raise LoopError(f"{sname}: conditional store to register-file array "
+                                        f"{st.array}")
+                    reg = m[1]
+                    k = add(_Item("mov", srcs=(v,), neg=(f,), fixed_dst=reg))
+                    for r in reg_readers.get(reg, []):
+                        if r != k:
+                            items[k].after.append((r, 1))
+                    continue
+                if f:  # a flipped value is stored through a mov with the flip
+                    tmp = f"{v}__neg_{len(items)}"
+                    add(_Item("mov", dst=tmp, srcs=(v,), neg=(1,)))
+                    v = tmp
+                mode, base, tab = m
+                if not on[u::copies].all():
+                    rel = addresses(nest, st.addr)[perm]
+                    base = self.data_arrays[st.array]
+                    tab = (tuple(int(x) if o else SKIP for x, o in zip(rel, on, strict=True)),
+                           u)
+                    mode = M_TABLE
+                k = add(_Item("store", srcs=(v,), neg=(0,), mode=mode, base=base, table=tab))
+                store_items[si] = k
+                # a store follows every load of its array (reads see the words at the start)
+                lo, hi = self.data_arrays[st.array], self.data_arrays[st.array] + \
+                    self.prog.arrays[st.array]
+                for j, it in enumerate(items[:k]):
+                    if it.kind == "load" and lo <= it.base < hi:
+                        items[k].after.append((j, 1))
+            for name, si in late.items():  # re-arm after the update, on the store's table
+                st_item = items[store_items[si]]
+                init, _ = value(self._acc_init_name(fixed[name]))
+                k = add(_Item("mov", srcs=(init,), neg=(0,), mode=M_TABLE,
+                              table=st_item.table, fixed_dst=fixed[name]))
+                items[k].after.append((update_mov[name], 1))
+        return items, fixed, n_it, copies
 
     def _acc_init_name(self, reg: int) -> str:
         return self.acc_init[reg]
@@ -687,7 +631,7 @@ class _Compiler:
         """Schedule, allocate and encode a lowered nest (every nest is lowered first, so
         that the constants and accumulators own their registers before any temporary is
         placed above them)."""
-        items, fixed, n_it = lowered
+        items, fixed, n_it, step = lowered
         issue, length = self.schedule(sname, items, fixed)
         reg_of, top = self.allocate(sname, items, issue, fixed)
         self.top = max(getattr(self, "top", 0), top)
@@ -708,10 +652,10 @@ class _Compiler:
                 k += 1
             rows.append(Row("nop", count=k - c))
             c = k
-        return Block(sname, n_it, rows, length, len(items))
+        return Block(sname, n_it, rows, length, len(items), step)
 
     def row(self, it: _Item, reg_of: dict) -> Row:
-        tb = self.put_table(it.table) if it.table is not None else 0
+        tb = self.put_table(it.table[0]) + it.table[1] if it.table is not None else 0
         if it.kind in UNIT_OF:
             a = reg_of[it.srcs[0]]
             b = reg_of[it.srcs[-1]]
@@ -735,9 +679,9 @@ def compile_program(prog: SequenceProgram, reg_arrays=None,
     register file (default: those only straight-line segments touch, by constant
     addresses). ``init``: array -> {word: value}, the words the memories hold from
     configuration (constants of the program's arrays, e.g. a table's 1.0), which no run
-    and no host write needs to rewrite. ``unroll``: segment -> copies (:func:`unroll_copies`:
-    that many iterations in one, for the scheduler to interleave; a nest of interleaved sums
-    takes its track count)."""
+    and no host write needs to rewrite. ``unroll``: segment -> copies (that many
+    consecutive iterations in one, for the scheduler to interleave; a nest of sums
+    interleaved over d tracks takes d copies)."""
     check_sequence(prog)
     rom = init
     if reg_arrays is None:
@@ -749,8 +693,7 @@ def compile_program(prog: SequenceProgram, reg_arrays=None,
     unknown = set(unroll) - set(prog.segments)
     if unknown:
         raise LoopError(f"{prog.name}: unroll names unknown segments {sorted(unknown)}")
-    lowered = {s: comp.lower(s, unroll_copies(prog.segments[s], unroll.get(s, 1))
-                             if unroll.get(s, 1) > 1 else prog.segments[s]) for s in used}
+    lowered = {s: comp.lower(s, prog.segments[s], unroll.get(s, 1)) for s in used}
     blocks = {s: comp.block(s, low) for s, low in lowered.items()}
     init = [0] * max(comp.top, comp.nfixed)
     for name, reg in comp.constants.items():
@@ -845,7 +788,8 @@ def run_register_program(rp: RegisterProgram, memories: dict, entry: str) -> tup
     cycle = 2
     for bname in rp.entries[entry]:
         blk = rp.blocks[bname]
-        for n in range(blk.trips):
+        for k in range(blk.trips):
+            n = k * blk.step
             pending: dict = {}  # cycle -> (register, word)
             stores: dict = {}
             c = 0
@@ -974,6 +918,8 @@ class RegisterMachine(wiring.Component):
         st_last = Array([Const(s[1], pcw) for s in steps])
         st_trips = Array([Const(s[2], nw) for s in steps])
         st_end = Array([Const(s[3], 1) for s in steps])
+        sinc = max(1, max(s[4] for s in steps).bit_length())
+        st_inc = Array([Const(s[4], sinc) for s in steps])
         en_first = Array([Const(self.first[e], sw) for e in self.entry_names])
         f_valid, f_last = Signal(), Signal()
         f_step = Signal(sw)
@@ -999,8 +945,8 @@ class RegisterMachine(wiring.Component):
             m.d.comb += [nx_pc.eq(st_first[f_step + 1]), nx_n.eq(0),
                          nx_step.eq(f_step + 1), nx_valid.eq(~st_end[f_step])]
         with m.Elif(block_end):
-            m.d.comb += [nx_pc.eq(st_first[f_step]), nx_n.eq(f_n + 1), nx_step.eq(f_step),
-                         nx_valid.eq(1)]
+            m.d.comb += [nx_pc.eq(st_first[f_step]), nx_n.eq(f_n + st_inc[f_step]),
+                         nx_step.eq(f_step), nx_valid.eq(1)]
         with m.Else():
             m.d.comb += [nx_pc.eq(f_pc + 1), nx_n.eq(f_n), nx_step.eq(f_step),
                          nx_valid.eq(1)]

@@ -30,18 +30,26 @@ __all__ = ["register_engine", "VARIANT", "RegisterEngineImage", "RegisterEngineC
 #: loop_programs' variant the machine runs: every nest in a step of its own (the fused
 #: variant's long straight-line segments exist to fill a lane machine's idle slots)
 VARIANT = "plain"
+#: the chained sums (cov_M, cov_E) interleave this many sums, and each nest runs that many
+#: iterations (copies) at once; with more tracks the padding of the sums' tails overflows
+#: the table ROM (4 tracks: over 4,096 entries)
+TRACKS = 3
+#: copies per nest (regmachine.compile_program's ``unroll``): the independent iterations
+#: the scheduler interleaves in one block iteration, within the 1,024-row instruction ROM
+UNROLL = {"cov_M": TRACKS, "cov_E": TRACKS, "cov_kahan": 4, "alt_joseph": 2,
+          "trn_joseph": 2}
 
 
 @lru_cache(maxsize=2)
 def register_engine(variant: str = VARIANT) -> tuple[RegisterProgram, dict, dict]:
     """(compiled program, register index of array ``R``, loop programs) of seed 000."""
-    lps = L.loop_programs(1, variant)
+    lps = L.loop_programs(1, variant, TRACKS)
     prog, reg_index = L.to_sequence(lps)
     rom: dict = {}
     for lp in lps.values():
         for array, words in lp.rom.items():
             rom.setdefault(array, {}).update(words)
-    return compile_program(prog, init=rom), reg_index, lps
+    return compile_program(prog, init=rom, unroll=UNROLL), reg_index, lps
 
 
 # ------------------------------------------------------------------ behind ins_trn_top
