@@ -14,6 +14,7 @@ its data memory. :func:`register_engine` compiles once per process.
 
 from __future__ import annotations
 
+from fractions import Fraction
 from functools import lru_cache
 
 from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal
@@ -160,6 +161,9 @@ class RegisterEngineCore(wiring.Component):
         self.image = image
         aw = image.fields.aw
         self.keys = list(image.programs)
+        #: an IMU sample: the start cycle to ``done`` (one sample per run)
+        self.LATENCY = image.cycles("propagate") + 1
+        self.THROUGHPUT = Fraction(1, self.LATENCY)
         super().__init__({"start": In(1), "prog": In(range(max(2, len(self.keys)))),
                           "busy": Out(1), "done": Out(1),
                           "host_we": In(1), "host_waddr": In(aw), "host_wdata": In(32),
