@@ -389,3 +389,34 @@ def simulate(schedule: LoopSchedule, memories: dict, runs: int = 1, init: dict |
     sim.add_testbench(bench)
     sim.run()
     return out
+
+
+def simulate_entries(dut, arrays: dict, memories: dict, entries: list, limit) -> list:
+    """Amaranth simulation of an entry-point machine (the sequence or the register machine:
+    ``entry``, ``start``, ``done`` and the host port): write ``memories`` through the host
+    port, then for each item of ``entries`` (an entry name, or (entry, memories to write
+    first or None)) start it, count the cycles from the start cycle to ``done`` (at most
+    ``limit(entry)``) and read every array of ``arrays`` back. Returns one (array -> uint32
+    words, cycles) per entry run."""
+    from amaranth.sim import Simulator
+
+    out: list = []
+
+    async def bench(ctx):
+        await host_write(ctx, dut, memories)
+        for item in entries:
+            entry, mems = (item, None) if isinstance(item, str) else item
+            if mems:
+                await host_write(ctx, dut, mems)
+            ctx.set(dut.entry, dut.entry_index(entry))
+            try:
+                out.append(await host_run(ctx, dut, arrays, limit(entry)))
+            except RuntimeError as e:
+                raise RuntimeError(f"entry {entry}: {e}") from None
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench)
+    sim.run()
+    return out
+

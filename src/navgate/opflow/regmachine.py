@@ -76,7 +76,7 @@ from amaranth.lib.wiring import In, Out
 from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32DivIter, Fp32Mul, Fp32SqrtIter
 from navgate.opflow.execute import round_fp32
 from navgate.opflow.ir import const_value
-from navgate.opflow.loopmachine import host_run, host_write
+from navgate.opflow.loopmachine import simulate_entries
 from navgate.opflow.loops import (
     LoopError,
     LoopNest,
@@ -1085,26 +1085,9 @@ class RegisterMachine(wiring.Component):
 
 
 def simulate_register_machine(rp: RegisterProgram, memories: dict, entries: list):
-    """Run the register machine in Amaranth's simulator: write ``memories`` through the host
-    port, then for each item of ``entries`` (an entry name, or (entry, memories to write
-    first)) start it, count the cycles from the start cycle to ``done`` and read every array
-    back. Returns one (array -> uint32 words, cycles) per entry run."""
-    from amaranth.sim import Simulator
-
-    dut = RegisterMachine(rp)
-    out: list = []
-
-    async def bench(ctx):
-        await host_write(ctx, dut, memories)
-        for item in entries:
-            entry, mems = (item, None) if isinstance(item, str) else item
-            if mems:
-                await host_write(ctx, dut, mems)
-            ctx.set(dut.entry, dut.entry_index(entry))
-            out.append(await host_run(ctx, dut, rp.program.arrays, 2 * rp.cycles(entry) + 100))
-
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
-    return out
+    """Run the register machine in Amaranth's simulator
+    (:func:`navgate.opflow.loopmachine.simulate_entries`): write ``memories`` through the host
+    port, run ``entries`` (names, or (name, memories to write first)); one (array -> uint32
+    words, cycles from start to done) per entry run."""
+    return simulate_entries(RegisterMachine(rp), rp.program.arrays, memories, entries,
+                            lambda e: 2 * rp.cycles(e) + 100)

@@ -72,7 +72,7 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32DivIter, Fp32Mul, Fp32SqrtIter
-from navgate.opflow.loopmachine import delay_tap, host_run, host_write, to_bits
+from navgate.opflow.loopmachine import delay_tap, simulate_entries, to_bits
 from navgate.opflow.loops import (
     Addr,
     CompiledNest,
@@ -654,31 +654,12 @@ class SequenceMachine(wiring.Component):
 
 def simulate_sequence(schedule: SequenceSchedule, memories: dict, entries: list,
                       init: dict | None = None):
-    """Run the sequence machine in Amaranth's simulator: write ``memories`` through the host
-    port, then for each item of ``entries`` (an entry name, or (entry, memories to write
-    first or None)) start it, count the cycles from the start cycle to ``done`` and read
-    every array back. Returns one (array -> uint32 words, cycles) per entry run."""
-    from amaranth.sim import Simulator
-
-    dut = SequenceMachine(schedule, init)
+    """Run the sequence machine in Amaranth's simulator
+    (:func:`navgate.opflow.loopmachine.simulate_entries`): one (array -> uint32 words,
+    cycles from start to done) per entry run."""
     prog = schedule.program
-    out: list = []
-
-    async def bench(ctx):
-        await host_write(ctx, dut, memories)
-        for item in entries:
-            entry, mems = (item, None) if isinstance(item, str) else item
-            if mems:
-                await host_write(ctx, dut, mems)
-            ctx.set(dut.entry, dut.entry_index(entry))
-            try:
-                out.append(await host_run(ctx, dut, prog.arrays,
-                                          10 * schedule.cycles(entry) + 100))
-            except RuntimeError as e:
-                raise RuntimeError(f"{prog.name}: entry {entry}: {e}") from None
-
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
-    return out
+    try:
+        return simulate_entries(SequenceMachine(schedule, init), prog.arrays, memories,
+                                entries, lambda e: 10 * schedule.cycles(e) + 100)
+    except RuntimeError as e:
+        raise RuntimeError(f"{prog.name}: {e}") from None

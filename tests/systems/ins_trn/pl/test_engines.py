@@ -13,6 +13,7 @@ from navgate.systems.ins_trn.pl.nav_engines import (
     IMU_WORDS,
     engine_image,
     engine_programs,
+    identity_p_registers,
     random_registers,
     reference_calls,
     simulate_calls,
@@ -95,17 +96,9 @@ def test_all_programs_bit_exact_random_amaranth():
 
 
 def _plain_state(rng):
-    """A state where the update programs are meaningful: unit quaternion, small P."""
+    """A state where the update programs are meaningful: P the identity."""
     img = engine_image("ins_engines")
-    names = [n for n in img.layout.fixed if not n.startswith("c:")]
-    regs = random_registers(rng, names)
-    f = lambda v: int(np.float32(v).view(np.uint32))  # noqa: E731
-    for n in STATE_REGS:
-        if n.startswith("P") or n.startswith("cP"):
-            regs[n] = f(0.0)
-    for i in range(15):
-        regs[f"P{i}_{i}"] = f(1.0)
-    return regs, f
+    return identity_p_registers(rng, [n for n in img.layout.fixed if not n.startswith("c:")])
 
 
 def test_singular_s_rejected_bit_exact():

@@ -11,68 +11,17 @@ from amaranth.hdl import Module, Signal
 from amaranth.sim import Simulator
 
 from navgate.systems.ins_trn.pl.fp32_program import STATE_REGS
-from navgate.systems.ins_trn.pl.nav_engines import IMU_WORDS, random_registers, reference_calls
+from navgate.systems.ins_trn.pl.nav_engines import (
+    IMU_WORDS,
+    identity_p_registers,
+    reference_calls,
+    simulate_calls,
+)
 from navgate.systems.ins_trn.pl.register_engine import int16_to_fp32, register_engine_image
 
 
-def simulate(image, regs: dict, calls):
-    """As nav_engines.simulate_calls, the initial registers written through the host port."""
-    dut = image.machine()
-    names = [n for n in image.layout.fixed if not n.startswith("c:")]
-    results: list = []
-
-    async def bench(ctx):
-        for name, v in regs.items():
-            ctx.set(dut.host_we, 1)
-            ctx.set(dut.host_waddr, image.layout.fixed[name])
-            ctx.set(dut.host_wdata, int(v) & 0xFFFFFFFF)
-            await ctx.tick()
-        for key, inputs in calls:
-            for name, v in inputs.items():
-                ctx.set(dut.host_we, 1)
-                ctx.set(dut.host_waddr, image.layout.fixed[name])
-                ctx.set(dut.host_wdata, int(v) & 0xFFFFFFFF)
-                await ctx.tick()
-            ctx.set(dut.host_we, 0)
-            ctx.set(dut.prog, dut.keys.index(key))
-            ctx.set(dut.start, 1)
-            await ctx.tick()
-            ctx.set(dut.start, 0)
-            n = 1
-            while not ctx.get(dut.done):
-                await ctx.tick()
-                n += 1
-            got = {}
-            targets = [(x, image.layout.fixed[x]) for x in names] + \
-                [("out:" + k, a) for k, a in image.output_addr(key).items()]
-            for name, addr in targets:
-                ctx.set(dut.host_raddr, addr)
-                await ctx.tick()
-                got[name] = ctx.get(dut.host_rdata)
-            results.append(({k: v for k, v in got.items() if not k.startswith("out:")},
-                             {k[4:]: v for k, v in got.items() if k.startswith("out:")}, n))
-
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(bench)
-    sim.run()
-    return results
-
-
-def plain_state(rng, names):
-    """A state where the updates are meaningful: unit-ish values, P the identity."""
-    regs = random_registers(rng, names)
-    f = lambda v: int(np.float32(v).view(np.uint32))  # noqa: E731
-    for n in STATE_REGS:
-        if n.startswith("P") or n.startswith("cP"):
-            regs[n] = f(0.0)
-    for i in range(15):
-        regs[f"P{i}_{i}"] = f(1.0)
-    return regs, f
-
-
 def check(regs, calls, image):
-    got = simulate(image, regs, calls)
+    got = simulate_calls(image, regs, calls, write_first=True)
     exp = reference_calls(regs, calls)
     # the IMU word registers hold the float32 of the int16 written (the boundary's cvt):
     # they read back as that word, checked below
@@ -108,7 +57,7 @@ def test_every_banked_register_the_programs_use_is_held(image):
 def test_updates_accepted_and_rejected_bit_exact(image):
     rng = np.random.default_rng(21)
     names = [n for n in image.layout.fixed if not n.startswith("c:")]
-    regs, f = plain_state(rng, names)
+    regs, f = identity_p_registers(rng, names)
     # correlations that make dx12 of the altitude update and dx7 of the TRN update non-zero
     # and different: the two share one banked output address
     regs.update({"P2_12": f(0.1), "P0_7": f(0.2), "P1_7": f(-0.05)})
@@ -128,7 +77,7 @@ def test_updates_accepted_and_rejected_bit_exact(image):
 def test_imu_sample_bit_exact(image):
     rng = np.random.default_rng(22)
     names = [n for n in image.layout.fixed if not n.startswith("c:")]
-    regs, _ = plain_state(rng, names)
+    regs, _ = identity_p_registers(rng, names)
     imu = {n: int(v) & 0xFFFFFFFF for n, v in zip(IMU_WORDS, [-32768, 32767, 0, -1, 1, 12345],
                                                   strict=True)}
     got = check(regs, [("propagate", imu)], image)

@@ -30,7 +30,8 @@ from navgate.systems.ins_trn.pl.fp32_program import RESET_MODULE, STATE_REGS, pr
 __all__ = ["InsEngines", "KalmanUpdateEngine", "InsMechanization", "CovariancePropagator",
            "split_program", "engine_programs", "command_vectors", "stream_model",
            "ENGINE_UNITS", "PROGRAM_SETS", "fixed_names", "engine_image", "IMU_WORDS",
-           "simulate_program", "simulate_calls", "random_registers", "reference_calls"]
+           "simulate_program", "simulate_calls", "random_registers", "reference_calls",
+           "identity_p_registers"]
 
 #: issue slots and banks of the engines (counts chosen against the 2-D update's cycle
 #: target); the misc slot (div, sqrt, compare, convert, mov) writes into the eight mul/add
@@ -159,25 +160,29 @@ def engine_image(which: str = "ins_engines", units: BankedUnits = ENGINE_UNITS) 
     return BankedImage.build(progs, units, fixed_names(progs), rank_skip=(RESET_MODULE,))
 
 
-def simulate_calls(image: BankedImage, regs: dict, calls, vcd: str | None = None):
+def simulate_calls(image: BankedImage, regs: dict, calls, vcd: str | None = None,
+                   write_first: bool = False):
     """Run a sequence of programs in one Amaranth simulation: the register file starts from
-    ``regs`` (name -> 32-bit word); each call ``(key, inputs)`` writes its inputs through the
-    host port, starts program ``key``, waits for ``done`` and reads every persistent register
-    and the program's outputs back through the host port. Returns one (registers: name ->
-    word, outputs: name -> word, cycles from start to done) per call."""
+    ``regs`` (name -> 32-bit word; with ``write_first`` written through the host port first,
+    for a machine without initial register contents); each call ``(key, inputs)`` writes its
+    inputs through the host port, starts program ``key``, waits for ``done`` and reads every
+    persistent register and the program's outputs back through the host port. Returns one
+    (registers: name -> word, outputs: name -> word, cycles from start to done) per call."""
     init = {image.layout.fixed[n]: int(v) & 0xFFFFFFFF for n, v in regs.items()}
-    dut = image.machine(init)
+    dut = image.machine() if write_first else image.machine(init)
     names = [n for n in image.layout.fixed if not n.startswith("c:")]
     results: list = []
 
     async def bench(ctx):
-        for key, inputs in calls:
+        for key, inputs in ([(None, regs)] if write_first else []) + list(calls):
             for name, v in inputs.items():
                 ctx.set(dut.host_we, 1)
                 ctx.set(dut.host_waddr, image.layout.fixed[name])
                 ctx.set(dut.host_wdata, int(v) & 0xFFFFFFFF)
                 await ctx.tick()
             ctx.set(dut.host_we, 0)
+            if key is None:  # the initial registers only
+                continue
             ctx.set(dut.prog, dut.keys.index(key))
             ctx.set(dut.start, 1)
             await ctx.tick()
@@ -249,6 +254,22 @@ def random_registers(rng: np.random.Generator, names) -> dict:
         out[n] = float_to_bits(rng.uniform(1.0, 2.0) * 2.0 ** rng.integers(-8, 9)
                                * (1 if rng.random() < 0.5 else -1))
     return out
+
+
+def identity_p_registers(rng: np.random.Generator, names) -> tuple[dict, object]:
+    """Random registers (:func:`random_registers`) where the updates are meaningful: P the
+    identity, its compensation words zero. Returns (registers, float -> word)."""
+    regs = random_registers(rng, names)
+
+    def f(v):
+        return int(np.float32(v).view(np.uint32))
+
+    for n in STATE_REGS:
+        if n.startswith("P") or n.startswith("cP"):
+            regs[n] = f(0.0)
+    for i in range(15):
+        regs[f"P{i}_{i}"] = f(1.0)
+    return regs, f
 
 
 def random_program_state(rng: np.random.Generator, key: str) -> tuple[dict, dict]:
