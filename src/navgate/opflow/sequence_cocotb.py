@@ -1,4 +1,6 @@
-"""cocotb test of a Verilated sequence machine (navgate.opflow.sequence.SequenceMachine).
+"""cocotb test of a Verilated entry-point machine: the sequence machine
+(navgate.opflow.sequence.SequenceMachine) or the register machine
+(navgate.opflow.regmachine.RegisterMachine), which share the host port and the handshake.
 
 Loaded inside the simulator by :func:`navgate.gateware.verify.run_cocotb`; the job file named
 by ``NAVGATE_SEQ_JOB`` gives the host writes (address -> word) to make first, then the runs:

@@ -28,7 +28,8 @@ def test_pyproject_publishes_every_engine_under_its_own_name():
 
     pyproject = Path(__file__).parents[4] / "pyproject.toml"
     published = tomllib.loads(pyproject.read_text())["project"]["entry-points"][R.ENTRY_POINT_GROUP]
-    assert {"reference", "fp32", "rtl", "fpga-sim", "fp32-plain", "board"} == set(published)
+    assert {"reference", "fp32", "rtl", "fpga-sim", "fp32-plain", "board", "rtl-compact",
+            "fpga-sim-compact"} == set(published)
     assert published["board"] == "navgate.systems.ins_trn.ps.board_engine:BoardEngine"
     for name, target in published.items():
         module, _, attr = target.partition(":")
