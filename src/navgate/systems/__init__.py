@@ -80,8 +80,8 @@ BLOCKS: dict[str, tuple[str, str]] = {
     # datapath (navgate.opflow, docs/seed000-engines.md)
     "ins_engines": ("navgate.systems.ins_trn.pl.nav_engines:InsEngines",
                     "seed 000 INS engines: propagate + altitude/TRN updates, shared fp32 units"),
-    # the same on opflow's register machine (docs/seed000-register-machine.md)
-    "ins_trn_top_compact": ("navgate.systems.ins_trn.pl.top:ins_trn_top_compact",
+    # the same on opflow's register machine (docs/opflow-register-machine.md)
+    "ins_trn_top_compact": ("navgate.systems.ins_trn.pl.top:InsTrnTopCompact",
                             "seed 000 ins_trn_top with the register machine as its engines"),
     "ins_engines_compact": ("navgate.systems.ins_trn.pl.register_engine:ins_engines_compact",
                             "seed 000 engines on the register machine: one op per cycle, "

@@ -99,3 +99,26 @@ def test_int16_conversion_exact():
     sim = Simulator(m)
     sim.add_testbench(bench)
     sim.run()
+
+
+def test_compact_top_and_its_board_variant_carry_the_register_machine():
+    """``navgate build ins_trn_top_compact [--target zybo-z7-20]``: the top and the Zybo
+    variant carry the register engine, with the banked top's ports and IMU job timing taken
+    from the register machine (not elaborated here: the flights elaborate it)."""
+    from navgate.gateware.verify import not_elaborated
+    from navgate.systems import BLOCKS
+    from navgate.systems.ins_trn.pl.sequencer import job_cycles
+    from navgate.systems.ins_trn.pl.top import InsTrnTop, InsTrnTopCompact, ZyboInsTrnTop
+
+    top = InsTrnTopCompact()
+    banked = InsTrnTop()
+    assert top.engine == "register" and top.image is register_engine_image()
+    assert top.signature.members.keys() == banked.signature.members.keys()
+    assert top.IMU_CYCLES == job_cycles(register_engine_image(), "imu") > banked.IMU_CYCLES
+    board = InsTrnTopCompact.for_target("zybo-z7-20")
+    assert isinstance(board, ZyboInsTrnTop) and board.inner.engine == "register"
+    with pytest.raises(KeyError, match="arty"):
+        InsTrnTopCompact.for_target("arty")
+    assert BLOCKS["ins_trn_top_compact"][0].endswith(":InsTrnTopCompact")
+    for component in (top, banked, board):
+        not_elaborated(component)

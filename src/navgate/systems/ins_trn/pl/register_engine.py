@@ -5,7 +5,7 @@ Reference: issue 29; :mod:`navgate.opflow.regmachine` (compiler, instruction-lev
 machine); the ``plain`` variant of :mod:`navgate.systems.ins_trn.pl.loop_programs` (each part
 of the fp32 engine's programs in a step of its own: straight-line segments and loop nests),
 as one sequence program (:func:`~navgate.systems.ins_trn.pl.loop_programs.to_sequence`),
-bit for bit the fp32 engine's programs. docs/seed000-register-machine.md has the figures.
+bit for bit the fp32 engine's programs. docs/opflow-register-machine.md has the figures.
 
 The register array ``R`` of the sequence form (state, configuration, inputs, passed values)
 is the machine's register file; ``P``, ``cP``, ``F``, ``M``, ``E`` and the update vectors are

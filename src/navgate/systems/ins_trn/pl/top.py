@@ -49,7 +49,8 @@ from navgate.systems.ins_trn.pl.sequencer import (
     job_cycles,
 )
 
-__all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "CAL_REGISTER_OF", "ins_trn_top_compact"]
+__all__ = ["InsTrnTop", "ZyboInsTrnTop", "PIN_PORTS", "CAL_REGISTER_OF",
+           "InsTrnTopCompact"]
 
 #: the top's pin ports (board pins; docs/seed000-top.md)
 PIN_PORTS = ("imu_sclk", "imu_mosi", "imu_miso", "imu_cs_n", "imu_dr",
@@ -372,8 +373,8 @@ class ZyboInsTrnTop(wiring.Component):
     oscillator ``clk_in`` and the reset button ``rst_btn`` (active high) in; the AXI ports go to
     the block design's Zynq PS7 (M_AXI_GP0 for ``axi``, S_AXI_HP0 for ``dma``, IRQ_F2P[0])."""
 
-    def __init__(self):
-        self.inner = InsTrnTop()
+    def __init__(self, engine: str = "banked"):
+        self.inner = InsTrnTop(engine=engine)
         # clk_sys: the fabric clock (the MMCM's 100 MHz), out to the block design, which clocks
         # the PS7's AXI ports and the interconnects with it: the bus then runs in the register
         # bank's own domain, with no crossing in the fabric (vivado.py)
@@ -426,7 +427,16 @@ class ZyboInsTrnTop(wiring.Component):
         return m
 
 
-def ins_trn_top_compact() -> InsTrnTop:
-    """``navgate build ins_trn_top_compact``: ``ins_trn_top`` carrying the register machine
-    (docs/seed000-register-machine.md) in place of the banked engines."""
-    return InsTrnTop(engine="register")
+class InsTrnTopCompact(InsTrnTop):
+    """``navgate build ins_trn_top_compact [--target zybo-z7-20]``: ``ins_trn_top`` carrying
+    the register machine (docs/opflow-register-machine.md) in place of the banked engines;
+    the same ports, register map and board files."""
+
+    def __init__(self, *, tick_cycles: int = 100):
+        super().__init__(tick_cycles=tick_cycles, engine="register")
+
+    @classmethod
+    def for_target(cls, board: str):
+        if board != "zybo-z7-20":
+            raise KeyError(f"ins_trn_top_compact has no variant for board {board!r}")
+        return ZyboInsTrnTop(engine="register")

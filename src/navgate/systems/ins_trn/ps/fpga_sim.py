@@ -273,7 +273,7 @@ class FpgaSimEngine(RegisterEngine):
 
 class FpgaSimCompactEngine(FpgaSimEngine):
     """``fpga-sim`` with ``ins_trn_top_compact``: the whole PL carrying the register machine
-    (docs/seed000-register-machine.md); the same PS, register map and bus traffic."""
+    (docs/opflow-register-machine.md); the same PS, register map and bus traffic."""
 
     name = "fpga-sim-compact"
     pl_engine = "register"

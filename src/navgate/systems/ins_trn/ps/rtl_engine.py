@@ -189,7 +189,7 @@ class RtlEngine(Fp32Engine):
 
 
 class RtlCompactEngine(RtlEngine):
-    """``rtl`` with the register machine (docs/seed000-register-machine.md) in Verilator,
+    """``rtl`` with the register machine (docs/opflow-register-machine.md) in Verilator,
     behind the same ports and addresses."""
 
     name = "rtl-compact"
