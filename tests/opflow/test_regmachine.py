@@ -323,3 +323,90 @@ def test_seed000_machine_in_verilator_cocotb(seed000, tmp_path):
         words = np.array(got["words"], np.uint32)
         expect = np.concatenate([canon(want[a]) for a in prog.arrays])
         assert np.array_equal(canon(words), expect), entry
+
+
+def test_commit_follows_every_read_of_its_word():
+    """A rotation of register-file words (each store reads a word another store commits):
+    every commit waits for every read of its word, the later stores' reads included."""
+    body = [LOp(f"x{i}", "load", ("R",), Addr(None, (), i)) for i in range(4)]
+    stores = [Store("R", Addr(None, (), i), f"x{(i + 1) % 4}") for i in range(4)]
+    stores.append(Store("D", Addr(None, (), 0), "x0"))
+    nest = LoopNest("rot", (), {"R": 4, "D": 2}, {}, body, [], stores)
+    touch = LoopNest("touch", (2,), {"D": 2}, {}, [LOp("v", "load", ("D",), Addr(None, (1,)))],
+                     [], [Store("D", Addr(None, (1,)), "v")])
+    prog = SequenceProgram("rot", {"R": 4, "D": 2}, {"rot": nest, "touch": touch},
+                           {"run": ("rot",)})
+    rp = RM.compile_program(prog)
+    mem = {"R": np.float32([1, 2, 3, 4]), "D": np.float32([0, 0])}
+    ref = run_sequence(prog, mem, "run")
+    assert list(ref["R"]) == [2, 3, 4, 1] and ref["D"][0] == 1
+    got, _ = RM.run_register_program(rp, mem, "run")
+    assert mismatches(prog, ref, got) == {}
+    (hw, _), = RM.simulate_register_machine(rp, mem, ["run"])
+    assert mismatches(prog, ref, hw) == {}
+
+
+def test_conditional_store_beyond_the_table_range_is_refused():
+    n = 20
+    nest = LoopNest("hi", (n,), {"A": 100, "Y": 600}, {"odd": [k % 2 for k in range(n)]},
+                    [LOp("v", "load", ("A",), Addr(None, (1,)))], [],
+                    [Store("Y", Addr(None, (1,), 500), "v", Cond("table", "odd"))])
+    prog = SequenceProgram("hi", {"A": 100, "Y": 600}, {"hi": nest}, {"run": ("hi",)})
+    with pytest.raises(LoopError, match="table entries hold at most 510"):
+        RM.compile_program(prog)
+
+
+def test_accumulators_restored_after_a_reset_mid_run():
+    """A reset in the middle of a chained sum: the accumulator re-armed at the end of its
+    nest gets its init word back, so the next run is the executor's again."""
+    from amaranth.hdl import Module, ResetInserter, Signal
+    from amaranth.sim import Simulator
+
+    from navgate.opflow.loopmachine import host_run, host_write
+
+    nest = _dot_nest(4)
+    prog = SequenceProgram("dot", dict(nest.arrays), {"dot": nest}, {"run": ("dot",)})
+    rp = RM.compile_program(prog)
+    assert rp.acc_restore  # the chained sum's accumulator is re-armed at the end
+    mem = {"A": np.float32([1.5, -2.0, 3.25, 4.0, -1.0, 7.0]),
+           "B": np.float32([2.0, 0.5, -1.0, 8.0, 3.0, -0.125]), "Y": np.zeros(4, np.float32)}
+    dut = RM.RegisterMachine(rp)
+    rst = Signal()
+    top = Module()
+    top.submodules.dut = ResetInserter(rst)(dut)
+    seen: dict = {}
+
+    async def bench(ctx):
+        await host_write(ctx, dut, mem)
+        ctx.set(dut.entry, 0)
+        ctx.set(dut.start, 1)
+        await ctx.tick()
+        ctx.set(dut.start, 0)
+        for _ in range(40):  # into the second term of the first sum
+            await ctx.tick()
+        ctx.set(rst, 1)
+        await ctx.tick()
+        ctx.set(rst, 0)
+        while ctx.get(dut.busy):  # the restore
+            await ctx.tick()
+
+    async def bench_all(ctx):
+        await bench(ctx)
+        left = {}
+        for a, w in prog.arrays.items():
+            vals = []
+            for i in range(w):
+                ctx.set(dut.host_addr, dut.host_address(a, i))
+                await ctx.tick()
+                vals.append(ctx.get(dut.host_rdata))
+            left[a] = np.array(vals, np.uint32)
+        seen["left"] = left
+        seen["run"] = await host_run(ctx, dut, prog.arrays, 2 * rp.cycles("run") + 100)
+
+    sim = Simulator(top)
+    sim.add_clock(1e-8)
+    sim.add_testbench(bench_all)
+    sim.run()
+    got, cycles = seen["run"]
+    assert cycles == rp.cycles("run")
+    assert mismatches(prog, run_sequence(prog, seen["left"], "run"), got) == {}

@@ -148,6 +148,12 @@ class Row:
     count: int = 1
 
     def word(self) -> int:
+        for name, bits in (("dst", REG_BITS), ("a", REG_BITS), ("b", REG_BITS), ("na", 1),
+                           ("nb", 1), ("mode", 2), ("base", BASE_BITS), ("tb", TB_BITS),
+                           ("count", COUNT_BITS)):
+            if not 0 <= getattr(self, name) < 1 << bits:
+                raise LoopError(f"{self.kind} row: {name} {getattr(self, name)} does not fit "
+                                f"its {bits} bits")
         k = KIND_CODE[self.kind]
         if self.kind == "nop":
             return k | (self.count << 12)
@@ -189,6 +195,9 @@ class RegisterProgram:
     table: list  #: table ROM entries
     data_words: int
     data_init: list = field(default_factory=list)  #: data memory words at configuration
+    #: register -> word: the accumulators re-armed at the end of their nests, which the
+    #: machine writes again after every reset
+    acc_restore: dict = field(default_factory=dict)
 
     def cycles(self, entry: str) -> int:
         """Cycles from the start cycle to ``done`` (exact; the machine's)."""
@@ -316,6 +325,8 @@ class _Compiler:
 
     def put_table(self, entries) -> int:
         key = tuple(int(x) for x in entries)
+        if key and (min(key) < 0 or max(key) > SKIP):
+            raise LoopError(f"{self.prog.name}: a table entry outside 0..{SKIP}")
         if key not in self.table_at:
             # an identical run already stored (e.g. a prefix) is not searched for: tables
             # are stored whole, identical ones once
@@ -372,6 +383,23 @@ class _Compiler:
                 v, f = flip_of[v]
                 flip ^= f
             return v, flip
+
+        def flips(v):
+            n = 0
+            while v in flip_of:
+                v, f = flip_of[v]
+                n += f
+            return n
+
+        def canonical(v, f, src, rn):
+            """A stored value negated an even number of times: fp32_neg twice turns a NaN
+            into the canonical NaN, so it is moved through two flips (a word never negated
+            is stored as it is)."""
+            if f or flips(rn(src)) == 0:
+                return v, f
+            tmp = f"{v}__neg2_{len(items)}"
+            add(_Item("mov", dst=tmp, srcs=(v,), neg=(1,)))
+            return tmp, 1
 
         def value(v):
             """-> (value name, flip); constants get their registers."""
@@ -478,6 +506,14 @@ class _Compiler:
                     if r != k:
                         items[k].after.append((r, 1))
             store_items = {}
+            commits: list = []
+            # registers this segment commits: a commit whose source is one of them reads a
+            # copy made first (a rotation of words would otherwise wait on itself)
+            targets = set()
+            for st in nest.stores:
+                t = addr_mode(st.array, st.addr, u)
+                if t[0] == "reg":
+                    targets.add(t[1])
             for si, st in enumerate(nest.stores):
                 v, f = value(rn(st.src))
                 m = addr_mode(st.array, st.addr, u)
@@ -487,11 +523,15 @@ class _Compiler:
                         raise LoopError(f"{sname}: conditional store to register-file array "
                                         f"{st.array}")
                     reg = m[1]
-                    k = add(_Item("mov", srcs=(v,), neg=(f,), fixed_dst=reg))
-                    for r in reg_readers.get(reg, []):
-                        if r != k:
-                            items[k].after.append((r, 1))
+                    v, f = canonical(v, f, st.src, rn)
+                    if fixed.get(v) in targets:
+                        tmp = f"{v}__copy_{len(items)}"
+                        add(_Item("mov", dst=tmp, srcs=(v,), neg=(0,)))
+                        v = tmp
+                    commits.append((add(_Item("mov", srcs=(v,), neg=(f,), fixed_dst=reg)),
+                                    reg))
                     continue
+                v, f = canonical(v, f, st.src, rn)
                 if f:  # a flipped value is stored through a mov with the flip
                     tmp = f"{v}__neg_{len(items)}"
                     add(_Item("mov", dst=tmp, srcs=(v,), neg=(1,)))
@@ -499,6 +539,10 @@ class _Compiler:
                 mode, base, tab = m
                 if not on[u::copies].all():
                     rel = addresses(nest, st.addr)[perm]
+                    if rel[on].max() >= SKIP:
+                        raise LoopError(f"{sname}: conditional store to {st.array} up to word "
+                                        f"{rel[on].max()}: table entries hold at most "
+                                        f"{SKIP - 1}")
                     base = self.data_arrays[st.array]
                     tab = (tuple(int(x) if o else SKIP for x, o in zip(rel, on, strict=True)),
                            u)
@@ -511,6 +555,12 @@ class _Compiler:
                 for j, it in enumerate(items[:k]):
                     if it.kind == "load" and lo <= it.base < hi:
                         items[k].after.append((j, 1))
+            # a commit to a register-file word follows EVERY read of that word in the
+            # segment (reads see the words at the start), the reads of later stores included
+            for k, reg in commits:
+                for r in reg_readers.get(reg, []):
+                    if r != k:
+                        items[k].after.append((r, 1))
             for name, si in late.items():  # re-arm after the update, on the store's table
                 st_item = items[store_items[si]]
                 init, _ = value(self._acc_init_name(fixed[name]))
@@ -683,6 +733,9 @@ def compile_program(prog: SequenceProgram, reg_arrays=None,
     consecutive iterations in one, for the scheduler to interleave; a nest of sums
     interleaved over d tracks takes d copies)."""
     check_sequence(prog)
+    if not 2 <= max_registers <= 1 << REG_BITS:
+        raise LoopError(f"max_registers must be 2 .. {1 << REG_BITS} (the register fields "
+                        f"are {REG_BITS} bits)")
     rom = init
     if reg_arrays is None:
         in_nests = {a for s in prog.segments.values() if s.trips for a in s.arrays}
@@ -711,9 +764,10 @@ def compile_program(prog: SequenceProgram, reg_arrays=None,
                 init[comp.reg_arrays[array] + int(word)] = _flush(_bits_of(value))
             else:
                 data_init[comp.data_arrays[array] + int(word)] = _flush(_bits_of(value))
+    restore = {reg: _bits_of(const_value(name)) for reg, name in comp.acc_init.items()}
     return RegisterProgram(prog, blocks, dict(prog.entries), dict(comp.reg_arrays),
                            dict(comp.data_arrays), dict(comp.constants), len(init), init,
-                           list(comp.table), comp.data_words, data_init)
+                           list(comp.table), comp.data_words, data_init, restore)
 
 
 def _bits_of(x: float) -> int:
@@ -809,7 +863,8 @@ def run_register_program(rp: RegisterProgram, memories: dict, entry: str) -> tup
                             (row.dst, _flip(regs[row.a], row.na)))
                 elif row.kind == "load":
                     addr = _address(row, n, entry_v)
-                    pending.setdefault(c + 2, []).append((row.dst, data[addr]))
+                    pending.setdefault(c + write_delay("load"), []).append((row.dst,
+                                                                             data[addr]))
                 elif row.kind == "store":
                     if entry_v != SKIP:
                         stores.setdefault(c + STORE_WRITE, []).append((_address(row, n,
@@ -841,6 +896,8 @@ def _address(row: Row, n: int, entry_v: int) -> int:
 
 
 def _land(pending, stores, t, regs, data):
+    if len(pending.get(t, ())) > 1:
+        raise LoopError(f"two register writes in cycle {t}: the machine has one write port")
     for reg, w in pending.pop(t, []):
         regs[reg] = w
     for addr, w in stores.pop(t, []):
@@ -905,6 +962,17 @@ class RegisterMachine(wiring.Component):
         dr = data.read_port(transparent_for=())
         dw = data.write_port()
 
+        # after every reset (and at configuration) the accumulators that are re-armed at the
+        # end of their nests get their init words again, one per cycle: a run cut short by
+        # a reset would otherwise leave a partial sum in one (LUT RAM keeps its words)
+        restore_words = sorted(rp.acc_restore.items())
+        restoring = Signal()
+        if restore_words:
+            restore = Signal(range(len(restore_words) + 1))
+            m.d.comb += restoring.eq(restore != len(restore_words))
+            r_addr = Array([Const(r, REG_BITS) for r, _ in restore_words])[restore]
+            r_word = Array([Const(w, 32) for _, w in restore_words])[restore]
+
         # ---- sequencer: a fetch stage (the row at the ROM's output, ``f_*``) and an issue
         # stage (the row in the instruction register ``ir``, ``i_*``). Branches are decided
         # at fetch from registers; a ``nop k`` in the instruction register holds both
@@ -934,7 +1002,7 @@ class RegisterMachine(wiring.Component):
         count = ir[12:28]
         hold = Signal()
         m.d.comb += hold.eq(i_valid & is_nop & (wc + 1 < count))
-        m.d.comb += self.busy.eq(f_valid | i_valid)
+        m.d.comb += self.busy.eq(f_valid | i_valid | restoring)
         m.d.sync += self.done.eq(0)
         # the next row to fetch after f_pc (from registers only)
         block_end = f_pc == st_last[f_step]
@@ -966,7 +1034,7 @@ class RegisterMachine(wiring.Component):
                 m.d.comb += ir_port.addr.eq(nx_pc)
                 m.d.sync += [f_pc.eq(nx_pc), f_n.eq(nx_n), f_step.eq(nx_step),
                              f_valid.eq(nx_valid & ~f_last), f_last.eq(nx_last)]
-            with m.Elif(self.start & ~i_valid):
+            with m.Elif(self.start & ~i_valid & ~restoring):
                 first = en_first[self.entry]
                 m.d.comb += ir_port.addr.eq(st_first[first])
                 m.d.sync += [f_pc.eq(st_first[first]), f_n.eq(0), f_step.eq(first),
@@ -1071,6 +1139,10 @@ class RegisterMachine(wiring.Component):
         with m.Elif(self.host_we & host_reg):
             m.d.comb += [rw.en.eq(1), rw.addr.eq(self.host_addr[:REG_BITS]),
                          rw.data.eq(host_word)]
+        if restore_words:
+            with m.Elif(restoring):  # a host write waits no cycle: the restore does
+                m.d.comb += [rw.en.eq(1), rw.addr.eq(r_addr), rw.data.eq(r_word)]
+                m.d.sync += restore.eq(restore + 1)
         with m.If(active):
             m.d.comb += [dr.addr.eq(daddr), dw.addr.eq(daddr), dw.data.eq(s2_word),
                          dw.en.eq(s2_store)]

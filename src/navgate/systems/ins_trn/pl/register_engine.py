@@ -211,7 +211,8 @@ class RegisterEngineCore(wiring.Component):
         m.d.comb += self.host_rdata.eq(Mux(r_valid, rm.host_rdata, 0))
         entry_of = Array([Const(rm.entry_index(k), len(rm.entry)) for k in self.keys])
         is_trn = Array([Const(int(k.startswith("trn")), 1) for k in self.keys])
-        is_update = Array([Const(int(k.startswith(("trn", "alt"))), 1) for k in self.keys])
+        # the override context changes with an apply only: the dx words are the applies'
+        is_update = Array([Const(int(k.endswith("_apply")), 1) for k in self.keys])
         start_d = Signal()
         entry_d = Signal(len(rm.entry))
         m.d.sync += [start_d.eq(self.start), entry_d.eq(entry_of[self.prog])]
