@@ -49,7 +49,7 @@ from navgate.hw.regmap import Reading, Registers, RegisterTimeout
 from navgate.numerics.fp32 import bits_to_float, float_to_bits
 from navgate.systems.ins_trn.pl.fp32_exec import to_f32
 from navgate.systems.ins_trn.pl.fp32_program import CAL_REGS, N_STATES, NAV_REGS, p_reg
-from navgate.systems.ins_trn.pl.register_engine import pl_engine_image
+from navgate.systems.ins_trn.pl.register_engine import PL_ENGINES, pl_engine_image
 from navgate.systems.ins_trn.pl.sequencer import job_cycles
 from navgate.systems.ins_trn.pl.top import CAL_REGISTER_OF
 from navgate.systems.ins_trn.ps.fp32_engine import Fp32Engine
@@ -339,9 +339,11 @@ class RegisterEngine(Fp32Engine):
         count = (self.base_counts["propagations"] + self.propagations) & 0xFFFFFF
         with self._job() as regs:
             self.fabric.feed_imu(w)
-            # per sample: the SPI burst (under 4,000 cycles) and the sequencer's IMU job
-            # on the engine the fabric carries
-            per_sample = 4000 + job_cycles(self.image, "imu")
+            # per sample: the SPI burst (under 4,000 cycles) and the sequencer's IMU job on
+            # the slowest engine a fabric may carry (the PS code and the register map are
+            # the same for both: a board PS flies either bitstream)
+            per_sample = 4000 + max(job_cycles(pl_engine_image(k), "imu")
+                                    for k in PL_ENGINES)
             wait_count(regs, "ENG_STATUS", "propagations", count, self.fabric.live,
                        limit=per_sample * n + 100_000, busy=0)
         self.m.cache.clear()
