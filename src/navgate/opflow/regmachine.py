@@ -64,7 +64,7 @@ ops: ``dst`` [4:12], ``a`` [12:20], ``na`` [20], ``b`` [21:29], ``nb`` [29]; ``m
 
 from __future__ import annotations
 
-import math
+import heapq
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -74,7 +74,7 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32DivIter, Fp32Mul, Fp32SqrtIter
-from navgate.opflow.execute import round_fp32
+from navgate.numerics import fp32 as F
 from navgate.opflow.ir import const_value
 from navgate.opflow.loopmachine import simulate_entries
 from navgate.opflow.loops import (
@@ -111,7 +111,6 @@ LATENCY = {u: c.LATENCY for u, c in UNIT_CLASS.items()}
 #: cycles between two issues to a non-pipelined unit
 INTERVAL = {"div": Fp32DivIter.INTERVAL, "sqrt": Fp32SqrtIter.INTERVAL}
 ONE_BITS = 0x3F800000
-QNAN_BITS = 0x7FC00000
 
 
 #: cycles from issue to a store's data-memory write (the address is registered once)
@@ -563,17 +562,14 @@ class _Compiler:
                         items[k].after.append((r, 1))
             for name, si in late.items():  # re-arm after the update, on the store's table
                 st_item = items[store_items[si]]
-                init, _ = value(self._acc_init_name(fixed[name]))
+                init, _ = value(self.acc_init[fixed[name]])
                 k = add(_Item("mov", srcs=(init,), neg=(0,), mode=M_TABLE,
                               table=st_item.table, fixed_dst=fixed[name]))
                 items[k].after.append((update_mov[name], 1))
         return items, fixed, n_it, copies
 
-    def _acc_init_name(self, reg: int) -> str:
-        return self.acc_init[reg]
-
     # -- schedule one block
-    def schedule(self, sname: str, items: list, fixed: dict):
+    def schedule(self, sname: str, items: list):
         n = len(items)
         ready_delay = []
         for it in items:
@@ -658,7 +654,6 @@ class _Compiler:
                 temps.append((issue[k] + write_delay(it.kind), last_read.get(it.dst, -1), it.dst))
         temps.sort()
         free_at: list = []  # (cycle the register is free from, register)
-        import heapq
         pool: list = []
         next_reg = self.nfixed
         top = next_reg
@@ -682,7 +677,7 @@ class _Compiler:
         that the constants and accumulators own their registers before any temporary is
         placed above them)."""
         items, fixed, n_it, step = lowered
-        issue, length = self.schedule(sname, items, fixed)
+        issue, length = self.schedule(sname, items)
         reg_of, top = self.allocate(sname, items, issue, fixed)
         self.top = max(getattr(self, "top", 0), top)
         if top > self.max_registers:
@@ -750,9 +745,9 @@ def compile_program(prog: SequenceProgram, reg_arrays=None,
     blocks = {s: comp.block(s, low) for s, low in lowered.items()}
     init = [0] * max(comp.top, comp.nfixed)
     for name, reg in comp.constants.items():
-        init[reg] = _bits_of(const_value(name))
+        init[reg] = F.float_to_bits(const_value(name))
     for reg, name in comp.acc_init.items():
-        init[reg] = _bits_of(const_value(name))
+        init[reg] = F.float_to_bits(const_value(name))
     data_init = [0] * comp.data_words
     for array, words in (rom or {}).items():
         if array not in prog.arrays:
@@ -761,63 +756,39 @@ def compile_program(prog: SequenceProgram, reg_arrays=None,
             if not 0 <= int(word) < prog.arrays[array]:
                 raise LoopError(f"{prog.name}: initial word {array}[{word}] out of range")
             if array in comp.reg_arrays:
-                init[comp.reg_arrays[array] + int(word)] = _flush(_bits_of(value))
+                init[comp.reg_arrays[array] + int(word)] = _flush(F.float_to_bits(value))
             else:
-                data_init[comp.data_arrays[array] + int(word)] = _flush(_bits_of(value))
-    restore = {reg: _bits_of(const_value(name)) for reg, name in comp.acc_init.items()}
+                data_init[comp.data_arrays[array] + int(word)] = _flush(F.float_to_bits(value))
+    restore = {reg: F.float_to_bits(const_value(name)) for reg, name in comp.acc_init.items()}
     return RegisterProgram(prog, blocks, dict(prog.entries), dict(comp.reg_arrays),
                            dict(comp.data_arrays), dict(comp.constants), len(init), init,
                            list(comp.table), comp.data_words, data_init, restore)
 
 
-def _bits_of(x: float) -> int:
-    return int(np.array([x], np.float32).view(np.uint32)[0])
-
-
-def _float_of(w: int) -> float:
-    return float(np.array([w], np.uint32).view(np.float32)[0])
-
-
 # ------------------------------------------------------------------ instruction-level model
+
+#: the units as the bit-true float32 functions the cores are verified against
+_BINARY = {"add": F.fp32_add, "sub": F.fp32_sub, "mul": F.fp32_mul, "div": F.fp32_div}
 
 
 def _flush(w: int) -> int:
-    return w & 0x80000000 if (w >> 23) & 0xFF == 0 else w
+    return int(F.flush_subnormal(np.uint32(w)))
 
 
 def _flip(w: int, f: int) -> int:
-    """As the machine's operand path (:func:`navgate.opflow.sequence._neg`): NaN -> the
-    canonical NaN, a subnormal -> the zero of the flipped sign."""
-    if not f:
-        return w
-    if (w >> 23) & 0xFF == 0xFF and w & 0x7FFFFF:
-        return QNAN_BITS
-    if (w >> 23) & 0xFF == 0:
-        return (w & 0x80000000) ^ 0x80000000
-    return w ^ 0x80000000
+    """The operand path's sign flip (:func:`~navgate.numerics.fp32.fp32_neg`, as
+    :func:`navgate.opflow.sequence._neg` builds it)."""
+    return int(F.fp32_neg(np.uint32(w))) if f else w
 
 
 def _unit(kind: str, a: int, b: int) -> int:
-    x, y = _float_of(_flush(a)), _float_of(_flush(b))
+    x, y = np.uint32(a), np.uint32(b)
     if kind in ("lt", "le"):
-        hold = (x < y) if kind == "lt" else (x <= y)
-        return ONE_BITS if hold else 0
-    if kind == "add":
-        r = x + y
-    elif kind == "sub":
-        r = x - y
-    elif kind == "mul":
-        r = x * y
-    elif kind == "div":
-        with np.errstate(all="ignore"):
-            r = float(np.float64(x) / np.float64(y))
-    else:  # sqrt
-        r = math.sqrt(x) if x >= 0.0 or x != x else (x if x == 0.0 else math.nan)
-    with np.errstate(all="ignore"):
-        r = round_fp32(r)
-    if r != r:
-        return QNAN_BITS
-    return _bits_of(r)
+        c = F.fp32_compare(x, y)
+        return ONE_BITS if c["lt"] or (kind == "le" and c["eq"]) else 0
+    if kind == "sqrt":
+        return int(F.fp32_sqrt(x))
+    return int(_BINARY[kind](x, y))
 
 
 def run_register_program(rp: RegisterProgram, memories: dict, entry: str) -> tuple[dict, int]:
@@ -916,8 +887,6 @@ class RegisterMachine(wiring.Component):
     ``host_addr`` = 1 << 10 | register, or a data-memory word (:meth:`host_address`);
     ``host_rdata`` holds the word of the address presented in the cycle before; written words
     are flushed (a subnormal becomes the zero of its sign)."""
-
-    HOST_REG = 1 << BASE_BITS
 
     def __init__(self, rp: RegisterProgram):
         self.rp = rp
