@@ -22,8 +22,10 @@ from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
+from navgate.gateware.fp32._common import leading_zeros
 from navgate.opflow.regmachine import RegisterProgram, compile_program
 from navgate.systems.ins_trn.pl import loop_programs as L
+from navgate.systems.ins_trn.pl.nav_engines import IMU_WORDS
 
 __all__ = ["register_engine", "VARIANT", "RegisterEngineImage", "RegisterEngineCore",
            "register_engine_image", "PL_ENGINES", "pl_engine_image", "ins_engines_compact"]
@@ -57,18 +59,21 @@ def register_engine(variant: str = VARIANT) -> tuple[RegisterProgram, dict, dict
 
 
 def int16_to_fp32(m, word):
-    """The float32 of the int16 in ``word[0:16]`` (exact: 16 bits fit the significand), as
-    the fp32 programs' ``cvt`` of an IMU word; combinational (a leading-one search and a
-    shift)."""
+    """The float32 of the int16 in ``word[0:16]``, as the fp32 programs' ``cvt`` of an IMU
+    word: exact (16 bits fit the significand, so no rounding), hence combinational: the
+    float32 cores' leading-zero counter and a shift. (``Fp32FromInt`` does the general,
+    rounded conversion in four pipeline stages; here a register follows, in
+    :class:`RegisterEngineCore`.)"""
     x = word[:16].as_signed()
     sign = x < 0
     mag = Signal(16, name="cvt_mag")
     m.d.comb += mag.eq(Mux(sign, -x, x))
+    _, lz = leading_zeros(mag)
+    norm = Signal(16, name="cvt_norm")  # the leading one at bit 15
+    m.d.comb += norm.eq(mag << lz)
     out = Signal(32, name="cvt_word")
     with m.If(mag != 0):
-        for p in range(16):  # the last true condition wins: the leading one
-            with m.If(mag[p]):
-                m.d.comb += out.eq(Cat((mag << (23 - p))[:23], Const(127 + p, 8), sign))
+        m.d.comb += out.eq(Cat(Const(0, 8), norm[:15], (Const(127 + 15, 8) - lz)[:8], sign))
     return out
 
 
@@ -126,7 +131,7 @@ class RegisterEngineImage:
             a = self.new_address(name)
             if a is None:
                 return 0
-            return 1 << 12 | int(name in IMU_REGS) << 11 | a
+            return 1 << 12 | int(name in IMU_WORDS) << 11 | a
 
         for name, a in self.layout.fixed.items():
             if not name.startswith("c:"):
@@ -144,10 +149,6 @@ class RegisterEngineImage:
             other = "trn" if kind == "alt" else "alt"
             overrides.setdefault((other, a), rom[a])
         return rom, overrides
-
-
-#: the IMU word registers (int16 in, float32 in the register machine)
-IMU_REGS = ("wg0", "wg1", "wg2", "wa0", "wa1", "wa2")
 
 
 class RegisterEngineCore(wiring.Component):
@@ -176,12 +177,12 @@ class RegisterEngineCore(wiring.Component):
         img = self.image
         m.submodules.rm = rm = RegisterMachine(img.rp)
         rom, overrides = img.translation()
-        trom = Memory(shape=13, depth=len(rom), init=rom)
-        m.submodules.translate = trom
+        translate = Memory(shape=13, depth=len(rom), init=rom)
+        m.submodules.translate = translate
         # reads: combinational ROM (the register machine's read is the one cycle); writes:
         # the ROM word registered with the data
-        rd = trom.read_port(domain="comb")
-        wr = trom.read_port(domain="comb")
+        rd = translate.read_port(domain="comb")
+        wr = translate.read_port(domain="comb")
         trn_ctx = Signal()  # the last update run was a TRN one (for the overrides)
 
         def mapped(port, addr):
