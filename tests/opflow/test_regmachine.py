@@ -362,7 +362,7 @@ def test_accumulators_restored_after_a_reset_mid_run():
     from amaranth.hdl import Module, ResetInserter, Signal
     from amaranth.sim import Simulator
 
-    from navgate.opflow.loopmachine import host_run, host_write
+    from navgate.opflow.loopmachine import host_read, host_run, host_write
 
     nest = _dot_nest(4)
     prog = SequenceProgram("dot", dict(nest.arrays), {"dot": nest}, {"run": ("dot",)})
@@ -392,15 +392,7 @@ def test_accumulators_restored_after_a_reset_mid_run():
 
     async def bench_all(ctx):
         await bench(ctx)
-        left = {}
-        for a, w in prog.arrays.items():
-            vals = []
-            for i in range(w):
-                ctx.set(dut.host_addr, dut.host_address(a, i))
-                await ctx.tick()
-                vals.append(ctx.get(dut.host_rdata))
-            left[a] = np.array(vals, np.uint32)
-        seen["left"] = left
+        seen["left"] = await host_read(ctx, dut, prog.arrays)
         seen["run"] = await host_run(ctx, dut, prog.arrays, 2 * rp.cycles("run") + 100)
 
     sim = Simulator(top)

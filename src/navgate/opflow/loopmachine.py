@@ -343,10 +343,9 @@ async def host_write(ctx, dut, memories: dict) -> None:
     ctx.set(dut.host_we, 0)
 
 
-async def host_run(ctx, dut, arrays: dict, limit: int) -> tuple[dict, int]:
-    """Testbench step: pulse ``start``, count the cycles from the start cycle to ``done``
-    (``RuntimeError`` past ``limit``), then read every array of ``arrays`` (name -> words)
-    back through the host port. Returns (array -> uint32 words, cycles)."""
+async def run_to_done(ctx, dut, limit: int) -> int:
+    """Testbench step: pulse ``start`` (the program or entry already selected), return the
+    cycles from the start cycle to ``done`` (``RuntimeError`` past ``limit``)."""
     ctx.set(dut.start, 1)
     await ctx.tick()
     ctx.set(dut.start, 0)
@@ -356,7 +355,12 @@ async def host_run(ctx, dut, arrays: dict, limit: int) -> tuple[dict, int]:
         n += 1
         if n > limit:
             raise RuntimeError(f"no done within {limit} cycles of the start")
-    await ctx.tick()
+    return n
+
+
+async def host_read(ctx, dut, arrays: dict) -> dict:
+    """Testbench step: every array of ``arrays`` (name -> words) read through the host port
+    of an idle machine (array -> uint32 words)."""
     got = {}
     for name, words in arrays.items():
         vals = []
@@ -365,7 +369,15 @@ async def host_run(ctx, dut, arrays: dict, limit: int) -> tuple[dict, int]:
             await ctx.tick()
             vals.append(ctx.get(dut.host_rdata))
         got[name] = np.array(vals, np.uint32)
-    return got, n
+    return got
+
+
+async def host_run(ctx, dut, arrays: dict, limit: int) -> tuple[dict, int]:
+    """Testbench step: :func:`run_to_done`, then :func:`host_read` of ``arrays`` from the
+    cycle after ``done``. Returns (array -> uint32 words, cycles)."""
+    n = await run_to_done(ctx, dut, limit)
+    await ctx.tick()
+    return await host_read(ctx, dut, arrays), n
 
 
 def simulate(schedule: LoopSchedule, memories: dict, runs: int = 1, init: dict | None = None):

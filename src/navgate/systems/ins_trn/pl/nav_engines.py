@@ -23,6 +23,7 @@ from amaranth.sim import Simulator
 
 from navgate.numerics.fp32 import float_to_bits
 from navgate.opflow.ir import Program
+from navgate.opflow.loopmachine import run_to_done
 from navgate.opflow.machine import BankedImage, ScheduledMachineStream
 from navgate.opflow.schedule import BankedUnits
 from navgate.systems.ins_trn.pl.fp32_program import RESET_MODULE, STATE_REGS, programs
@@ -184,13 +185,7 @@ def simulate_calls(image: BankedImage, regs: dict, calls, vcd: str | None = None
             if key is None:  # the initial registers only
                 continue
             ctx.set(dut.prog, dut.keys.index(key))
-            ctx.set(dut.start, 1)
-            await ctx.tick()
-            ctx.set(dut.start, 0)
-            n = 1
-            while not ctx.get(dut.done):
-                await ctx.tick()
-                n += 1
+            n = await run_to_done(ctx, dut, 10 * image.cycles(key) + 100)
             got = {}
             out_addr = image.output_addr(key)
             targets = [(n_, image.layout.fixed[n_]) for n_ in names] + \
