@@ -372,16 +372,7 @@ def _propagate() -> LoopProgram:
          ("c2", "sub", "t1", "y")],
         [("P", range(n), "t"), ("cP", range(n), "c2")], arrays)
 
-    def build(u, tracks=None):
-        return LoopProgram("propagate", [
-            head,
-            chain_sums("cov_M", m_sums, "P", "F", "M", arrays, (P_ONE, F_NEGZERO), u,
-                       tracks),
-            chain_sums("cov_E", e_sums, "M", "F", "E", arrays, (M_ONE, F_NEGZERO), u,
-                       tracks),
-            kahan], arrays, rom)
-
-    return build
+    return _covariance_builder(head, m_sums, e_sums, kahan, arrays, rom)
 
 
 #: rows of M = G P formed in the head segment (their G entries are ready early or they are
@@ -493,6 +484,13 @@ def _propagate_fused() -> LoopProgram:
     e_sums = [(k, t) for k, t in _e_sums(g_rows)
                if e_val[k] == f"E{k}"]
 
+    return _covariance_builder(head, m_sums, e_sums, tail, arrays, rom)
+
+
+def _covariance_builder(head, m_sums, e_sums, last, arrays: dict, rom: dict):
+    """The propagate program as a function of the chained sums' terms per iteration ``u``
+    and ``tracks``: ``head``, the nests cov_M (M = G P over ``m_sums``) and cov_E (the
+    increments over ``e_sums``), then ``last`` (the Kahan nest, or the fused tail)."""
     def build(u, tracks=None):
         return LoopProgram("propagate", [
             head,
@@ -500,7 +498,7 @@ def _propagate_fused() -> LoopProgram:
                        tracks),
             chain_sums("cov_E", e_sums, "M", "F", "E", arrays, (M_ONE, F_NEGZERO), u,
                        tracks),
-            tail], arrays, rom)
+            last], arrays, rom)
 
     return build
 
