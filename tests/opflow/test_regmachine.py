@@ -292,35 +292,21 @@ def test_seed000_machine_in_verilator_cocotb(seed000, tmp_path):
     """The emitted Verilog of the seed-000 register machine in Verilator, driven by cocotb
     (the entry-point machine bench navgate.opflow.sequence_cocotb: host writes, runs, host
     reads): the gates and both updates, the same words and cycles as the executor."""
-    import json
-
-    from navgate.gateware.verify import run_cocotb
-    from navgate.opflow.loopmachine import to_bits
+    from navgate.opflow.loopmachine import verilate_entries
 
     rp = seed000
     prog = rp.program
     dut = RM.RegisterMachine(rp)
     mem = memories(prog, 9, rom=seed000_rom())
-
-    def writes(ms):
-        return [[dut.host_address(a, i), w] for a, v in ms.items()
-                for i, w in enumerate(to_bits(canon(v)))]
-
     runs = ["alt_gate", "alt_apply", "trn_gate", "trn_apply"]
-    reads = [(a, i) for a, words in prog.arrays.items() for i in range(words)]
-    job = {"writes": writes(mem), "reads": [dut.host_address(a, i) for a, i in reads],
-           "runs": [{"entry": dut.entry_index(e), "writes": [], "limit": 2 * rp.cycles(e)}
-                    for e in runs],
-           "status": str(tmp_path / "status.json")}
-    (tmp_path / "job.json").write_text(json.dumps(job))
-    run_cocotb(dut, "navgate.opflow.sequence_cocotb", top="register_machine",
-               env={"NAVGATE_SEQ_JOB": str(tmp_path / "job.json")}, work_dir=tmp_path / "sim")
-    status = json.loads((tmp_path / "status.json").read_text())
+    status = verilate_entries(dut, "register_machine", prog.arrays,
+                              {a: canon(v) for a, v in mem.items()}, runs,
+                              lambda e: 2 * rp.cycles(e), tmp_path)
     want = mem
-    for entry, got in zip(runs, status, strict=True):
+    for entry, (got, cycles) in zip(runs, status, strict=True):
         want = run_sequence(prog, want, entry)
-        assert got["cycles"] == rp.cycles(entry), entry
-        words = np.array(got["words"], np.uint32)
+        assert cycles == rp.cycles(entry), entry
+        words = np.concatenate([got[a] for a in prog.arrays])
         expect = np.concatenate([canon(want[a]) for a in prog.arrays])
         assert np.array_equal(canon(words), expect), entry
 

@@ -283,35 +283,20 @@ def test_sequence_machine_in_verilator(tmp_path):
     (navgate.opflow.sequence_cocotb): the same runs, words and cycles as the executor. Slow:
     the model's first build takes about 33 s of CPU (87 s wall on a busy machine; 13 s once
     Verilator's build cache holds it)."""
-    import json
-
-    from navgate.gateware.verify import run_cocotb
-    from navgate.opflow.loopmachine import to_bits
+    from navgate.opflow.loopmachine import verilate_entries
     from navgate.opflow.sequence import SequenceMachine
 
     prog = K.chain_program(6, ROWS, COLS)
     sch = schedule_sequence(prog, 1)
     dut = SequenceMachine(sch)
     mems = _chain_memories(prog, np.random.default_rng(17))
-
-    def writes(ms):
-        return [[dut.host_address(a, i), w] for a, v in ms.items()
-                for i, w in enumerate(to_bits(v))]
-
     runs = [("all", None), ("norm", None), ("prep", {"s": np.array([1e-40, 0.0, -0.0, 0, 0, 0])})]
-    reads = [(a, i) for a, words in prog.arrays.items() for i in range(words)]
-    job = {"writes": writes(mems), "reads": [dut.host_address(a, i) for a, i in reads],
-           "runs": [{"entry": dut.entry_index(e), "writes": writes(w or {}),
-                     "limit": 2 * sch.cycles(e) + 10} for e, w in runs],
-           "status": str(tmp_path / "status.json")}
-    (tmp_path / "job.json").write_text(json.dumps(job))
-    run_cocotb(dut, "navgate.opflow.sequence_cocotb", top="sequence_machine",
-               env={"NAVGATE_SEQ_JOB": str(tmp_path / "job.json")}, work_dir=tmp_path / "sim")
-    status = json.loads((tmp_path / "status.json").read_text())
+    status = verilate_entries(dut, "sequence_machine", prog.arrays, mems, runs,
+                              lambda e: 2 * sch.cycles(e) + 10, tmp_path)
     want = mems
-    for (entry, write), got in zip(runs, status, strict=True):
+    for (entry, write), (got, cycles) in zip(runs, status, strict=True):
         want = run_sequence(prog, {**want, **(write or {})}, entry)
-        assert got["cycles"] == sch.cycles(entry), entry
-        words = np.array(got["words"], np.uint32)
+        assert cycles == sch.cycles(entry), entry
+        words = np.concatenate([got[a] for a in prog.arrays])
         expect = np.concatenate([floats_to_bits(want[a]) for a in prog.arrays])
         assert np.array_equal(words, expect), entry

@@ -432,3 +432,43 @@ def simulate_entries(dut, arrays: dict, memories: dict, entries: list, limit) ->
     sim.run()
     return out
 
+
+def verilate_entries(dut, top: str, arrays: dict, memories: dict, runs: list, limit,
+                     work_dir) -> list:
+    """The emitted Verilog of an entry-point machine (sequence or register machine) in
+    Verilator, driven by cocotb (:mod:`navgate.opflow.sequence_cocotb`): ``memories``
+    written through the host port, then each run (an entry name, or (entry, memories to
+    write first or None)) started, its cycles counted to ``done`` (at most ``limit(entry)``)
+    and every word of ``arrays`` read back. Returns one (array -> uint32 words, cycles) per
+    run, as :func:`simulate_entries`."""
+    import json
+    from pathlib import Path
+
+    from navgate.gateware.verify import run_cocotb
+
+    work_dir = Path(work_dir)
+    work_dir.mkdir(parents=True, exist_ok=True)
+
+    def writes(ms):
+        return [[dut.host_address(a, i), w] for a, v in (ms or {}).items()
+                for i, w in enumerate(to_bits(v))]
+
+    items = [(r, None) if isinstance(r, str) else r for r in runs]
+    reads = [(a, i) for a, words in arrays.items() for i in range(words)]
+    job = {"writes": writes(memories), "reads": [dut.host_address(a, i) for a, i in reads],
+           "runs": [{"entry": dut.entry_index(e), "writes": writes(w), "limit": limit(e)}
+                    for e, w in items],
+           "status": str(work_dir / "status.json")}
+    (work_dir / "job.json").write_text(json.dumps(job))
+    run_cocotb(dut, "navgate.opflow.sequence_cocotb", top=top,
+               env={"NAVGATE_SEQ_JOB": str(work_dir / "job.json")}, work_dir=work_dir / "sim")
+    out = []
+    for got in json.loads((work_dir / "status.json").read_text()):
+        words = np.array(got["words"], np.uint32)
+        split, k = {}, 0
+        for a, n in arrays.items():
+            split[a] = words[k:k + n]
+            k += n
+        out.append((split, got["cycles"]))
+    return out
+
