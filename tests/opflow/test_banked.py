@@ -13,6 +13,7 @@ import pytest
 from amaranth.sim import Simulator
 
 from navgate.numerics import fp32 as F
+from navgate.opflow.loopmachine import run_to_done
 from navgate.opflow.machine import BankedImage
 from navgate.opflow.schedule import (
     OVERHEAD,
@@ -290,14 +291,7 @@ def test_random_program_bit_exact_amaranth(seed):
     got: dict = {}
 
     async def bench(ctx):
-        ctx.set(dut.start, 1)
-        await ctx.tick()
-        ctx.set(dut.start, 0)
-        n = 1
-        while not ctx.get(dut.done):
-            await ctx.tick()
-            n += 1
-        got["cycles"] = n
+        got["cycles"] = await run_to_done(ctx, dut, 10 * img.cycles("rand") + 100)
         for name, addr in list(img.layout.fixed.items()) + \
                 [("out:" + k, a) for k, a in img.output_addr("rand").items()]:
             ctx.set(dut.host_raddr, addr)
