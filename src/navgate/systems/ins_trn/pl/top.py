@@ -112,12 +112,17 @@ class InsTrnTop(wiring.Component):
     """Seed 000's PL (module docstring): AXI4-Lite slave ``axi``, DMA master ``dma``,
     interrupt ``irq``, sensor pins and four status LEDs, in the ``sync`` domain."""
 
-    def __init__(self, *, tick_cycles: int = 100, engine: str = "banked"):
+    #: the block's name and the PL engine it carries unless told otherwise
+    #: (register_engine.PL_ENGINES: the banked datapath, or the register machine of
+    #: ``ins_trn_top_compact``; the register map and the PS are the same)
+    NAME = "ins_trn_top"
+    ENGINE = "banked"
+
+    def __init__(self, *, tick_cycles: int = 100, engine: str | None = None):
         from navgate.systems.ins_trn.pl.register_engine import pl_engine_image
 
         self.tick_cycles = tick_cycles
-        #: the PL engine (register_engine.PL_ENGINES): the banked datapath or the register
-        #: machine (``ins_trn_top_compact``); the register map and the PS are the same
+        engine = engine or self.ENGINE
         self.engine = engine
         self.image = pl_engine_image(engine)
         regmap = register_map()
@@ -144,8 +149,8 @@ class InsTrnTop(wiring.Component):
         """The board variant (``navgate build ins_trn_top --target zybo-z7-20``), built in
         place of the generic top."""
         if board != "zybo-z7-20":
-            raise KeyError(f"ins_trn_top has no variant for board {board!r}")
-        return ZyboInsTrnTop()
+            raise KeyError(f"{cls.NAME} has no variant for board {board!r}")
+        return ZyboInsTrnTop(engine=cls.ENGINE)
 
     def write_artifacts(self, out_dir, name: str, target: str | None = None):
         """The register map's C header and documentation (``NAME_regs.h``/``.md``)."""
@@ -432,11 +437,5 @@ class InsTrnTopCompact(InsTrnTop):
     the register machine (docs/opflow-register-machine.md) in place of the banked engines;
     the same ports, register map and board files."""
 
-    def __init__(self, *, tick_cycles: int = 100):
-        super().__init__(tick_cycles=tick_cycles, engine="register")
-
-    @classmethod
-    def for_target(cls, board: str):
-        if board != "zybo-z7-20":
-            raise KeyError(f"ins_trn_top_compact has no variant for board {board!r}")
-        return ZyboInsTrnTop(engine="register")
+    NAME = "ins_trn_top_compact"
+    ENGINE = "register"

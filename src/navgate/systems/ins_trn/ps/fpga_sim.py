@@ -186,8 +186,8 @@ class _DmaMemory(wiring.Component):
 def sim_verilog(top: InsTrnSimTop) -> str:
     """The co-simulation top's Verilog (module ``dut``), emitted once per version of the
     gateware: from navgate's Verilog cache (:func:`navgate.cache.cached_verilog`, keyed by
-    the contents of every source file of the navgate package and the Amaranth version;
-    ``InsTrnSimTop`` takes no parameters). Emitting it takes tens of seconds."""
+    the contents of every source file of the navgate package and the Amaranth version, and
+    the carried engine unless it is the banked one). Emitting it takes tens of seconds."""
     params = {} if top.engine == "banked" else {"engine": top.engine}
     return V.emit_verilog(top, "dut", design="InsTrnSimTop", params=params)
 
