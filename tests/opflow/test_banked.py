@@ -333,13 +333,13 @@ def test_engine_image_shared_write_port_respects_ports():
     # one address field per bank fewer: 8 banks x 8 bits
     assert img.fields.width == engine_image("ins_engines", base).fields.width - 8 * 8
     # exact cycles (docs/seed000-engines.md §7): every bank true-dual-port is port-bound
-    # (2-D update 143 + 1 + 434 + 1 = 579 > 450); bank 0 alone keeps it at 446
+    # (2-D update 142 + 1 + 325 + 1 = 469 > 450); bank 0 alone keeps it at 420
     assert {k: img.cycles(k) for k in img.programs} == {
-        "propagate": 732, "alt_gate": 55, "alt_apply": 252, "trn_gate": 143,
-        "trn_apply": 434}
+        "propagate": 782, "alt_gate": 55, "alt_apply": 245, "trn_gate": 142,
+        "trn_apply": 325}
     one = engine_image("ins_engines", replace(base, shared_write_port=(0,)))
     _check_ports(one)
     assert {k: one.cycles(k) for k in one.programs} == {
-        "propagate": 642, "alt_gate": 55, "alt_apply": 246, "trn_gate": 142,
-        "trn_apply": 302}
+        "propagate": 659, "alt_gate": 55, "alt_apply": 234, "trn_gate": 142,
+        "trn_apply": 276}
     assert one.fields.width == img.fields.width + 7 * 8

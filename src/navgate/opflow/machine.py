@@ -93,22 +93,24 @@ class BankedImage:
 
     @classmethod
     def build(cls, programs: dict, units: BankedUnits, fixed_names,
-              rank_skip: tuple = ()) -> BankedImage:
+              rank_skip: tuple = (), rank_weights: dict | None = None) -> BankedImage:
         """Schedule ``programs`` and lay out the register file. Persistent registers are
         ranked over the banks by their reads (:func:`assign_banks`), not counting the reads
         of ops whose ``module`` is in ``rank_skip`` (ops a client knows to be off every
-        critical path, whose reads should not reshuffle the banks of every program)."""
+        critical path, whose reads should not reshuffle the banks of every program); a read
+        in program ``key`` counts ``rank_weights[key]`` times (default 1)."""
         fixed_names = list(dict.fromkeys(fixed_names))
         consts = sorted({s for p in programs.values() for op in p.ops for s in op.srcs
                          if s.startswith("c:")})
         names = fixed_names + [c for c in consts if c not in fixed_names]
         nreads: dict = {}
-        for p in programs.values():
+        weights = rank_weights or {}
+        for key, p in programs.items():
             for op in p.ops:
                 if op.module in rank_skip:
                     continue
                 for s in op.srcs:
-                    nreads[s] = nreads.get(s, 0) + 1
+                    nreads[s] = nreads.get(s, 0) + weights.get(key, 1)
         bank_of = assign_banks(names, units, nreads)
         sched = {k: schedule_banked(p, units, bank_of) for k, p in programs.items()}
         used = {s.unit for sp in sched.values() for s in sp.ops}

@@ -22,8 +22,8 @@ from navgate.systems.ins_trn.pl.nav_engines import (
 #: exact cycles (first issue to last write) of each program on the banked machine with
 #: 4 mul + 4 add slots and a misc slot (iterative divider and square root), 8 banks of 2 read
 #: ports, split: operand port j reads read port j of a bank (navgate.opflow)
-CYCLES = {"propagate": 654, "alt_gate": 55, "alt_apply": 243, "trn_gate": 142,
-          "trn_apply": 303}
+CYCLES = {"propagate": 638, "alt_gate": 55, "alt_apply": 235, "trn_gate": 142,
+          "trn_apply": 276}
 LAT = {"add": 8, "mul": 5, "div": 28, "sqrt": 27, "cmp": 2, "cvt": 4}  # iterative div/sqrt
 
 
@@ -264,7 +264,7 @@ def test_engine_blocks_document_latency_and_throughput():
                  "ins_mechanization": engines.InsMechanization,
                  "covariance_propagator": engines.CovariancePropagator}
     assert set(factories) <= set(all_blocks())
-    longest = {"ins_engines": CYCLES["propagate"], "kalman_update_engine": 305,
+    longest = {"ins_engines": CYCLES["propagate"], "kalman_update_engine": 274,
                "ins_mechanization": 513, "covariance_propagator": 479}
     for name, factory in sorted(factories.items()):
         c = factory()

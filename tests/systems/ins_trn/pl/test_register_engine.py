@@ -48,19 +48,28 @@ def test_every_banked_register_the_programs_use_is_held(image):
               and image.new_address(n) is None]
     # only the banked engine's own gate-to-apply registers are not the register machine's
     assert unheld and all(n.startswith(("alt_gate.", "trn_gate.")) for n in unheld)
-    rom, overrides = image.translation()
-    # the one output address the two applies share (dx7 of the TRN update, dx12 of the
-    # altitude update) is told apart by the last update kind
-    assert overrides
+    rom, shared = image.translation()
+    # output addresses the banked scheduler gives to names of several programs (a dx word of
+    # each apply, a gate's flag and a dx word): the core follows the last program run
+    assert shared and all(len(set(words.values())) > 1 for words in shared.values())
+
+
+def _shared_names(image):
+    """(banked address, [(program, output name), ...]) of the shared output addresses."""
+    _, shared = image.translation()
+    return [(a, [(k, n) for k in words for n, b in image.output_addr(k).items() if b == a])
+            for a, words in shared.items()]
 
 
 def test_updates_accepted_and_rejected_bit_exact(image):
     rng = np.random.default_rng(21)
     names = [n for n in image.layout.fixed if not n.startswith("c:")]
     regs, f = identity_p_registers(rng, names)
-    # correlations that make dx12 of the altitude update and dx7 of the TRN update non-zero
-    # and different: the two share one banked output address
-    regs.update({"P2_12": f(0.1), "P0_7": f(0.2), "P1_7": f(-0.05)})
+    # correlations of the measured states with the others, so that every dx word of both
+    # updates is non-zero (the shared output addresses are checked with different values)
+    for r in (0, 1, 2):
+        for j in range(3, 15):
+            regs[f"P{r}_{j}"] = f(rng.uniform(-0.03, 0.03))
     calls = [("alt_gate", {"h_meas": f(regs_h := 1.5), "r": f(4.0), "gate": f(9.0)}),
              ("alt_apply", {}),
              ("trn_gate", {"y0": f(3.0), "y1": f(-2.0), "r00": f(25.0), "r01": f(1.0),
@@ -69,8 +78,14 @@ def test_updates_accepted_and_rejected_bit_exact(image):
              ("trn_gate", {"r00": f(0.0), "r01": f(0.0), "r11": f(0.0), "gate": f(1e-9)})]
     assert regs_h == 1.5
     got = check(regs, calls, image)
-    dx12, dx7 = got[1][1]["dx12"], got[3][1]["dx7"]
-    assert dx12 != 0 and dx7 != 0 and dx12 != dx7
+    for a, writers in _shared_names(image):
+        seen = {}
+        for (key, _), (_, out, _) in zip(calls, got):
+            for k, n in writers:
+                if k == key:
+                    seen[k, n] = out[n]
+        assert len(seen) == len(writers), (a, writers)
+        assert len(set(seen.values())) == len(seen) and 0 not in seen.values(), (a, seen)
 
 
 @pytest.mark.slow

@@ -180,13 +180,13 @@ def test_sequencer_equals_fp32_engine(setup_and_words, through_registers):
         shadows.append([float_to_bits(m.get(n)) for n in SHADOW_WORDS])
     assert log["shadow"] == shadows
     img = dut.image
-    assert log["imu_cycles"] == [job_cycles(img, "imu")] * 3 == [696] * 3
+    assert log["imu_cycles"] == [job_cycles(img, "imu")] * 3 == [680] * 3
     assert log["cal_cycles"] == job_cycles(img, "cal")
     outcomes = [model._update("baro", "alt_gate", "alt_apply", 1, h_meas=h, r=r)
                 for h, r in alt_cases]
     assert outcomes[0].accepted and not outcomes[1].accepted
     assert log["alt"][0][0] == 0b010 and log["alt"][1][0] == 0b110
-    assert [a[2] for a in log["alt"]] == [345, 67]
+    assert [a[2] for a in log["alt"]] == [337, 67]
     for (_status, nis, n), out, applied in zip(log["alt"], outcomes, (True, False), strict=True):
         assert nis == _bits(out.nis)
         assert n == job_cycles(img, "alt", applied)
@@ -194,7 +194,7 @@ def test_sequencer_equals_fp32_engine(setup_and_words, through_registers):
                            np.array([[trn["r00"], trn["r01"]], [trn["r01"], trn["r11"]]]),
                            trn["lag"])
     assert out.accepted and log["trn"][0][0] == 0b010 and log["trn"][0][1] == _bits(out.nis)
-    assert log["trn"][0][2] == job_cycles(img, "trn") == 496
+    assert log["trn"][0][2] == job_cycles(img, "trn") == 469
     far = model.update_trn(np.array([trn_far["y0"], trn_far["y1"]]), np.eye(2), 0.0)
     assert not far.accepted and "gate" in far.reason
     assert log["trn"][1][0] == 0b110 and log["trn"][1][1] == _bits(far.nis)

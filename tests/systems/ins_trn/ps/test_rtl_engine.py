@@ -11,7 +11,7 @@ import pytest
 from navgate.systems.ins_trn.pl.nav_engines import engine_image
 
 #: cycles per IMU sample (propagate + start), asserted in test_engines.py
-PER_SAMPLE = 655
+PER_SAMPLE = 639
 
 
 def _fly_both(check, duration):

@@ -440,23 +440,24 @@ RESET_MODULE = "compensation_reset"
 
 
 def _joseph(b: Builder, cols, k, s):
-    """P <- P - K C' - C K' + K S K' on the upper triangle, with C = P H' (15 x m) and S
-    (m x m, symmetric, as dict (r, c) -> reg); the Joseph form for these H. The update
-    reads the stored P (not P - cP) and zeroes each compensation word cP: the covariance
-    after an update is the new P alone (docs/seed000-engines.md, "Compensation words")."""
+    """P <- P - C K' + K W' with W = K S - C on the upper triangle, C = P H' (15 x m) and S
+    (m x m, symmetric, as dict (r, c) -> reg): the Joseph form P - K C' - C K' + K S K' for
+    these H, written with 2m products an element instead of 3m (S K' - C' = W'; issue 29,
+    docs/seed000-engines.md, "The shorter Joseph form"). The update reads the stored P (not
+    P - cP) and zeroes each compensation word cP: the covariance after an update is the new
+    P alone (docs/seed000-engines.md, "Compensation words")."""
     m_dim = len(cols)
     n = N_STATES
-    sk = {}
+    w = {}
     for j in range(n):
         for r in range(m_dim):
-            sk[j, r] = b.sum([(1, b.mul(s[min(r, c), max(r, c)], k[c][j]))
-                              for c in range(m_dim)])
+            sk = b.sum([(1, b.mul(s[min(r, c), max(r, c)], k[c][j])) for c in range(m_dim)])
+            w[j, r] = b.sub(sk, cols[r][j])
     for i in range(n):
         for j in range(i, n):
             terms = [(1, p_reg(i, j))]
-            terms += [(-1, b.mul(k[r][i], cols[r][j])) for r in range(m_dim)]
             terms += [(-1, b.mul(cols[r][i], k[r][j])) for r in range(m_dim)]
-            terms += [(1, b.mul(k[r][i], sk[j, r])) for r in range(m_dim)]
+            terms += [(1, b.mul(k[r][i], w[j, r])) for r in range(m_dim)]
             b.prog.commit[p_reg(i, j)] = b.sum(terms)
             # the new P is the whole covariance: its compensation word restarts at zero
             # (cP - cP = +0 for every finite cP; a NaN or infinite word stays NaN)

@@ -22,8 +22,8 @@ Memory layout (every register of the fp32 engine is a word of an array):
 * ``X``: values one segment passes to a later one of the same entry (loop_programs'
   registers passed on) and the outputs the host reads (``nis``, ``accept``, ``positive``);
   one word per name over every entry (an entry writes a word before it reads it);
-* loop_programs' own arrays (``F``, ``M``, ``E``; ``C``, ``K``, ``SK``, ``DX``, ``C0`` ..
-  ``SK1``; one-word ``s_*``) with its ROM words (1.0, -0.0) as the arrays' initial values.
+* loop_programs' own arrays (``F``, ``M``, ``E``; ``C``, ``K``, ``W``, ``DX``, ``C0`` ..
+  ``W1``; one-word ``s_*``) with its ROM words (1.0, -0.0) as the arrays' initial values.
 
 The ``dx`` outputs of the apply entries are the words of ``DX``.
 """

@@ -20,8 +20,8 @@ Programs (:func:`loop_programs`, variant ``fused``, the default)
   120 elements: its adds fill the slots the tail's dependency chain leaves free);
 * ``alt_gate`` / ``trn_gate``: the gate programs (``trn_gate`` without its dead ops);
 * ``alt_apply`` / ``trn_apply`` (gate and apply fused, run when the sequencer applies an
-  update): segment ``*_gate_vec`` (the gate, C = P H', K, S K, dx, into arrays), nest
-  ``*_joseph`` (the Joseph update of the 120 elements, one element per iteration), segment
+  update): segment ``*_gate_vec`` (the gate, C = P H', K, W = K S - C, dx, into arrays),
+  nest ``*_joseph`` (the Joseph update P - C K' + K W' of the 120 elements, one element per iteration), segment
   ``*_corr`` (the state correction from dx, and the compensation-word reset
   cP <- cP - cP in its free slots).
 
@@ -560,18 +560,19 @@ def _alt(fused: bool = False) -> tuple:
     gate.outputs = dict(gate.outputs) | {"inv": div.dst, "s": s, "y": y}
     gate.name = "alt_gate"
     scal = ("inv", "s", "y")
-    arrays = {"P": P_WORDS, "cP": P_WORDS, "K": N, "C": N, "SK": N, "DX": N} \
+    arrays = {"P": P_WORDS, "cP": P_WORDS, "K": N, "C": N, "W": N, "DX": N} \
         | _scalar_arrays(scal)
     gate_seg = Segment(gate, {}, {k: ("s_" + k, 0) for k in scal})
     idx = range(N)
-    if fused:  # the vector work (C, K, S K, dx) and the reset in the gate's free slots
+    if fused:  # the vector work (C, K, W = S K - C, dx) and the reset in the gate's free slots
         b = _extend(gate, "alt_gate_vec")
         b.module = "kalman_update_engine"
         writes = {}
         for i in idx:
             col = fp.p_reg(i, 2)
             k = b.mul(col, div.dst)
-            for arr, v in (("K", k), ("SK", b.mul(s, k)), ("DX", b.mul(k, y)), ("C", col)):
+            for arr, v in (("K", k), ("W", b.sub(b.mul(s, k), col)), ("DX", b.mul(k, y)),
+                           ("C", col)):
                 b.prog.outputs[f"{arr}{i}"] = v
                 writes[f"{arr}{i}"] = (arr, i)
         first = Segment(b.prog, {}, writes)
@@ -579,19 +580,20 @@ def _alt(fused: bool = False) -> tuple:
         "alt_vec", N,
         {"col": ("P", [pidx(i, 2) for i in idx]), "inv": ("s_inv", [0] * N),
          "s": ("s_s", [0] * N), "y": ("s_y", [0] * N)},
-        [("k", "mul", "col", "inv"), ("sk", "mul", "s", "k"), ("dx", "mul", "k", "y")],
-        [("K", idx, "k"), ("SK", idx, "sk"), ("DX", idx, "dx"), ("C", idx, "col")], arrays)
+        [("k", "mul", "col", "inv"), ("sk", "mul", "s", "k"), ("w", "sub", "sk", "col"),
+         ("dx", "mul", "k", "y")],
+        [("K", idx, "k"), ("W", idx, "w"), ("DX", idx, "dx"), ("C", idx, "col")], arrays)
     ij = list(P_INDEX)
     n = len(ij)
     joseph = elementwise(
         "alt_joseph", n,
-        {"p": ("P", range(n)), "cp": ("cP", range(n)), "ki": ("K", [i for i, _ in ij]),
-         "kj": ("K", [j for _, j in ij]), "ci": ("C", [i for i, _ in ij]),
-         "cj": ("C", [j for _, j in ij]), "skj": ("SK", [j for _, j in ij])},
-        [("m1", "mul", "ki", "cj"), ("a1", "sub", "p", "m1"), ("m2", "mul", "ci", "kj"),
-         ("a2", "sub", "a1", "m2"), ("m3", "mul", "ki", "skj"), ("a3", "add", "a2", "m3")]
+        {"p": ("P", range(n)), "cp": ("cP", range(n)), "ci": ("C", [i for i, _ in ij]),
+         "kj": ("K", [j for _, j in ij]), "ki": ("K", [i for i, _ in ij]),
+         "wj": ("W", [j for _, j in ij])},
+        [("m1", "mul", "ci", "kj"), ("a1", "sub", "p", "m1"), ("m2", "mul", "ki", "wj"),
+         ("a2", "add", "a1", "m2")]
         + ([] if fused else [("z", "sub", "cp", "cp")]),
-        [("P", range(n), "a3")] + ([] if fused else [("cP", range(n), "z")]), arrays)
+        [("P", range(n), "a2")] + ([] if fused else [("cP", range(n), "z")]), arrays)
     if fused:
         joseph.arrays.pop("cP")
         joseph.ops = [op for op in joseph.ops if op.dst != "cp"]
@@ -627,7 +629,7 @@ def _trn(fused: bool = False) -> tuple:
             "s11": s[1, 1]}
     prog.outputs |= scal
     gate_seg = Segment(prune(prog), {}, {k: ("s_" + k, 0) for k in scal})
-    if fused:  # C, K, S K, dx (as trn_apply_program) and the reset in the gate's free slots
+    if fused:  # C, K, W = S K - C, dx (as trn_apply_program) and the reset in the free slots
         b2 = _extend(prog, "trn_gate_vec")
         b2.module = "kalman_update_engine"
         k = [[b2.add(b2.mul(cols[0][i], i00), b2.mul(cols[1][i], i01)) for i in range(N)],
@@ -642,8 +644,8 @@ def _trn(fused: bool = False) -> tuple:
             for r in range(2):
                 put(f"C{r}", i, cols[r][i])
                 put(f"K{r}", i, k[r][i])
-                put(f"SK{r}", i, b2.sum([(1, b2.mul(s[min(r, c), max(r, c)], k[c][i]))
-                                         for c in range(2)]))
+                put(f"W{r}", i, b2.sub(b2.sum([(1, b2.mul(s[min(r, c), max(r, c)], k[c][i]))
+                                               for c in range(2)]), cols[r][i]))
             put("DX", i, b2.add(b2.mul(k[0][i], "y0"), b2.mul(k[1][i], "y1")))
         for nm in scal:
             b2.prog.outputs.pop(nm)
@@ -651,7 +653,7 @@ def _trn(fused: bool = False) -> tuple:
         first = Segment(prune(b2.prog), {}, writes)
     inputs = ("lag", "y0", "y1")
     arrays = {"P": P_WORDS, "cP": P_WORDS} | {a: N for a in (
-        "C0", "C1", "K0", "K1", "SK0", "SK1", "DX")} | _scalar_arrays(tuple(scal) + inputs)
+        "C0", "C1", "K0", "K1", "W0", "W1", "DX")} | _scalar_arrays(tuple(scal) + inputs)
     in_seg = _input_segment("trn_inputs", inputs)
     idx = range(N)
     z = [0] * N
@@ -666,9 +668,10 @@ def _trn(fused: bool = False) -> tuple:
          ("v0", "mul", "c0", "i01"), ("v1", "mul", "c1", "i11"), ("k1", "add", "v0", "v1"),
          ("w0", "mul", "s00", "k0"), ("w1", "mul", "s01", "k1"), ("sk0", "add", "w0", "w1"),
          ("x0", "mul", "s01", "k0"), ("x1", "mul", "s11", "k1"), ("sk1", "add", "x0", "x1"),
+         ("wk0", "sub", "sk0", "c0"), ("wk1", "sub", "sk1", "c1"),
          ("d0", "mul", "k0", "y0"), ("d1", "mul", "k1", "y1"), ("dx", "add", "d0", "d1")],
         [("C0", idx, "c0"), ("C1", idx, "c1"), ("K0", idx, "k0"), ("K1", idx, "k1"),
-         ("SK0", idx, "sk0"), ("SK1", idx, "sk1"), ("DX", idx, "dx")], arrays)
+         ("W0", idx, "wk0"), ("W1", idx, "wk1"), ("DX", idx, "dx")], arrays)
     ij = list(P_INDEX)
     n = len(ij)
     ii = [i for i, _ in ij]
@@ -676,17 +679,14 @@ def _trn(fused: bool = False) -> tuple:
     joseph = elementwise(
         "trn_joseph", n,
         {"p": ("P", range(n)), "cp": ("cP", range(n)),
-         "k0i": ("K0", ii), "k0j": ("K0", jj), "k1i": ("K1", ii), "k1j": ("K1", jj),
-         "c0i": ("C0", ii), "c0j": ("C0", jj), "c1i": ("C1", ii), "c1j": ("C1", jj),
-         "sk0j": ("SK0", jj), "sk1j": ("SK1", jj)},
-        [("m1", "mul", "k0i", "c0j"), ("a1", "sub", "p", "m1"),
-         ("m2", "mul", "k1i", "c1j"), ("a2", "sub", "a1", "m2"),
-         ("m3", "mul", "c0i", "k0j"), ("a3", "sub", "a2", "m3"),
-         ("m4", "mul", "c1i", "k1j"), ("a4", "sub", "a3", "m4"),
-         ("m5", "mul", "k0i", "sk0j"), ("a5", "add", "a4", "m5"),
-         ("m6", "mul", "k1i", "sk1j"), ("a6", "add", "a5", "m6")]
+         "c0i": ("C0", ii), "k0j": ("K0", jj), "c1i": ("C1", ii), "k1j": ("K1", jj),
+         "k0i": ("K0", ii), "w0j": ("W0", jj), "k1i": ("K1", ii), "w1j": ("W1", jj)},
+        [("m1", "mul", "c0i", "k0j"), ("a1", "sub", "p", "m1"),
+         ("m2", "mul", "c1i", "k1j"), ("a2", "sub", "a1", "m2"),
+         ("m3", "mul", "k0i", "w0j"), ("a3", "add", "a2", "m3"),
+         ("m4", "mul", "k1i", "w1j"), ("a4", "add", "a3", "m4")]
         + ([] if fused else [("z", "sub", "cp", "cp")]),
-        [("P", range(n), "a6")] + ([] if fused else [("cP", range(n), "z")]), arrays)
+        [("P", range(n), "a4")] + ([] if fused else [("cP", range(n), "z")]), arrays)
     if fused:
         joseph.arrays.pop("cP")
         joseph.ops = [op for op in joseph.ops if op.dst != "cp"]

@@ -152,13 +152,21 @@ def engine_programs() -> dict:
     return allp
 
 
+#: weights of each program's register reads in the ranking of the registers over the banks
+#: (BankedImage.build): the least total cycles of the five programs over the 27 weightings
+#: in {1, 2, 3} of propagate, alt_apply and trn_apply (``python
+#: benchmarks/bench_bank_weights.py``; docs/seed000-engines.md, "The shorter Joseph form")
+RANK_WEIGHTS = {"propagate": 3, "alt_apply": 3, "trn_apply": 1}
+
+
 @lru_cache(maxsize=8)
 def engine_image(which: str = "ins_engines", units: BankedUnits = ENGINE_UNITS) -> BankedImage:
     allp = engine_programs()
     progs = {k: allp[k] for k in PROGRAM_SETS[which]}
     # the compensation resets read each cP once per update, off every critical path:
     # ranking them would move the registers of every program to other banks
-    return BankedImage.build(progs, units, fixed_names(progs), rank_skip=(RESET_MODULE,))
+    return BankedImage.build(progs, units, fixed_names(progs), rank_skip=(RESET_MODULE,),
+                             rank_weights=RANK_WEIGHTS)
 
 
 def simulate_calls(image: BankedImage, regs: dict, calls, vcd: str | None = None,

@@ -122,8 +122,12 @@ class RegisterEngineImage:
 
     def translation(self) -> tuple[list, dict]:
         """(ROM: banked address -> valid << 12 | imu << 11 | register machine host address,
-        overrides: (update kind, banked address) -> that word) where an output address of
-        one program is another name's in another (the dx words of the two applies)."""
+        shared: banked address -> {program key: word}) for the output addresses that hold
+        different names after different programs (the banked scheduler reuses an output
+        address across programs: the dx words of the two applies, a gate's flag and another
+        program's output). The banked engine's such a word holds what the last program
+        writing it wrote; the core follows: the word of the last program run that has the
+        address among its outputs (the ROM's word before any has run)."""
         aw = self.fields.aw
         rom = [0] * (1 << aw)
 
@@ -136,19 +140,18 @@ class RegisterEngineImage:
         for name, a in self.layout.fixed.items():
             if not name.startswith("c:"):
                 rom[a] = word(name)
-        overrides = {}
-        for kind in ("alt", "trn"):
-            for key in (f"{kind}_gate", f"{kind}_apply"):
-                for name, a in self.output_addr(key).items():
-                    w = word(name)
-                    if rom[a] == 0:
-                        rom[a] = w
-                    elif rom[a] != w:
-                        overrides[(kind, a)] = w
-        for kind, a in list(overrides):
-            other = "trn" if kind == "alt" else "alt"
-            overrides.setdefault((other, a), rom[a])
-        return rom, overrides
+        written: dict = {}
+        for key in self.programs:
+            for name, a in self.output_addr(key).items():
+                written.setdefault(a, {})[key] = word(name)
+        shared = {}
+        for a, words in written.items():
+            distinct = set(words.values())
+            if rom[a] == 0 and len(distinct) == 1:
+                rom[a] = distinct.pop()
+            elif distinct != {rom[a]}:
+                shared[a] = words
+        return rom, shared
 
 
 class RegisterEngineCore(wiring.Component):
@@ -176,22 +179,30 @@ class RegisterEngineCore(wiring.Component):
         m = Module()
         img = self.image
         m.submodules.rm = rm = RegisterMachine(img.rp)
-        rom, overrides = img.translation()
+        rom, shared = img.translation()
         translate = Memory(shape=13, depth=len(rom), init=rom)
         m.submodules.translate = translate
         # reads: combinational ROM (the register machine's read is the one cycle); writes:
         # the ROM word registered with the data
         rd = translate.read_port(domain="comb")
         wr = translate.read_port(domain="comb")
-        trn_ctx = Signal()  # the last update run was a TRN one (for the overrides)
+        # per shared output address: whose word it holds (0: the ROM's; k + 1: the k-th
+        # program's of its list), set when a program that writes it starts
+        holder = {a: Signal(range(len(words) + 1), name=f"holder_{a}")
+                  for a, words in shared.items()}
+        for a, words in shared.items():
+            for k, key in enumerate(words):
+                with m.If(self.start & (self.prog == self.keys.index(key))):
+                    m.d.sync += holder[a].eq(k + 1)
 
         def mapped(port, addr):
             m.d.comb += port.addr.eq(addr)
             w = Signal(13, name=f"map_{port.addr.name}")
             m.d.comb += w.eq(port.data)
-            for (kind, a), word in overrides.items():
-                with m.If((addr == a) & (trn_ctx == (kind == "trn"))):
-                    m.d.comb += w.eq(word)
+            for a, words in shared.items():
+                for k, word in enumerate(words.values()):
+                    with m.If((addr == a) & (holder[a] == k + 1)):
+                        m.d.comb += w.eq(word)
             return w
 
         rword = mapped(rd, self.host_raddr)
@@ -211,14 +222,9 @@ class RegisterEngineCore(wiring.Component):
         m.d.sync += r_valid.eq(rword[12])
         m.d.comb += self.host_rdata.eq(Mux(r_valid, rm.host_rdata, 0))
         entry_of = Array([Const(rm.entry_index(k), len(rm.entry)) for k in self.keys])
-        is_trn = Array([Const(int(k.startswith("trn")), 1) for k in self.keys])
-        # the override context changes with an apply only: the dx words are the applies'
-        is_update = Array([Const(int(k.endswith("_apply")), 1) for k in self.keys])
         start_d = Signal()
         entry_d = Signal(len(rm.entry))
         m.d.sync += [start_d.eq(self.start), entry_d.eq(entry_of[self.prog])]
-        with m.If(self.start & is_update[self.prog]):
-            m.d.sync += trn_ctx.eq(is_trn[self.prog])
         m.d.comb += [rm.start.eq(start_d), rm.entry.eq(entry_d), self.done.eq(rm.done),
                      self.busy.eq(rm.busy | start_d)]
         return m

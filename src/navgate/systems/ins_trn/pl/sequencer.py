@@ -36,8 +36,8 @@ the biases and the 15 variances of P as stored) are read back after every job th
 them and feed the output registers (through the output formatter) in the same order.
 
 Timing (cycles of ``sync``, exact, :func:`job_cycles`): an IMU sample takes 1 + 6 + 1 +
-(654 + 1) + 32 + 1 = 696 cycles from its handshake to ``update``; an altitude update 348
-(67 when rejected), a TRN update 498 (158), CAL_APPLY 29.
+(638 + 1) + 32 + 1 = 680 cycles from its handshake to ``update``; an altitude update 337
+(67 when rejected), a TRN update 469 (158), CAL_APPLY 29.
 """
 
 from __future__ import annotations

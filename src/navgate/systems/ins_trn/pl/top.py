@@ -16,7 +16,7 @@ Reference: seed 000 "Module Hierarchy" and "Data Flow". The blocks and how they 
     interrupt_gen -> irq (IRQ_F2P); status LEDs
 
 One clock domain (``sync``, 100 MHz): the engines meet the seed's time budget at 100 MHz
-(696 cycles per IMU sample, 7.0 us of the 2.5 ms period). :class:`ZyboInsTrnTop` adds
+(680 cycles per IMU sample, 6.8 us of the 2.5 ms period). :class:`ZyboInsTrnTop` adds
 ``clk_rst_gen`` (MMCME2_BASE 125 -> 100 MHz and the reset sequence) for the board;
 :class:`InsTrnTop` is the design a simulation or a block design clocks directly.
 
