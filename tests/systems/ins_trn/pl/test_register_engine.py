@@ -80,7 +80,7 @@ def test_updates_accepted_and_rejected_bit_exact(image):
     got = check(regs, calls, image)
     for a, writers in _shared_names(image):
         seen = {}
-        for (key, _), (_, out, _) in zip(calls, got):
+        for (key, _), (_, out, _) in zip(calls, got, strict=True):
             for k, n in writers:
                 if k == key:
                     seen[k, n] = out[n]

@@ -21,9 +21,9 @@ Programs (:func:`loop_programs`, variant ``fused``, the default)
 * ``alt_gate`` / ``trn_gate``: the gate programs (``trn_gate`` without its dead ops);
 * ``alt_apply`` / ``trn_apply`` (gate and apply fused, run when the sequencer applies an
   update): segment ``*_gate_vec`` (the gate, C = P H', K, W = K S - C, dx, into arrays),
-  nest ``*_joseph`` (the Joseph update P - C K' + K W' of the 120 elements, one element per iteration), segment
-  ``*_corr`` (the state correction from dx, and the compensation-word reset
-  cP <- cP - cP in its free slots).
+  nest ``*_joseph`` (the Joseph update P - C K' + K W' of the 120 elements, one element
+  per iteration), segment ``*_corr`` (the state correction from dx, and the
+  compensation-word reset cP <- cP - cP in its free slots).
 
 Variant ``plain``: each part in a step of its own (head, cov_M over every row, cov_E over
 every element, a Kahan nest; gate, a vector nest, a Joseph nest with the reset, the
