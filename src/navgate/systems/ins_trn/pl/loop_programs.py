@@ -564,7 +564,7 @@ def _alt(fused: bool = False) -> tuple:
         | _scalar_arrays(scal)
     gate_seg = Segment(gate, {}, {k: ("s_" + k, 0) for k in scal})
     idx = range(N)
-    if fused:  # the vector work (C, K, W = S K - C, dx) and the reset in the gate's free slots
+    if fused:  # the vector work (C, K, W = K S - C, dx) and the reset in the gate's free slots
         b = _extend(gate, "alt_gate_vec")
         b.module = "kalman_update_engine"
         writes = {}
@@ -629,7 +629,7 @@ def _trn(fused: bool = False) -> tuple:
             "s11": s[1, 1]}
     prog.outputs |= scal
     gate_seg = Segment(prune(prog), {}, {k: ("s_" + k, 0) for k in scal})
-    if fused:  # C, K, W = S K - C, dx (as trn_apply_program) and the reset in the free slots
+    if fused:  # C, K, W = K S - C, dx (as trn_apply_program) and the reset in the free slots
         b2 = _extend(prog, "trn_gate_vec")
         b2.module = "kalman_update_engine"
         k = [[b2.add(b2.mul(cols[0][i], i00), b2.mul(cols[1][i], i01)) for i in range(N)],

@@ -187,12 +187,13 @@ class RegisterEngineCore(wiring.Component):
         rd = translate.read_port(domain="comb")
         wr = translate.read_port(domain="comb")
         # per shared output address: whose word it holds (0: the ROM's; k + 1: the k-th
-        # program's of its list), set when a program that writes it starts
+        # program's of its list), set when a program that writes it starts (a start while
+        # busy is outside the handshake and starts nothing)
         holder = {a: Signal(range(len(words) + 1), name=f"holder_{a}")
                   for a, words in shared.items()}
         for a, words in shared.items():
             for k, key in enumerate(words):
-                with m.If(self.start & (self.prog == self.keys.index(key))):
+                with m.If(self.start & ~self.busy & (self.prog == self.keys.index(key))):
                     m.d.sync += holder[a].eq(k + 1)
 
         def mapped(port, addr):
