@@ -36,6 +36,15 @@ def test_rtl_compact_equals_fp32_60s_flight(against_fp32):
 
 
 @pytest.mark.slow
+def test_rtl_compact_equals_fp32_whole_default_flight(against_fp32):
+    """The whole 10-minute default flight (240,000 IMU samples, some 4 G cycles of the
+    register machine; about 15 minutes)."""
+    _, _, run, engs = _fly(against_fp32, "rtl-compact", 600.0)
+    assert sum(run.accepted.values()) > 100
+    engs["rtl-compact"].close()
+
+
+@pytest.mark.slow
 def test_fpga_sim_compact_equals_fp32(against_fp32):
     _, cfg, run, engs = _fly(against_fp32, "fpga-sim-compact", 2.0)
     eng = engs["fpga-sim-compact"]

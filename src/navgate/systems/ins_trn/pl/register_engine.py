@@ -77,6 +77,11 @@ def int16_to_fp32(m, word):
     return out
 
 
+#: registers on the adapter's start: a start follows the host writes before it, which take
+#: two stages (the translated address and the data; then the IMU word's conversion)
+START_DELAY = 2
+
+
 class RegisterEngineImage:
     """The register machine seen as the banked engine image (``engine_image("ins_engines")``)
     by the sequencer, the stream wrapper and the PS: the same programs, register addresses
@@ -97,8 +102,9 @@ class RegisterEngineImage:
 
     def cycles(self, key: str) -> int:
         """Cycles from the start to ``done`` minus one (the banked machine's convention):
-        the adapter's registered start, then the register machine's entry."""
-        return self.rp.cycles(key)
+        the adapter's start, registered twice (after the two stages of a host write), then
+        the register machine's entry."""
+        return self.rp.cycles(key) + START_DELAY - 1
 
     def output_addr(self, key: str) -> dict:
         return self.banked.output_addr(key)
@@ -158,8 +164,10 @@ class RegisterEngineCore(wiring.Component):
     """The banked machine's ports (``start``/``prog``/``busy``/``done``, ``host_we``,
     ``host_waddr``, ``host_wdata``, ``host_raddr``, ``host_rdata`` with one cycle of read
     latency) on the register machine: banked addresses translated by a ROM, IMU words
-    converted from int16 to float32 on the way in, host writes and ``start`` registered once
-    (so a start follows the writes before it)."""
+    converted from int16 to float32 on the way in, host writes in two register stages and
+    ``start`` registered :data:`START_DELAY` times (so a start follows the writes before
+    it). A host read in the two cycles after a host write is not supported (the write takes
+    the machine's one host address); no caller makes one."""
 
     def __init__(self, image: RegisterEngineImage):
         self.image = image
@@ -208,26 +216,35 @@ class RegisterEngineCore(wiring.Component):
 
         rword = mapped(rd, self.host_raddr)
         wword = mapped(wr, self.host_waddr)
+        # host writes in two stages: the translated address and the data registered, then
+        # the IMU word's int16 -> float32 conversion registered (the sequencer's write
+        # multiplexer and the conversion in one cycle made the top's longest path, 5.3 ns;
+        # the conversion alone into the data memory's write port 4.3 ns)
         w_pending, w_imu = Signal(), Signal()
         w_addr = Signal(11)
         w_data = Signal(32)
         m.d.sync += [w_pending.eq(self.host_we & wword[12]), w_addr.eq(wword[:11]),
                      w_imu.eq(wword[11]), w_data.eq(self.host_wdata)]
-        # the conversion after the register: the sequencer's write multiplexer before it
-        # and the conversion in one cycle made the top's longest path (5.3 ns)
         cvt = int16_to_fp32(m, w_data)
-        m.d.comb += [rm.host_we.eq(w_pending), rm.host_wdata.eq(Mux(w_imu, cvt, w_data)),
-                     rm.host_addr.eq(Mux(w_pending, w_addr, rword[:11]))]
+        w2_pending = Signal()
+        w2_addr = Signal(11)
+        w2_word = Signal(32)
+        m.d.sync += [w2_pending.eq(w_pending), w2_addr.eq(w_addr),
+                     w2_word.eq(Mux(w_imu, cvt, w_data))]
+        m.d.comb += [rm.host_we.eq(w2_pending), rm.host_wdata.eq(w2_word),
+                     rm.host_addr.eq(Mux(w2_pending, w2_addr, rword[:11]))]
         # a name the register machine does not hold reads as 0
         r_valid = Signal()
         m.d.sync += r_valid.eq(rword[12])
         m.d.comb += self.host_rdata.eq(Mux(r_valid, rm.host_rdata, 0))
         entry_of = Array([Const(rm.entry_index(k), len(rm.entry)) for k in self.keys])
-        start_d = Signal()
-        entry_d = Signal(len(rm.entry))
-        m.d.sync += [start_d.eq(self.start), entry_d.eq(entry_of[self.prog])]
-        m.d.comb += [rm.start.eq(start_d), rm.entry.eq(entry_d), self.done.eq(rm.done),
-                     self.busy.eq(rm.busy | start_d)]
+        start_d = Signal(START_DELAY)
+        entry_d = [Signal(len(rm.entry), name=f"entry_d{k}") for k in range(START_DELAY)]
+        m.d.sync += [start_d.eq(Cat(self.start, start_d[:-1])),
+                     entry_d[0].eq(entry_of[self.prog])]
+        m.d.sync += [entry_d[k].eq(entry_d[k - 1]) for k in range(1, START_DELAY)]
+        m.d.comb += [rm.start.eq(start_d[-1]), rm.entry.eq(entry_d[-1]),
+                     self.done.eq(rm.done), self.busy.eq(rm.busy | start_d.any())]
         return m
 
 
