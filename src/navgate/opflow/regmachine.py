@@ -84,7 +84,8 @@ from navgate.opflow.loops import (
     check_nest,
     flags,
 )
-from navgate.opflow.sequence import SequenceProgram, _neg, check_sequence
+from navgate.opflow.sequence import ONE as ONE_BITS
+from navgate.opflow.sequence import SequenceProgram, _bits, _neg, check_sequence
 
 __all__ = ["RegisterProgram", "Block", "Row", "compile_program", "run_register_program",
            "serialize_chains", "RegisterMachine", "simulate_register_machine", "SKIP",
@@ -110,7 +111,6 @@ UNIT_CLASS = {"add": Fp32Add, "mul": Fp32Mul, "div": Fp32DivIter, "sqrt": Fp32Sq
 LATENCY = {u: c.LATENCY for u, c in UNIT_CLASS.items()}
 #: cycles between two issues to a non-pipelined unit
 INTERVAL = {"div": Fp32DivIter.INTERVAL, "sqrt": Fp32SqrtIter.INTERVAL}
-ONE_BITS = 0x3F800000
 
 
 #: cycles from issue to a store's data-memory write (the address is registered once)
@@ -202,10 +202,6 @@ class RegisterProgram:
         """Cycles from the start cycle to ``done`` (exact; the machine's)."""
         return 2 + sum(self.blocks[b].trips * self.blocks[b].cycles
                        for b in self.entries[entry])
-
-    @property
-    def rows(self) -> int:
-        return sum(len(b.rows) for b in self.blocks.values())
 
     def host_address(self, array: str, word: int) -> int:
         """The machine's host-port address of ``array[word]`` (:class:`RegisterMachine`)."""
@@ -383,18 +379,11 @@ class _Compiler:
                 flip ^= f
             return v, flip
 
-        def flips(v):
-            n = 0
-            while v in flip_of:
-                v, f = flip_of[v]
-                n += f
-            return n
-
         def canonical(v, f, src, rn):
             """A stored value negated an even number of times: fp32_neg twice turns a NaN
             into the canonical NaN, so it is moved through two flips (a word never negated
             is stored as it is)."""
-            if f or flips(rn(src)) == 0:
+            if f or rn(src) not in flip_of:
                 return v, f
             tmp = f"{v}__neg2_{len(items)}"
             add(_Item("mov", dst=tmp, srcs=(v,), neg=(1,)))
@@ -508,14 +497,11 @@ class _Compiler:
             commits: list = []
             # registers this segment commits: a commit whose source is one of them reads a
             # copy made first (a rotation of words would otherwise wait on itself)
-            targets = set()
-            for st in nest.stores:
-                t = addr_mode(st.array, st.addr, u)
-                if t[0] == "reg":
-                    targets.add(t[1])
+            modes = [addr_mode(st.array, st.addr, u) for st in nest.stores]
+            targets = {m[1] for m in modes if m[0] == "reg"}
             for si, st in enumerate(nest.stores):
                 v, f = value(rn(st.src))
-                m = addr_mode(st.array, st.addr, u)
+                m = modes[si]
                 on = on_full[si]
                 if m[0] == "reg":
                     if not on.all():
@@ -640,7 +626,7 @@ class _Compiler:
         return issue, max(end, 1)
 
     # -- registers
-    def allocate(self, sname, items, issue, fixed):
+    def allocate(self, items, issue, fixed):
         """Temporaries -> registers above the fixed ones: a value holds its register from
         its write to its last read (interval allocation in write order)."""
         last_read: dict = {}
@@ -678,7 +664,7 @@ class _Compiler:
         placed above them)."""
         items, fixed, n_it, step = lowered
         issue, length = self.schedule(sname, items)
-        reg_of, top = self.allocate(sname, items, issue, fixed)
+        reg_of, top = self.allocate(items, issue, fixed)
         self.top = max(getattr(self, "top", 0), top)
         if top > self.max_registers:
             raise LoopError(f"{sname}: needs {top} registers; the machine has "
@@ -802,8 +788,8 @@ def run_register_program(rp: RegisterProgram, memories: dict, entry: str) -> tup
     data = list(rp.data_init) + [0] * max(0, 1 - rp.data_words)
     for a, v in memories.items():  # what the host writes; the rest keeps its initial words
         v = np.asarray(v)
-        words = [_flush(int(x)) for x in (v if v.dtype == np.uint32 else
-                                          np.asarray(v, np.float32).view(np.uint32))]
+        words = [int(x) for x in F.flush_subnormal(v if v.dtype == np.uint32 else
+                                                    F.f32_to_bits(v))]
         if a in rp.reg_arrays:
             for i, x in enumerate(words):
                 regs[rp.reg_arrays[a] + i] = x
@@ -844,10 +830,10 @@ def run_register_program(rp: RegisterProgram, memories: dict, entry: str) -> tup
                 # the row read the registers as they were before this cycle's writes
                 _land(pending, stores, c, regs, data)
                 c += 1
-            for t in sorted(set(pending) | set(stores)):
-                if t >= c:
-                    raise LoopError(f"{bname}: a write at {t} after the block's {c} cycles")
-                _land(pending, stores, t, regs, data)
+            late = set(pending) | set(stores)  # every cycle up to c - 1 has landed
+            if late:
+                raise LoopError(f"{bname}: a write at {min(late)} after the block's {c} "
+                                "cycles")
             cycle += c
     out = {}
     for a, w in prog.arrays.items():
@@ -892,8 +878,7 @@ class RegisterMachine(wiring.Component):
         self.rp = rp
         self.words, self.where, self.steps, self.first = rp.layout()
         self.entry_names = list(rp.entries)
-        super().__init__({"start": In(1), "entry": In(max(1, (len(rp.entries) - 1)
-                                                          .bit_length())),
+        super().__init__({"start": In(1), "entry": In(_bits(len(rp.entries))),
                           "busy": Out(1), "done": Out(1),
                           "host_addr": In(BASE_BITS + 1), "host_wdata": In(32),
                           "host_we": In(1), "host_rdata": Out(32)})
@@ -913,13 +898,13 @@ class RegisterMachine(wiring.Component):
         m = Module()
         nreg = max(rp.registers, 2)
         irom = Memory(shape=INSTR_BITS, depth=max(len(self.words), 2),
-                      init=self.words + [0] * (max(len(self.words), 2) - len(self.words)))
+                      init=self.words)
         trom = Memory(shape=TABLE_BITS, depth=max(len(rp.table), 2),
-                      init=list(rp.table) + [0] * (max(len(rp.table), 2) - len(rp.table)))
+                      init=rp.table)
         # the register file in LUT RAM (two read ports, one write port), so that block RAM
         # holds the instruction ROM, the table ROM and the data memory only
-        regs = Memory(shape=32, depth=nreg, init=list(rp.reg_init) + [0] * (nreg - len(
-            rp.reg_init)), attrs={"ram_style": "distributed"})
+        regs = Memory(shape=32, depth=nreg, init=rp.reg_init,
+                      attrs={"ram_style": "distributed"})
         data = Memory(shape=32, depth=max(rp.data_words, 2), init=rp.data_init)
         m.submodules.irom, m.submodules.trom = irom, trom
         m.submodules.regs, m.submodules.data = regs, data
@@ -948,8 +933,8 @@ class RegisterMachine(wiring.Component):
         # stages for k cycles (the ROM's read enable low), decided from the register. So
         # no path runs from the ROM's output back to its address.
         steps = self.steps
-        sw = max(1, (len(steps) - 1).bit_length())
-        pcw = max(1, (len(self.words) - 1).bit_length())
+        sw = _bits(len(steps))
+        pcw = _bits(len(self.words))
         nw = max(1, max(s[2] for s in steps).bit_length())
         st_first = Array([Const(s[0], pcw) for s in steps])
         st_last = Array([Const(s[1], pcw) for s in steps])
@@ -1118,7 +1103,7 @@ class RegisterMachine(wiring.Component):
         with m.Else():
             m.d.comb += [dr.addr.eq(self.host_addr[:BASE_BITS]),
                          dw.addr.eq(self.host_addr[:BASE_BITS]), dw.data.eq(host_word),
-                         dw.en.eq(self.host_we & ~host_reg & ~active)]
+                         dw.en.eq(self.host_we & ~host_reg)]
         host_sel = Signal()
         m.d.sync += host_sel.eq(host_reg)
         m.d.comb += self.host_rdata.eq(Mux(host_sel, ra.data, dr.data))

@@ -261,18 +261,15 @@ def random_registers(rng: np.random.Generator, names) -> dict:
 
 def identity_p_registers(rng: np.random.Generator, names) -> tuple[dict, object]:
     """Random registers (:func:`random_registers`) where the updates are meaningful: P the
-    identity, its compensation words zero. Returns (registers, float -> word)."""
+    identity, its compensation words zero. Returns (registers, float -> word: the
+    :func:`~navgate.numerics.fp32.float_to_bits` a PS driver writes)."""
     regs = random_registers(rng, names)
-
-    def f(v):
-        return int(np.float32(v).view(np.uint32))
-
     for n in STATE_REGS:
         if n.startswith("P") or n.startswith("cP"):
-            regs[n] = f(0.0)
+            regs[n] = float_to_bits(0.0)
     for i in range(15):
-        regs[f"P{i}_{i}"] = f(1.0)
-    return regs, f
+        regs[f"P{i}_{i}"] = float_to_bits(1.0)
+    return regs, float_to_bits
 
 
 def random_program_state(rng: np.random.Generator, key: str) -> tuple[dict, dict]:
