@@ -47,11 +47,18 @@ def main() -> None:
     worst = rp.cycles("propagate") + max(rp.cycles("trn_apply"), rp.cycles("alt_apply"))
     print(f"\nIMU sample + an update: {worst} cycles = {100 * worst / SAMPLE_CYCLES:.1f} % of "
           "a 400 Hz sample at 100 MHz")
-    print(f"\n{'block':12s} {'trips':>6s} {'rows':>5s} {'issues':>6s} {'cycles/iter':>11s}")
+    print("\n(a software-pipelined block: its kernel of II cycles runs iterations + stages - 1 "
+          "times, then the tail drains)")
+    print(f"\n{'block':12s} {'iters':>6s} {'kernel':>6s} {'rows':>5s} {'issues':>6s} "
+          f"{'II/cycles':>9s} {'stages':>6s} {'tail':>4s} {'total':>7s}")
     for b in rp.blocks.values():
-        summary["blocks"][b.name] = {"trips": b.trips, "rows": len(b.rows), "issues": b.ops,
-                                     "cycles": b.cycles}
-        print(f"{b.name:12s} {b.trips:6d} {len(b.rows):5d} {b.ops:6d} {b.cycles:11d}")
+        total = b.trips * b.cycles + b.tail
+        summary["blocks"][b.name] = {"iterations": b.valid_trips, "kernel_runs": b.trips,
+                                     "rows": len(b.rows), "issues": b.ops, "cycles": b.cycles,
+                                     "stages": b.stages, "tail": b.tail, "total": total,
+                                     "pipelined": b.overlapped}
+        print(f"{b.name:12s} {b.valid_trips:6d} {b.trips:6d} {len(b.rows):5d} {b.ops:6d} "
+              f"{b.cycles:9d} {b.stages:6d} {b.tail:4d} {total:7d}")
     sizes = {"instruction_rows": dut.instruction_rows, "table_entries": len(rp.table),
              "data_words": rp.data_words, "registers": rp.registers}
     summary["sizes"] = sizes

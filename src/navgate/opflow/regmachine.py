@@ -145,6 +145,9 @@ class Row:
     base: int = 0
     tb: int = 0
     count: int = 1
+    #: the row's stage times n's step in an overlapped block (kept beside the word, not in
+    #: it): the row works on the iteration ``n - back`` of the kernel iteration ``n``
+    back: int = 0
 
     def word(self) -> int:
         for name, bits in (("dst", REG_BITS), ("a", REG_BITS), ("b", REG_BITS), ("na", 1),
@@ -171,12 +174,32 @@ class Row:
 
 @dataclass
 class Block:
+    """A block: ``rows`` run ``trips`` times (``cycles`` each), then the rows after
+    ``kernel_rows`` once (``tail`` cycles: an overlapped block's drain). A block that is
+    not overlapped has ``kernel_rows = len(rows)``, ``tail = 0`` and ``valid_trips =
+    trips``. An overlapped (software-pipelined) block's rows are its kernel: ``cycles`` is
+    its initiation interval II, a row of stage s works on iteration k - s in kernel
+    iteration k (``Row.back`` = s * step) and issues only when 0 <= k - s < ``valid_trips``,
+    so the ``trips = valid_trips + stages - 1`` kernel iterations hold the prologue and the
+    epilogue."""
+
     name: str
     trips: int
     rows: list  #: of Row
     cycles: int  #: cycles of one iteration (the rows' cycles)
     ops: int = 0  #: issuing rows (not nop)
     step: int = 1  #: n's step per iteration (the copies of an unrolled nest)
+    kernel_rows: int | None = None  #: rows repeated (default: all)
+    tail: int = 0  #: cycles of the rows after the kernel, run once
+    valid_trips: int | None = None  #: iterations of the nest's blocks (default: trips)
+    stages: int = 1  #: an overlapped block's stages (iterations in flight)
+    overlapped: bool = False  #: software-pipelined (writes may land in later iterations)
+
+    def __post_init__(self):
+        if self.kernel_rows is None:
+            self.kernel_rows = len(self.rows)
+        if self.valid_trips is None:
+            self.valid_trips = self.trips
 
 
 @dataclass
@@ -200,7 +223,7 @@ class RegisterProgram:
 
     def cycles(self, entry: str) -> int:
         """Cycles from the start cycle to ``done`` (exact; the machine's)."""
-        return 2 + sum(self.blocks[b].trips * self.blocks[b].cycles
+        return 2 + sum(self.blocks[b].trips * self.blocks[b].cycles + self.blocks[b].tail
                        for b in self.entries[entry])
 
     def host_address(self, array: str, word: int) -> int:
@@ -211,25 +234,30 @@ class RegisterProgram:
 
     def layout(self):
         """The instruction ROM words (identical blocks stored once), block -> (first row,
-        last row), the steps (for each entry its blocks as (first row, last row, n of the
-        last iteration, last of the entry, n's step)) and entry -> its first step."""
+        last row of the kernel, last row), the steps (for each entry its blocks as (first
+        row, last row of the kernel, n of the last kernel iteration, last of the entry,
+        n's step, last row, n of the last valid iteration)), entry -> its first step, and
+        each ROM row's ``back`` (:class:`Row`)."""
         words: list = []
+        backs: list = []
         at: dict = {}
         where: dict = {}
         for name, blk in self.blocks.items():
-            key = tuple(r.word() for r in blk.rows)
+            key = tuple((r.word(), r.back) for r in blk.rows)
             if key not in at:
                 at[key] = len(words)
-                words.extend(key)
-            where[name] = (at[key], at[key] + len(blk.rows) - 1)
+                words.extend(w for w, _ in key)
+                backs.extend(b for _, b in key)
+            where[name] = (at[key], at[key] + blk.kernel_rows - 1, at[key] + len(blk.rows) - 1)
         steps, first = [], {}
         for e, blocks in self.entries.items():
             first[e] = len(steps)
             for k, b in enumerate(blocks):
                 blk = self.blocks[b]
-                steps.append((*where[b], (blk.trips - 1) * blk.step, int(k == len(blocks) - 1),
-                              blk.step))
-        return words, where, steps, first
+                f, kl, tl = where[b]
+                steps.append((f, kl, (blk.trips - 1) * blk.step, int(k == len(blocks) - 1),
+                              blk.step, tl, (blk.valid_trips - 1) * blk.step))
+        return words, where, steps, first, backs
 
 
 # ------------------------------------------------------------------ chains
@@ -287,8 +315,10 @@ class _Item:
 
 
 class _Compiler:
-    def __init__(self, prog: SequenceProgram, reg_arrays, max_registers: int):
+    def __init__(self, prog: SequenceProgram, reg_arrays, max_registers: int,
+                 overlap=()):
         self.prog = prog
+        self.overlap = frozenset(overlap)
         self.reg_arrays = {}
         nreg = 0
         for a in reg_arrays:
@@ -625,6 +655,213 @@ class _Compiler:
                 end = max(end, issue[k] + write_delay(it.kind) + 1)
         return issue, max(end, 1)
 
+    # -- an overlapped block: modulo schedule
+    def modulo_schedule(self, sname: str, items: list, fixed: dict, trips: int):
+        """Software-pipeline a nest's block iteration (iterative modulo scheduling, Rau
+        1994, in its simplest greedy form): one block iteration starts every II cycles;
+        an item's offset ``t`` puts it in kernel row ``t mod II`` and stage ``t // II``.
+        Per cycle modulo II: one issue, one register write (at ``t + write_delay``), the
+        divider and the square root busy ``INTERVAL`` cycles from their issues. Between
+        iterations only the fixed registers a block writes (accumulators) carry values
+        (:func:`~navgate.opflow.loops.check_nest` refuses values carried through memory):
+        for every writer W and reader R of one, iteration k + 1's R reads after iteration
+        k's W lands, iteration k + 1's W lands no earlier than iteration k's R reads, and
+        writes land in iteration order. A temporary lives at most II cycles (from its
+        landing to its last read), so every iteration's temporaries can share the kernel's
+        registers. II starts at the resource bound and grows until the greedy placement
+        (ready items by latency-weighted height, each at its earliest legal cycle) fits.
+        Returns (offsets, II, stages, depth) with depth the offset after the last write
+        lands."""
+        n = len(items)
+        wd = [None if it.kind == "store" else write_delay(it.kind) for it in items]
+        preds = [[] for _ in range(n)]
+        for k, it in enumerate(items):
+            for j, d in it.after:
+                preds[k].append((j, wd[j] + 1 if d is None else d))
+        succs = [[] for _ in range(n)]
+        for k in range(n):
+            for j, d in preds[k]:
+                succs[j].append((k, d))
+        height = [0] * n
+        for k in reversed(range(n)):
+            own = wd[k] + 1 if wd[k] is not None else STORE_WRITE + 1
+            height[k] = max([own] + [d + height[s] for s, d in succs[k]])
+        # loop-carried constraints on the fixed registers the block writes: (a, b, lat):
+        # t_b + II >= t_a + lat (b in the next iteration)
+        writers: dict = {}
+        for k, it in enumerate(items):
+            if it.fixed_dst is not None:
+                writers.setdefault(it.fixed_dst, []).append(k)
+        carried = []
+        for k, it in enumerate(items):
+            for s in it.srcs:
+                reg = fixed.get(s)
+                for w in writers.get(reg, ()) if reg is not None else ():
+                    carried.append((w, k, wd[w] + 1))  # RAW
+                    carried.append((k, w, -wd[w]))  # WAR: lands at or after the read
+        for ws in writers.values():
+            for w in ws:
+                for w2 in ws:
+                    if w != w2:
+                        carried.append((w, w2, wd[w] + 1 - wd[w2]))  # WAW
+        # a temporary lives at most II cycles: its reader k at most II after it lands
+        lifetime = []
+        for k, it in enumerate(items):
+            for j, d in it.after:
+                pj = items[j]
+                if d is None and pj.dst is not None and pj.fixed_dst is None \
+                        and pj.dst not in fixed:
+                    lifetime.append((k, j, wd[j]))
+        writes = sum(w is not None for w in wd)
+        mii = max(n, writes, 1)
+        for u in INTERVAL:
+            uses = sum(UNIT_OF.get(it.kind) == u for it in items)
+            mii = max(mii, uses * INTERVAL[u])
+        intra = [(j, k, d) for k in range(n) for j, d in preds[k]]
+        best = None
+        for ii in range(mii, mii + 4 * n + 64):
+            if best is not None and (trips - 1) * ii >= best[0]:
+                break  # no longer II can beat the best block found
+            edges = (intra + [(a, b, lat - ii) for a, b, lat in carried]
+                     + [(k, j, -w - ii) for k, j, w in lifetime])
+            if any(a == b and d > 0 for a, b, d in edges):
+                continue
+            t = self._modulo_place(items, ii, wd, edges, height, 40 * n + 100)
+            if t is None or not all(t[b] >= t[a] + d for a, b, d in edges):
+                continue
+            base = min(t)
+            t = [x - base for x in t]
+            depth = max((t[k] + (wd[k] if wd[k] is not None else STORE_WRITE) + 1)
+                        for k in range(n))
+            stages = max(t) // ii + 1
+            cost = (trips + stages - 1) * ii + max(0, depth - stages * ii)
+            if best is None or cost < best[0]:
+                best = (cost, t, ii, stages, depth)
+        if best is not None:
+            return best[1:]
+        raise LoopError(f"{sname}: no modulo schedule found")
+
+    @staticmethod
+    def _modulo_place(items, ii, wd, edges, height, budget):
+        """Iterative modulo scheduling (Rau): ``edges`` are (a, b, delay) with t_b >= t_a +
+        delay (loop-carried ones already net of II). The highest unscheduled item goes to
+        its earliest start (from its scheduled predecessors) or the first cycle after it
+        with its issue slot, write slot and iterative unit free modulo II; when none is
+        free it takes the earliest start anyway (or one past its last cycle) and evicts
+        the items it conflicts with and the successors whose edges it breaks. Returns the
+        offsets, or None when the budget of placements runs out."""
+        n = len(items)
+        unit = [UNIT_OF.get(it.kind) for it in items]
+        occ = [[] for _ in range(n)]  # resources an item holds at cycle c (filled on place)
+
+        def resources(k, c):
+            res = [("issue", c % ii)]
+            if wd[k] is not None:
+                res.append(("write", (c + wd[k]) % ii))
+            if unit[k] in INTERVAL:
+                res.extend((unit[k], (c + i) % ii) for i in range(INTERVAL[unit[k]]))
+            return res
+
+        into = [[] for _ in range(n)]
+        outof = [[] for _ in range(n)]
+        for a, b, d in edges:
+            into[b].append((a, d))
+            outof[a].append((b, d))
+        t = [None] * n
+        last = [None] * n
+        held: dict = {}  # resource -> item
+        todo = set(range(n))
+        while todo:
+            if budget <= 0:
+                return None
+            budget -= 1
+            k = max(todo, key=lambda x: (height[x], -x))
+            est = 0
+            for a, d in into[k]:
+                if t[a] is not None and a != k:
+                    est = max(est, t[a] + d)
+            if last[k] is not None:
+                est = max(est, last[k] + 1) if last[k] >= est else est
+            choice = None
+            for c in range(est, est + ii):
+                if all(r not in held for r in resources(k, c)):
+                    choice = c
+                    break
+            if choice is None:
+                choice = est
+            for r in resources(k, choice):
+                if r in held:  # evict
+                    j = held[r]
+                    for rr in occ[j]:
+                        held.pop(rr, None)
+                    occ[j] = []
+                    t[j] = None
+                    todo.add(j)
+            for b, d in outof[k]:
+                if b != k and t[b] is not None and t[b] < choice + d:
+                    for rr in occ[b]:
+                        held.pop(rr, None)
+                    occ[b] = []
+                    t[b] = None
+                    todo.add(b)
+            t[k] = last[k] = choice
+            occ[k] = resources(k, choice)
+            for r in occ[k]:
+                held[r] = k
+            todo.discard(k)
+        # compaction: each item (earliest first) moves to the earliest cycle its edges and
+        # the free resources allow, until nothing moves (eviction leaves items late)
+        moved = True
+        while moved:
+            moved = False
+            for k in sorted(range(n), key=lambda x: t[x]):
+                lo = max([t[a] + d for a, d in into[k] if a != k] + [0])
+                for c in range(lo, t[k]):
+                    if any(t[b] < c + d for b, d in outof[k] if b != k):
+                        continue
+                    if all(held.get(r, k) == k for r in resources(k, c)):
+                        for r in occ[k]:
+                            held.pop(r, None)
+                        t[k] = c
+                        occ[k] = resources(k, c)
+                        for r in occ[k]:
+                            held[r] = k
+                        moved = True
+                        break
+        return t
+
+    def allocate_modulo(self, items, issue, fixed, ii):
+        """Temporaries of an overlapped block -> registers above the fixed ones. A
+        temporary lands at ``w`` and is last read at ``r`` (``r - w <= II``); every
+        iteration's copy lands II cycles after the one before, in the same register. Two
+        temporaries share a register when neither lands (modulo II) strictly inside the
+        other's life."""
+        last_read: dict = {}
+        for k, it in enumerate(items):
+            for s in it.srcs:
+                last_read[s] = max(last_read.get(s, -1), issue[k])
+        reg_of = dict(fixed)
+        temps = []
+        for k, it in enumerate(items):
+            if it.dst is not None and it.fixed_dst is None and it.dst not in fixed:
+                w = issue[k] + write_delay(it.kind)
+                temps.append((w, max(w, last_read.get(it.dst, w)), it.dst))
+        temps.sort()
+        occupants: list = []  # per register above nfixed: (landing residues, life residues)
+        for w, r, name in temps:
+            land = w % ii
+            life = {x % ii for x in range(w + 1, r)}
+            for i, (lands, lives) in enumerate(occupants):
+                if land not in lives and not (life & lands) and land not in lands:
+                    lands.add(land)
+                    lives.update(life)
+                    reg_of[name] = self.nfixed + i
+                    break
+            else:
+                occupants.append(({land}, set(life)))
+                reg_of[name] = self.nfixed + len(occupants) - 1
+        return reg_of, self.nfixed + len(occupants)
+
     # -- registers
     def allocate(self, items, issue, fixed):
         """Temporaries -> registers above the fixed ones: a value holds its register from
@@ -658,11 +895,18 @@ class _Compiler:
             top = max(top, next_reg)
         return reg_of, top
 
-    def block(self, sname: str, lowered) -> Block:
+    def block(self, sname: str, lowered, overlap: bool = True) -> Block:
         """Schedule, allocate and encode a lowered nest (every nest is lowered first, so
         that the constants and accumulators own their registers before any temporary is
         placed above them)."""
         items, fixed, n_it, step = lowered
+        if overlap and n_it > 1 and sname in self.overlap:
+            # the software pipeline, unless the plain block is as fast (a few iterations
+            # of many stages)
+            piped = self.overlapped_block(sname, items, fixed, n_it, step)
+            plain = self.block(sname, lowered, overlap=False)
+            return piped if (piped.trips * piped.cycles + piped.tail
+                             < plain.trips * plain.cycles) else plain
         issue, length = self.schedule(sname, items)
         reg_of, top = self.allocate(items, issue, fixed)
         self.top = max(getattr(self, "top", 0), top)
@@ -685,6 +929,40 @@ class _Compiler:
             c = k
         return Block(sname, n_it, rows, length, len(items), step)
 
+    def overlapped_block(self, sname, items, fixed, n_it, step) -> Block:
+        """A nest's block software-pipelined (:meth:`modulo_schedule`): the kernel's II
+        cycles of rows (a row's ``back`` its stage times ``step``), run ``n_it + stages -
+        1`` times, then a nop for the drain of the last iteration's writes."""
+        issue, ii, stages, depth = self.modulo_schedule(sname, items, fixed, n_it)
+        reg_of, top = self.allocate_modulo(items, issue, fixed, ii)
+        self.top = max(getattr(self, "top", 0), top)
+        if top > self.max_registers:
+            raise LoopError(f"{sname}: needs {top} registers; the machine has "
+                            f"{self.max_registers}")
+        by_slot = {issue[k] % ii: k for k in range(len(items))}
+        rows: list = []
+        c = 0
+        while c < ii:
+            if c in by_slot:
+                k = by_slot[c]
+                row = self.row(items[k], reg_of)
+                row.back = (issue[k] // ii) * step
+                rows.append(row)
+                c += 1
+                continue
+            e = c
+            while e < ii and e not in by_slot:
+                e += 1
+            rows.append(Row("nop", count=e - c))
+            c = e
+        kernel_rows = len(rows)
+        tail = max(0, depth - stages * ii)
+        if tail:
+            rows.append(Row("nop", count=tail))
+        return Block(sname, n_it + stages - 1, rows, ii, len(items), step,
+                     kernel_rows=kernel_rows, tail=tail, valid_trips=n_it, stages=stages,
+                     overlapped=True)
+
     def row(self, it: _Item, reg_of: dict) -> Row:
         tb = self.put_table(it.table[0]) + it.table[1] if it.table is not None else 0
         if it.kind in UNIT_OF:
@@ -705,14 +983,16 @@ class _Compiler:
 
 def compile_program(prog: SequenceProgram, reg_arrays=None,
                     max_registers: int = 1 << REG_BITS, init: dict | None = None,
-                    unroll: dict | None = None) -> RegisterProgram:
+                    unroll: dict | None = None, overlap=()) -> RegisterProgram:
     """Compile ``prog`` for the register machine. ``reg_arrays``: the arrays kept in the
     register file (default: those only straight-line segments touch, by constant
     addresses). ``init``: array -> {word: value}, the words the memories hold from
     configuration (constants of the program's arrays, e.g. a table's 1.0), which no run
     and no host write needs to rewrite. ``unroll``: segment -> copies (that many
     consecutive iterations in one, for the scheduler to interleave; a nest of sums
-    interleaved over d tracks takes d copies)."""
+    interleaved over d tracks takes d copies). ``overlap``: the nests whose block
+    iterations overlap (software pipelining, :meth:`_Compiler.modulo_schedule`), or True
+    for every nest."""
     check_sequence(prog)
     if not 2 <= max_registers <= 1 << REG_BITS:
         raise LoopError(f"max_registers must be 2 .. {1 << REG_BITS} (the register fields "
@@ -721,8 +1001,13 @@ def compile_program(prog: SequenceProgram, reg_arrays=None,
     if reg_arrays is None:
         in_nests = {a for s in prog.segments.values() if s.trips for a in s.arrays}
         reg_arrays = [a for a in prog.arrays if a not in in_nests]
-    comp = _Compiler(prog, reg_arrays, max_registers)
     used = dict.fromkeys(s for segs in prog.entries.values() for s in segs)
+    if overlap is True:
+        overlap = [s for s in used if prog.segments[s].trips]
+    unknown = set(overlap) - set(prog.segments)
+    if unknown:
+        raise LoopError(f"{prog.name}: overlap names unknown segments {sorted(unknown)}")
+    comp = _Compiler(prog, reg_arrays, max_registers, overlap)
     unroll = dict(unroll or {})
     unknown = set(unroll) - set(prog.segments)
     if unknown:
@@ -799,42 +1084,32 @@ def run_register_program(rp: RegisterProgram, memories: dict, entry: str) -> tup
     cycle = 2
     for bname in rp.entries[entry]:
         blk = rp.blocks[bname]
-        for k in range(blk.trips):
-            n = k * blk.step
-            pending: dict = {}  # cycle -> (register, word)
-            stores: dict = {}
-            c = 0
-            for row in blk.rows:
+        last_valid = (blk.valid_trips - 1) * blk.step
+        pending: dict = {}  # cycle -> [(register, word)]
+        stores: dict = {}
+        c = 0
+        runs = [(k * blk.step, blk.rows[:blk.kernel_rows]) for k in range(blk.trips)]
+        runs.append((0, blk.rows[blk.kernel_rows:]))
+        for n_k, rows in runs:
+            for row in rows:
                 if row.kind == "nop":
                     for t in range(c, c + row.count):
                         _land(pending, stores, t, regs, data)
                     c += row.count
                     continue
-                entry_v = rp.table[row.tb + n] if row.mode == M_TABLE else 0
-                if row.kind in UNIT_OF:
-                    w = _unit(row.kind, _flip(regs[row.a], row.na), _flip(regs[row.b], row.nb))
-                    pending.setdefault(c + write_delay(row.kind), []).append((row.dst, w))
-                elif row.kind == "mov":
-                    if entry_v != SKIP:
-                        pending.setdefault(c + write_delay("mov"), []).append(
-                            (row.dst, _flip(regs[row.a], row.na)))
-                elif row.kind == "load":
-                    addr = _address(row, n, entry_v)
-                    pending.setdefault(c + write_delay("load"), []).append((row.dst,
-                                                                             data[addr]))
-                elif row.kind == "store":
-                    if entry_v != SKIP:
-                        stores.setdefault(c + STORE_WRITE, []).append((_address(row, n,
-                                                                                entry_v),
-                                                             regs[row.a]))
+                n = n_k - row.back  # the row's iteration (overlapped blocks)
+                if 0 <= n <= last_valid:
+                    _issue(rp, row, n, c, regs, data, pending, stores)
                 # the row read the registers as they were before this cycle's writes
                 _land(pending, stores, c, regs, data)
                 c += 1
-            late = set(pending) | set(stores)  # every cycle up to c - 1 has landed
-            if late:
-                raise LoopError(f"{bname}: a write at {min(late)} after the block's {c} "
-                                "cycles")
-            cycle += c
+            if not blk.overlapped and (pending or stores):  # an iteration drains its writes
+                raise LoopError(f"{bname}: a write at {min(set(pending) | set(stores))} "
+                                f"after its iteration's {c} cycles")
+        late = set(pending) | set(stores)  # every cycle up to c - 1 has landed
+        if late:
+            raise LoopError(f"{bname}: a write at {min(late)} after the block's {c} cycles")
+        cycle += c
     out = {}
     for a, w in prog.arrays.items():
         if a in rp.reg_arrays:
@@ -842,6 +1117,26 @@ def run_register_program(rp: RegisterProgram, memories: dict, entry: str) -> tup
         else:
             out[a] = np.array(data[rp.data_arrays[a]:rp.data_arrays[a] + w], np.uint32)
     return out, cycle
+
+
+def _issue(rp, row, n, c, regs, data, pending, stores):
+    """Issue ``row`` for iteration ``n`` in cycle ``c``: its writes join ``pending`` and
+    ``stores`` at the cycles they land."""
+    entry_v = rp.table[row.tb + n] if row.mode == M_TABLE else 0
+    if row.kind in UNIT_OF:
+        w = _unit(row.kind, _flip(regs[row.a], row.na), _flip(regs[row.b], row.nb))
+        pending.setdefault(c + write_delay(row.kind), []).append((row.dst, w))
+    elif row.kind == "mov":
+        if entry_v != SKIP:
+            pending.setdefault(c + write_delay("mov"), []).append(
+                (row.dst, _flip(regs[row.a], row.na)))
+    elif row.kind == "load":
+        pending.setdefault(c + write_delay("load"), []).append(
+            (row.dst, data[_address(row, n, entry_v)]))
+    elif row.kind == "store":
+        if entry_v != SKIP:
+            stores.setdefault(c + STORE_WRITE, []).append((_address(row, n, entry_v),
+                                                          regs[row.a]))
 
 
 def _address(row: Row, n: int, entry_v: int) -> int:
@@ -876,7 +1171,7 @@ class RegisterMachine(wiring.Component):
 
     def __init__(self, rp: RegisterProgram):
         self.rp = rp
-        self.words, self.where, self.steps, self.first = rp.layout()
+        self.words, self.where, self.steps, self.first, self.backs = rp.layout()
         self.entry_names = list(rp.entries)
         super().__init__({"start": In(1), "entry": In(_bits(len(rp.entries))),
                           "busy": Out(1), "done": Out(1),
@@ -942,6 +1237,8 @@ class RegisterMachine(wiring.Component):
         st_end = Array([Const(s[3], 1) for s in steps])
         sinc = max(1, max(s[4] for s in steps).bit_length())
         st_inc = Array([Const(s[4], sinc) for s in steps])
+        st_tail = Array([Const(s[5], pcw) for s in steps])
+        st_valid = Array([Const(s[6], nw) for s in steps])
         en_first = Array([Const(self.first[e], sw) for e in self.entry_names])
         f_valid, f_last = Signal(), Signal()
         f_step = Signal(sw)
@@ -949,7 +1246,8 @@ class RegisterMachine(wiring.Component):
         f_n = Signal(nw)
         i_valid, i_last = Signal(), Signal()
         ir = Signal(INSTR_BITS)
-        n = Signal(nw)
+        n = Signal(nw)  # the issued row's iteration (n of the kernel iteration - back)
+        i_pred = Signal()  # that iteration exists (an overlapped block's prologue/epilogue)
         wc = Signal(COUNT_BITS)
         kind = ir[0:4]
         is_nop = kind == KIND_CODE["nop"]
@@ -958,29 +1256,44 @@ class RegisterMachine(wiring.Component):
         m.d.comb += hold.eq(i_valid & is_nop & (wc + 1 < count))
         m.d.comb += self.busy.eq(f_valid | i_valid | restoring)
         m.d.sync += self.done.eq(0)
-        # the next row to fetch after f_pc (from registers only)
-        block_end = f_pc == st_last[f_step]
+        # the row's back (stage x step) from the fetched address: a ROM in logic beside the
+        # instruction ROM (zero outside overlapped blocks), and the row's iteration and
+        # predicate from it, registered with the row
+        bw = max(1, max(self.backs, default=0).bit_length())
+        if any(self.backs):
+            back_rom = Array([Const(b, bw) for b in self.backs])
+            f_back = Signal(bw)
+            m.d.comb += f_back.eq(back_rom[f_pc])
+            f_row_n = Signal(nw + 1)
+            m.d.comb += f_row_n.eq(f_n - f_back)
+            f_pred = (f_n >= f_back) & (f_row_n[:nw] <= st_valid[f_step])
+        else:
+            f_row_n, f_pred = f_n, Const(1, 1)
+        # the next row to fetch after f_pc (from registers only): a block's kernel
+        # (first .. last) repeats, then the rows after it (to tail) run once
         last_iter = f_n == st_trips[f_step]
+        at_last = f_pc == st_last[f_step]
+        at_tail = f_pc == st_tail[f_step]
         nx_pc, nx_n, nx_step = Signal(pcw), Signal(nw), Signal(sw)
         nx_valid, nx_last = Signal(), Signal()
-        with m.If(block_end & last_iter):
+        with m.If(last_iter & at_tail):
             m.d.comb += [nx_pc.eq(st_first[f_step + 1]), nx_n.eq(0),
                          nx_step.eq(f_step + 1), nx_valid.eq(~st_end[f_step])]
-        with m.Elif(block_end):
+        with m.Elif(~last_iter & at_last):
             m.d.comb += [nx_pc.eq(st_first[f_step]), nx_n.eq(f_n + st_inc[f_step]),
                          nx_step.eq(f_step), nx_valid.eq(1)]
         with m.Else():
             m.d.comb += [nx_pc.eq(f_pc + 1), nx_n.eq(f_n), nx_step.eq(f_step),
                          nx_valid.eq(1)]
         # the row after nx is the entry's end: nx is the entry's final row
-        m.d.comb += nx_last.eq((nx_pc == st_last[nx_step]) & (nx_n == st_trips[nx_step])
+        m.d.comb += nx_last.eq((nx_pc == st_tail[nx_step]) & (nx_n == st_trips[nx_step])
                                & st_end[nx_step])
         with m.If(hold):
             m.d.sync += wc.eq(wc + 1)
             m.d.comb += ir_port.en.eq(0)
         with m.Else():
-            m.d.sync += [wc.eq(0), ir.eq(ir_port.data), n.eq(f_n), i_valid.eq(f_valid),
-                         i_last.eq(f_valid & f_last)]
+            m.d.sync += [wc.eq(0), ir.eq(ir_port.data), n.eq(f_row_n), i_pred.eq(f_pred),
+                         i_valid.eq(f_valid), i_last.eq(f_valid & f_last)]
             m.d.comb += ir_port.en.eq(1)
             with m.If(i_valid & i_last):
                 m.d.sync += self.done.eq(1)
@@ -993,14 +1306,14 @@ class RegisterMachine(wiring.Component):
                 m.d.comb += ir_port.addr.eq(st_first[first])
                 m.d.sync += [f_pc.eq(st_first[first]), f_n.eq(0), f_step.eq(first),
                              f_valid.eq(1),
-                             f_last.eq((st_first[first] == st_last[first])
+                             f_last.eq((st_first[first] == st_tail[first])
                                        & (st_trips[first] == 0) & st_end[first])]
         active = Signal()
         m.d.comb += active.eq(i_valid)
 
         # ---- issue (cycle c): register and table reads
         issue = Signal()
-        m.d.comb += issue.eq(i_valid & ~is_nop)
+        m.d.comb += issue.eq(i_valid & ~is_nop & i_pred)
         is_store = kind == KIND_CODE["store"]
         f_dst, f_a, f_na, f_b, f_nb = ir[4:12], ir[12:20], ir[20], ir[21:29], ir[29]
         f_base, f_mode, f_tb = ir[12:22], ir[22:24], ir[24:36]

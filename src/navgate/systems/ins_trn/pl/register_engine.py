@@ -37,10 +37,15 @@ VARIANT = "plain"
 #: iterations (copies) at once; with more tracks the padding of the sums' tails overflows
 #: the table ROM (4 tracks: over 4,096 entries)
 TRACKS = 3
-#: copies per nest (regmachine.compile_program's ``unroll``): the independent iterations
-#: the scheduler interleaves in one block iteration, within the 1,024-row instruction ROM
-UNROLL = {"cov_M": TRACKS, "cov_E": TRACKS, "cov_kahan": 4, "alt_joseph": 2,
-          "trn_joseph": 2}
+#: copies per nest (regmachine.compile_program's ``unroll``): the independent iterations in
+#: one block iteration. Every nest's block iterations overlap (software pipelining,
+#: ``OVERLAP``), so copies serve what the kernel cannot: an accumulator's recurrence (cov_M
+#: and cov_E, one copy per track) and temporaries that live longer than one iteration's
+#: issues (cov_kahan's compensated sums, alt_vec); the choice is the fastest within the
+#: 1,024-row instruction ROM (docs/opflow-register-machine.md section 8)
+UNROLL = {"cov_M": TRACKS, "cov_E": TRACKS, "cov_kahan": 4, "alt_vec": 3}
+#: the nests compiled as software pipelines (every nest)
+OVERLAP = True
 
 
 @lru_cache(maxsize=2)
@@ -52,7 +57,8 @@ def register_engine(variant: str = VARIANT) -> tuple[RegisterProgram, dict, dict
     for lp in lps.values():
         for array, words in lp.rom.items():
             rom.setdefault(array, {}).update(words)
-    return compile_program(prog, init=rom, unroll=UNROLL), reg_index, lps
+    return (compile_program(prog, init=rom, unroll=UNROLL, overlap=OVERLAP), reg_index,
+            lps)
 
 
 # ------------------------------------------------------------------ behind ins_trn_top
