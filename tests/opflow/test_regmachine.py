@@ -393,18 +393,23 @@ def test_accumulators_restored_after_a_reset_mid_run():
 # ------------------------------------------------------------------ overlapped blocks
 
 
-def _random_nest(rng, trips: int, distance: int) -> LoopNest:
+def _random_nest(rng, trips: int, distance: int, rich: bool = False) -> LoopNest:
     """A random nest over input arrays A and B (linear and table addresses), the float32
     kinds the machine has, one chained sum over ``distance`` tracks (random resets after
     the first ``distance`` iterations), an always-store of a result per iteration and a
-    conditional store of the sum to unique words."""
+    conditional store of the sum to unique words. ``rich``: the sum's store falls on
+    random iterations (so its reset is a conditional ``mov``, not the re-arm at a store),
+    a second accumulator starts from an op's value, and an op reads the first accumulator
+    after its update is computed."""
     na = 11
-    arrays = {"A": na, "B": na, "Y": trips, "Z": trips + 3}
+    arrays = {"A": na, "B": na, "Y": trips, "Z": trips + 3, "W": trips, "V": trips}
     tables = {"ta": rng.integers(0, na, trips).tolist(),
               "tb": rng.integers(0, na, trips).tolist()}
     reset = [1] * distance + (rng.random(trips - distance) < 0.35).astype(int).tolist()
     # the sum is stored where the next iteration of its track resets (or at the end)
     last = [int(n + distance >= trips or reset[n + distance]) for n in range(trips)]
+    if rich:
+        last = (rng.random(trips) < 0.5).astype(int).tolist()
     tables.update(reset=reset, last=last, dest=[n + 3 for n in range(trips)])
     ops = [LOp("a", "load", ("A",), Addr(None, (1,), 0) if trips <= na else Addr("ta", (1,))),
            LOp("b", "load", ("B",), Addr("tb", (1,))),
@@ -422,6 +427,12 @@ def _random_nest(rng, trips: int, distance: int) -> LoopNest:
     accs = [Acc("acc", const_name(-0.0), "s", Cond("table", "reset"), distance)]
     stores = [Store("Y", Addr(None, (1,), 0), vals[-1]),
               Store("Z", Addr("dest", (1,)), "s", Cond("table", "last"))]
+    if rich:
+        ops.append(LOp("i2", "mul", ("a", "c")))
+        ops.append(LOp("s2", "sub", ("acc2", str(rng.choice(vals)))))
+        ops.append(LOp("r", "mul", ("acc", "s")))  # the accumulator read after its update
+        accs.append(Acc("acc2", "i2", "s2", Cond("table", "reset"), distance))
+        stores += [Store("W", Addr(None, (1,), 0), "s2"), Store("V", Addr(None, (1,), 0), "r")]
     return LoopNest("rnd", (trips,), arrays, tables, ops, accs, stores)
 
 
@@ -436,21 +447,33 @@ def _random_memories(rng, prog) -> dict:
     return mem
 
 
-@pytest.mark.parametrize("seed", range(40))
+def _random_program(seed: int):
+    """Seed -> (program, copies): nests of the second half of the seeds are ``rich``."""
+    rng = np.random.default_rng(seed)
+    distance = int(rng.choice([1, 2, 3]))
+    trips = distance * int(rng.integers(1, 9))
+    nest = _random_nest(rng, trips, distance, rich=seed % 2 == 1)
+    return SequenceProgram("rnd", dict(nest.arrays), {"rnd": nest}, {"run": ("rnd",)}), \
+        distance, rng
+
+
+@pytest.mark.parametrize("seed", range(60))
 def test_overlapped_random_nests_model_exact(seed):
     """Random nests compiled as software pipelines (with and without copies): the
     instruction-level model equals run_sequence word for word, in the block's cycles, and
     never in more cycles than the same nest without overlap (the compiler keeps the plain
-    block where the pipeline's prologue and epilogue cost more than they save)."""
-    rng = np.random.default_rng(seed)
-    distance = int(rng.choice([1, 2, 3]))
-    trips = distance * int(rng.integers(1, 9))
-    nest = _random_nest(rng, trips, distance)
-    prog = SequenceProgram("rnd", dict(nest.arrays), {"rnd": nest}, {"run": ("rnd",)})
+    block where the pipeline's prologue and epilogue cost more than they save); a kernel
+    holds each of the block's items in one row, and the register file is the chosen
+    block's."""
+    prog, distance, rng = _random_program(seed)
     for copies in sorted({1, distance}):
         unroll = {"rnd": copies} if copies > 1 else {}
         plain = RM.compile_program(prog, unroll=unroll)
         rp = RM.compile_program(prog, unroll=unroll, overlap=True)
+        blk = rp.blocks["rnd"]
+        assert sum(r.kind != "nop" for r in blk.rows) == blk.ops
+        if not blk.overlapped:
+            assert rp.registers == plain.registers and rp.cycles("run") == plain.cycles("run")
         for k in range(3):
             mem = _random_memories(rng, prog)
             ref = run_sequence(prog, mem, "run")
@@ -460,22 +483,19 @@ def test_overlapped_random_nests_model_exact(seed):
         assert rp.cycles("run") <= plain.cycles("run")
 
 
-#: seeds of pipelined random nests: 2 and 3 stages, fewer iterations than stages' worth,
-#: the divider and the square root, a tail, one stage whose writes land in the next
-#: kernel iteration (25)
-MACHINE_SEEDS = [11, 12, 21, 25, 35, 38]
+#: seeds of pipelined random nests (odd: rich) for the machine: together 1 to 3 stages, as
+#: many iterations as stages (2 x 2, 3 x 3), the divider and the square root, tails (one
+#: of 19 cycles: writes landing in the next kernel iteration), conditional resets, an
+#: accumulator started from an op, one read after its update
+MACHINE_SEEDS = [12, 25, 37, 49, 51, 54, 57]
 
 
 @pytest.mark.parametrize("seed", MACHINE_SEEDS)
 def test_overlapped_random_nests_machine_exact(seed):
     """The machine in Amaranth's simulator runs the overlapped random nests as the model:
     the prologue's and the epilogue's missing iterations issue nothing, the kernel repeats,
-    the tail drains."""
-    rng = np.random.default_rng(seed)
-    distance = int(rng.choice([1, 2, 3]))
-    trips = distance * int(rng.integers(1, 9))
-    nest = _random_nest(rng, trips, distance)
-    prog = SequenceProgram("rnd", dict(nest.arrays), {"rnd": nest}, {"run": ("rnd",)})
+    the tail drains; run twice (the accumulators' registers as the first run left them)."""
+    prog, distance, rng = _random_program(seed)
     rp = RM.compile_program(prog, unroll={"rnd": distance} if distance > 1 else {},
                             overlap=True)
     assert rp.blocks["rnd"].overlapped
@@ -548,3 +568,34 @@ def test_modulo_schedule_respects_the_machine():
                     units[u].add((c + i) % blk.cycles)
             c += 1
         assert c == blk.cycles, name
+
+
+def test_pipeline_long_recurrence_and_fallback_to_the_plain_block():
+    """A recurrence of sixteen dependent additions: the II search goes up to the plain
+    block's cycles (it once stopped far below and refused the nest), and the pipeline is
+    never slower than the plain block. The dot nest in a register file too small for the
+    overlapping iterations' temporaries compiles as the plain block (which fits)."""
+    ops = [LOp("x", "load", ("A",), Addr(None, (1,)))]
+    prev = "acc"
+    for i in range(16):
+        ops.append(LOp(f"s{i}", "add", (prev, "x")))
+        prev = f"s{i}"
+    nest = LoopNest("rec", (8,), {"A": 8, "Y": 8}, {}, ops,
+                    [Acc("acc", const_name(0.0), prev, Cond("first", 0))],
+                    [Store("Y", Addr(None, (1,)), prev)])
+    prog = SequenceProgram("rec", dict(nest.arrays), {"rec": nest}, {"run": ("rec",)})
+    plain = RM.compile_program(prog)
+    rp = RM.compile_program(prog, overlap=True)
+    blk = rp.blocks["rec"]
+    assert blk.cycles > 16 * (RM.write_delay("add") + 1) - 16  # II bound by the recurrence
+    assert rp.cycles("run") <= plain.cycles("run")
+    mem = {"A": np.float32(np.arange(8) + 0.5), "Y": np.zeros(8, np.float32)}
+    got, _ = RM.run_register_program(rp, mem, "run")
+    assert mismatches(prog, run_sequence(prog, mem, "run"), got) == {}
+
+    dot = _dot_nest(4)
+    prog = SequenceProgram("dot", dict(dot.arrays), {"dot": dot}, {"run": ("dot",)})
+    small = RM.compile_program(prog).registers
+    assert RM.compile_program(prog, overlap=True).registers > small
+    rp = RM.compile_program(prog, overlap=True, max_registers=small)
+    assert not rp.blocks["dot"].overlapped and rp.registers == small

@@ -18,9 +18,12 @@ memories does the work in a fraction of the period with a fraction of the logic.
 Program form (:func:`compile_program`)
 --------------------------------------
 Every segment of the sequence program becomes a **block**: instruction rows run once per
-iteration, iterations one after another (not overlapped: a block's rows drain every write
-of an iteration before the next starts), ``trips`` the nest's iteration count (1 for a
-straight-line segment). An entry runs its blocks in order.
+iteration, iterations one after another (a block's rows drain every write of an iteration
+before the next starts), ``trips`` the nest's iteration count (1 for a straight-line
+segment); or, for a nest named in ``overlap``, a **software pipeline**: a kernel of II
+cycles of rows that starts an iteration every II cycles, each row predicated on its
+iteration (:meth:`_Compiler.modulo_schedule`, docs/opflow-register-machine.md section 8).
+An entry runs its blocks in order.
 
 * **Memories.** Arrays that only straight-line segments touch (the register array of
   programs' scalar registers) live in the **register file** beside the constants, the
@@ -32,7 +35,8 @@ straight-line segment). An entry runs its blocks in order.
   iteration number), or ``base + table[tb + n]`` from the **table ROM** (9-bit entries,
   identical tables stored once); a store's ``when`` flag is folded into its table (entry
   :data:`SKIP`: no write), an accumulator's reset into a conditional ``mov`` from its init.
-* **Accumulators.** Iterations do not overlap, so an accumulator is one register: reset
+* **Accumulators.** An iteration sees every write of the one before it (a software
+  pipeline's loop-carried constraints keep this), so an accumulator is one register: reset
   by a conditional ``mov acc <- init`` at the start of the iteration, updated by ``mov acc
   <- update`` after its last read. A nest whose accumulators have distance d > 1 (sums
   interleaved for a pipelined machine) is first permuted so that each sum's iterations are
@@ -554,7 +558,8 @@ class _Compiler:
                 mode, base, tab = m
                 if not on[u::copies].all():
                     rel = addresses(nest, st.addr)[perm]
-                    if rel[on].max() >= SKIP:
+                    # (a store that never fires is all SKIP)
+                    if on.any() and rel[on].max() >= SKIP:
                         raise LoopError(f"{sname}: conditional store to {st.array} up to word "
                                         f"{rel[on].max()}: table entries hold at most "
                                         f"{SKIP - 1}")
@@ -656,7 +661,8 @@ class _Compiler:
         return issue, max(end, 1)
 
     # -- an overlapped block: modulo schedule
-    def modulo_schedule(self, sname: str, items: list, fixed: dict, trips: int):
+    def modulo_schedule(self, sname: str, items: list, fixed: dict, trips: int,
+                        bound: int | None = None):
         """Software-pipeline a nest's block iteration (iterative modulo scheduling, Rau
         1994, in its simplest greedy form): one block iteration starts every II cycles;
         an item's offset ``t`` puts it in kernel row ``t mod II`` and stage ``t // II``.
@@ -668,10 +674,12 @@ class _Compiler:
         k's W lands, iteration k + 1's W lands no earlier than iteration k's R reads, and
         writes land in iteration order. A temporary lives at most II cycles (from its
         landing to its last read), so every iteration's temporaries can share the kernel's
-        registers. II starts at the resource bound and grows until the greedy placement
-        (ready items by latency-weighted height, each at its earliest legal cycle) fits.
-        Returns (offsets, II, stages, depth) with depth the offset after the last write
-        lands."""
+        registers. II starts at the resource bound and grows while a longer II can still
+        give a cheaper block ((trips + stages - 1) x II + tail) and stay under ``bound``
+        cycles a run; each II is placed by :meth:`_modulo_place` (placement with
+        eviction, then compaction), and the cheapest block is kept. Returns (offsets, II,
+        stages, depth) with depth the offset after the last write lands; LoopError when
+        no II under the bound fits."""
         n = len(items)
         wd = [None if it.kind == "store" else write_delay(it.kind) for it in items]
         preds = [[] for _ in range(n)]
@@ -719,9 +727,10 @@ class _Compiler:
             mii = max(mii, uses * INTERVAL[u])
         intra = [(j, k, d) for k in range(n) for j, d in preds[k]]
         best = None
-        for ii in range(mii, mii + 4 * n + 64):
-            if best is not None and (trips - 1) * ii >= best[0]:
-                break  # no longer II can beat the best block found
+        limit = bound if bound is not None else (trips + 1) * (mii + 4 * n + 64)
+        for ii in range(mii, limit // max(trips - 1, 1) + 2):
+            if (trips - 1) * ii >= min(limit, best[0] if best else limit):
+                break  # no longer II can beat the best block found, or the bound
             edges = (intra + [(a, b, lat - ii) for a, b, lat in carried]
                      + [(k, j, -w - ii) for k, j, w in lifetime])
             if any(a == b and d > 0 for a, b, d in edges):
@@ -895,24 +904,33 @@ class _Compiler:
             top = max(top, next_reg)
         return reg_of, top
 
-    def block(self, sname: str, lowered, overlap: bool = True) -> Block:
+    def block(self, sname: str, lowered) -> Block:
         """Schedule, allocate and encode a lowered nest (every nest is lowered first, so
         that the constants and accumulators own their registers before any temporary is
-        placed above them)."""
+        placed above them). A nest named in ``overlap`` becomes a software pipeline unless
+        the plain block is as fast, or the pipeline finds no schedule that could beat it,
+        or needs more registers than the machine has."""
         items, fixed, n_it, step = lowered
-        if overlap and n_it > 1 and sname in self.overlap:
-            # the software pipeline, unless the plain block is as fast (a few iterations
-            # of many stages)
-            piped = self.overlapped_block(sname, items, fixed, n_it, step)
-            plain = self.block(sname, lowered, overlap=False)
-            return piped if (piped.trips * piped.cycles + piped.tail
-                             < plain.trips * plain.cycles) else plain
-        issue, length = self.schedule(sname, items)
-        reg_of, top = self.allocate(items, issue, fixed)
-        self.top = max(getattr(self, "top", 0), top)
+        plain, top = self.plain_block(sname, items, fixed, n_it, step)
+        if n_it > 1 and sname in self.overlap:
+            try:
+                piped, p_top = self.overlapped_block(sname, items, fixed, n_it, step,
+                                                     plain.trips * plain.cycles)
+            except LoopError:
+                piped = None
+            if piped is not None and p_top <= self.max_registers and (
+                    piped.trips * piped.cycles + piped.tail < plain.trips * plain.cycles):
+                plain, top = piped, p_top
         if top > self.max_registers:
             raise LoopError(f"{sname}: needs {top} registers; the machine has "
                             f"{self.max_registers}")
+        self.top = max(getattr(self, "top", 0), top)
+        return plain
+
+    def plain_block(self, sname, items, fixed, n_it, step) -> tuple[Block, int]:
+        """The block whose iterations do not overlap, and the registers it uses."""
+        issue, length = self.schedule(sname, items)
+        reg_of, top = self.allocate(items, issue, fixed)
         by_cycle = {issue[k]: k for k in range(len(items))}
         rows: list = []
         c = 0
@@ -927,18 +945,16 @@ class _Compiler:
                 k += 1
             rows.append(Row("nop", count=k - c))
             c = k
-        return Block(sname, n_it, rows, length, len(items), step)
+        return Block(sname, n_it, rows, length, len(items), step), top
 
-    def overlapped_block(self, sname, items, fixed, n_it, step) -> Block:
-        """A nest's block software-pipelined (:meth:`modulo_schedule`): the kernel's II
-        cycles of rows (a row's ``back`` its stage times ``step``), run ``n_it + stages -
-        1`` times, then a nop for the drain of the last iteration's writes."""
-        issue, ii, stages, depth = self.modulo_schedule(sname, items, fixed, n_it)
+    def overlapped_block(self, sname, items, fixed, n_it, step,
+                         bound: int) -> tuple[Block, int]:
+        """A nest's block software-pipelined (:meth:`modulo_schedule`, the kernel under
+        ``bound`` cycles a run), and the registers it uses: the kernel's II cycles of
+        rows (a row's ``back`` its stage times ``step``), run ``n_it + stages - 1`` times,
+        then a nop for the drain of the last iteration's writes."""
+        issue, ii, stages, depth = self.modulo_schedule(sname, items, fixed, n_it, bound)
         reg_of, top = self.allocate_modulo(items, issue, fixed, ii)
-        self.top = max(getattr(self, "top", 0), top)
-        if top > self.max_registers:
-            raise LoopError(f"{sname}: needs {top} registers; the machine has "
-                            f"{self.max_registers}")
         by_slot = {issue[k] % ii: k for k in range(len(items))}
         rows: list = []
         c = 0
@@ -961,7 +977,7 @@ class _Compiler:
             rows.append(Row("nop", count=tail))
         return Block(sname, n_it + stages - 1, rows, ii, len(items), step,
                      kernel_rows=kernel_rows, tail=tail, valid_trips=n_it, stages=stages,
-                     overlapped=True)
+                     overlapped=True), top
 
     def row(self, it: _Item, reg_of: dict) -> Row:
         tb = self.put_table(it.table[0]) + it.table[1] if it.table is not None else 0
