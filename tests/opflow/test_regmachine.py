@@ -69,7 +69,7 @@ def seed000():
 
 #: cycles from start to done of every entry (exact: the compiler's schedule, which the
 #: machine runs; asserted below against the machine in simulation)
-SEED000_CYCLES = {"propagate": 10820, "alt_gate": 64, "alt_apply": 2082, "trn_gate": 164,
+SEED000_CYCLES = {"propagate": 10417, "alt_gate": 64, "alt_apply": 2082, "trn_gate": 164,
                   "trn_apply": 3844}
 
 

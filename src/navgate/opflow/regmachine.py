@@ -69,6 +69,7 @@ ops: ``dst`` [4:12], ``a`` [12:20], ``na`` [20], ``b`` [21:29], ``nb`` [29]; ``m
 from __future__ import annotations
 
 import heapq
+import random
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -262,6 +263,27 @@ class RegisterProgram:
                 steps.append((f, kl, (blk.trips - 1) * blk.step, int(k == len(blocks) - 1),
                               blk.step, tl, (blk.valid_trips - 1) * blk.step))
         return words, where, steps, first, backs
+
+
+#: item orders the modulo scheduler tries at the lowest II its cycle bound allows (the
+#: height order, then perturbed heights) before it moves to the next II, where it tries the
+#: height order alone
+ORDER_TRIES = 32
+
+
+def _positive_cycle(n: int, edges) -> bool:
+    """Whether the constraints t_b >= t_a + d (``edges`` (a, b, d)) have a cycle of
+    positive total delay, i.e. no solution at all (Bellman-Ford on the longest path)."""
+    dist = [0] * n
+    for _ in range(n):
+        changed = False
+        for a, b, d in edges:
+            if dist[a] + d > dist[b]:
+                dist[b] = dist[a] + d
+                changed = True
+        if not changed:
+            return False
+    return True
 
 
 # ------------------------------------------------------------------ chains
@@ -727,16 +749,27 @@ class _Compiler:
             mii = max(mii, uses * INTERVAL[u])
         intra = [(j, k, d) for k in range(n) for j, d in preds[k]]
         best = None
+        tried_orders = False
         limit = bound if bound is not None else (trips + 1) * (mii + 4 * n + 64)
         for ii in range(mii, limit // max(trips - 1, 1) + 2):
             if (trips - 1) * ii >= min(limit, best[0] if best else limit):
                 break  # no longer II can beat the best block found, or the bound
             edges = (intra + [(a, b, lat - ii) for a, b, lat in carried]
                      + [(k, j, -w - ii) for k, j, w in lifetime])
-            if any(a == b and d > 0 for a, b, d in edges):
-                continue
-            t = self._modulo_place(items, ii, wd, edges, height, 40 * n + 100)
-            if t is None or not all(t[b] >= t[a] + d for a, b, d in edges):
+            if _positive_cycle(n, edges):
+                continue  # below the recurrence (and lifetime) bound: no order can fit
+            # the height order first; at the first II above the cycle bound, orders with
+            # the heights perturbed too (seeded: the program is the same on every run)
+            # until one fits
+            rnd = random.Random(ii)
+            tries, first_feasible = (1, False) if tried_orders else (ORDER_TRIES, True)
+            tried_orders = tried_orders or first_feasible
+            for trial in range(tries):
+                h = height if trial == 0 else [x + 3 * rnd.random() for x in height]
+                t = self._modulo_place(items, ii, wd, h, 40 * n + 100, edges)
+                if t is not None and all(t[b] >= t[a] + d for a, b, d in edges):
+                    break
+            else:
                 continue
             base = min(t)
             t = [x - base for x in t]
@@ -751,7 +784,7 @@ class _Compiler:
         raise LoopError(f"{sname}: no modulo schedule found")
 
     @staticmethod
-    def _modulo_place(items, ii, wd, edges, height, budget):
+    def _modulo_place(items, ii, wd, height, budget, edges):
         """Iterative modulo scheduling (Rau): ``edges`` are (a, b, delay) with t_b >= t_a +
         delay (loop-carried ones already net of II). The highest unscheduled item goes to
         its earliest start (from its scheduled predecessors) or the first cycle after it
