@@ -286,6 +286,40 @@ def _positive_cycle(n: int, edges) -> bool:
     return True
 
 
+def _dependences(items, store_height: int):
+    """A block's edges: per item its predecessors and successors as (item, min cycles
+    between the issues; a data edge waits for the write to land), and its height, the
+    longest latency-weighted path from its issue to the block's end (a store's own
+    ``store_height``)."""
+    n = len(items)
+    ready = [None if it.kind == "store" else write_delay(it.kind) + 1 for it in items]
+    preds = [[] for _ in range(n)]
+    for k, it in enumerate(items):
+        for j, d in it.after:
+            preds[k].append((j, ready[j] if d is None else d))
+    succs = [[] for _ in range(n)]
+    for k in range(n):
+        for j, d in preds[k]:
+            succs[j].append((k, d))
+    height = [0] * n
+    for k in reversed(range(n)):
+        own = ready[k] if ready[k] is not None else store_height
+        height[k] = max([own] + [d + height[s] for s, d in succs[k]])
+    return preds, succs, height
+
+
+def _lives(items, issue, fixed):
+    """(landing cycle, last read or None, name) of every temporary a block's items write
+    (not the fixed registers)."""
+    last_read: dict = {}
+    for k, it in enumerate(items):
+        for s in it.srcs:
+            last_read[s] = max(last_read.get(s, -1), issue[k])
+    return [(issue[k] + write_delay(it.kind), last_read.get(it.dst), it.dst)
+            for k, it in enumerate(items)
+            if it.dst is not None and it.fixed_dst is None and it.dst not in fixed]
+
+
 # ------------------------------------------------------------------ chains
 
 
@@ -614,25 +648,8 @@ class _Compiler:
     # -- schedule one block
     def schedule(self, sname: str, items: list):
         n = len(items)
-        ready_delay = []
-        for it in items:
-            if it.kind == "store":
-                ready_delay.append(None)
-            else:
-                ready_delay.append(write_delay(it.kind) + 1)
-        preds = [[] for _ in range(n)]
-        for k, it in enumerate(items):
-            for j, d in it.after:
-                preds[k].append((j, ready_delay[j] if d is None else d))
-        succs = [[] for _ in range(n)]
-        for k in range(n):
-            for j, d in preds[k]:
-                succs[j].append((k, d))
         # priority: longest path to the end (latency-weighted)
-        height = [0] * n
-        for k in reversed(range(n)):
-            own = ready_delay[k] if ready_delay[k] is not None else 2
-            height[k] = max([own] + [d + height[s] for s, d in succs[k]])
+        preds, succs, height = _dependences(items, store_height=2)
         issue = [None] * n
         earliest = [0] * n
         npred = [len(p) for p in preds]
@@ -704,18 +721,7 @@ class _Compiler:
         no II under the bound fits."""
         n = len(items)
         wd = [None if it.kind == "store" else write_delay(it.kind) for it in items]
-        preds = [[] for _ in range(n)]
-        for k, it in enumerate(items):
-            for j, d in it.after:
-                preds[k].append((j, wd[j] + 1 if d is None else d))
-        succs = [[] for _ in range(n)]
-        for k in range(n):
-            for j, d in preds[k]:
-                succs[j].append((k, d))
-        height = [0] * n
-        for k in reversed(range(n)):
-            own = wd[k] + 1 if wd[k] is not None else STORE_WRITE + 1
-            height[k] = max([own] + [d + height[s] for s, d in succs[k]])
+        preds, _, height = _dependences(items, store_height=STORE_WRITE + 1)
         # loop-carried constraints on the fixed registers the block writes: (a, b, lat):
         # t_b + II >= t_a + lat (b in the next iteration)
         writers: dict = {}
@@ -878,17 +884,9 @@ class _Compiler:
         iteration's copy lands II cycles after the one before, in the same register. Two
         temporaries share a register when neither lands (modulo II) strictly inside the
         other's life."""
-        last_read: dict = {}
-        for k, it in enumerate(items):
-            for s in it.srcs:
-                last_read[s] = max(last_read.get(s, -1), issue[k])
         reg_of = dict(fixed)
-        temps = []
-        for k, it in enumerate(items):
-            if it.dst is not None and it.fixed_dst is None and it.dst not in fixed:
-                w = issue[k] + write_delay(it.kind)
-                temps.append((w, max(w, last_read.get(it.dst, w)), it.dst))
-        temps.sort()
+        temps = sorted((w, w if r is None else max(w, r), name)
+                       for w, r, name in _lives(items, issue, fixed))
         occupants: list = []  # per register above nfixed: (landing residues, life residues)
         for w, r, name in temps:
             land = w % ii
@@ -908,16 +906,9 @@ class _Compiler:
     def allocate(self, items, issue, fixed):
         """Temporaries -> registers above the fixed ones: a value holds its register from
         its write to its last read (interval allocation in write order)."""
-        last_read: dict = {}
-        for k, it in enumerate(items):
-            for s in it.srcs:
-                last_read[s] = max(last_read.get(s, -1), issue[k])
         reg_of = dict(fixed)
-        temps = []
-        for k, it in enumerate(items):
-            if it.dst is not None and it.fixed_dst is None and it.dst not in fixed:
-                temps.append((issue[k] + write_delay(it.kind), last_read.get(it.dst, -1), it.dst))
-        temps.sort()
+        temps = sorted((w, -1 if r is None else r, name)
+                       for w, r, name in _lives(items, issue, fixed))
         free_at: list = []  # (cycle the register is free from, register)
         pool: list = []
         next_reg = self.nfixed
