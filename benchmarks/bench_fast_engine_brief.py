@@ -3,7 +3,8 @@ speed (issue 29's fast engine; docs/opflow-register-machine.md section 7): the l
 of the values in the 3-lane sequence-machine schedules that meet the cycle targets (fused
 propagate 913, merged updates 205 / 337 cycles), and the register-file traffic they imply
 when only values that live at most ``W`` cycles pass from unit to unit (forwarding or
-short delay lines) and the others go through a register file.
+short delay lines) and the others go through a register file; and the cycles of the same
+programs when every unit result goes through a register file with P write ports.
 
     python benchmarks/bench_fast_engine_brief.py [--lanes 3] [--json out.json]
 
@@ -31,6 +32,8 @@ from navgate.systems.ins_trn.pl import loop_programs as L
 ENTRIES = {"propagate": "fused", "alt_apply": "merged", "trn_apply": "merged"}
 LIFE_BINS = (1, 2, 4, 8, 16, 32, 64)
 WINDOWS = (4, 8, 16)
+#: register-file write ports of the what-if (0: no limit, the lane machine)
+PORTS = (0, 6, 5, 4, 3, 2)
 
 
 def lives(sch) -> list:
@@ -139,6 +142,21 @@ def main() -> None:
         print(f"{entry:10s} {w:3d} {t['values']:7d} {t['total_writes']:7d} "
               f"{t['total_writes'] / cyc:10.2f} {t['writes']:10d} {t['reads']:16d} "
               f"{t['live']:12d}")
+    # every unit result through a register file of ``ports`` write ports (no forwarding):
+    # the cycles of the same programs when at most that many results land in a cycle
+    print("\nevery unit result written to a register file with P write ports (no forwarding), "
+          "cycles:")
+    print(f"{'P':>3s} " + " ".join(f"{e:>10s}" for e in ENTRIES))
+    summary["result_ports"] = {}
+    for ports in PORTS:
+        got = {}
+        for entry, variant in ENTRIES.items():
+            prog, _ = cache[variant]
+            sched = schedule_sequence(prog, args.lanes, read_ports=max(2, args.lanes),
+                                      result_ports=ports)
+            got[entry] = sched.cycles(entry)
+        summary["result_ports"][str(ports)] = got
+        print(f"{ports if ports else 'any':>3} " + " ".join(f"{got[e]:10d}" for e in ENTRIES))
     Path(args.json).write_text(json.dumps(summary, indent=1))
     print(f"\nwrote {args.json}")
 

@@ -200,3 +200,36 @@ def test_in_place_update_of_the_same_word_is_allowed_and_run_in_order():
     assert s.time[("store", 0)] > s.time["p"]
     with pytest.raises(LoopError, match="needs 6 words"):
         run_nest(nest, {"P": np.zeros(5), "k": np.zeros(3)})
+
+
+def test_result_ports_limit_the_results_landing_in_a_cycle(loop_data):
+    """The what-if of a register file's write ports (``LoopUnits.result_ports``): at most
+    that many unit results land in one cycle (modulo II for a nest, in absolute cycles for a
+    straight line); the rank-1 update's product and sum (two results an iteration) need II 2
+    on one port and keep II 1 on two."""
+    assert modulo_schedule(K.sym_rank1_update(6), LoopUnits(result_ports=2)).ii == 1
+    one = modulo_schedule(K.sym_rank1_update(6), LoopUnits(result_ports=1))
+    assert (one.ii, one.res_mii) == (2, 2)
+    for nest in kernels(loop_data.rows, loop_data.cols):
+        for ports in (1, 2):
+            units = LoopUnits(mul=2, add=2, result_ports=ports)
+            s = modulo_schedule(nest, units)
+            _check_schedule(s)
+            period = s.ii if nest.iterations > 1 else None
+            landing: dict = {}
+            for op in nest.ops:
+                if op.kind in ("load", "neg"):
+                    continue
+                t = s.ready[op.dst]
+                key = t % period if period else t
+                landing[key] = landing.get(key, 0) + 1
+            assert max(landing.values()) <= ports, (nest.name, ports)
+    # a straight line (seed 000's altitude correction): absolute cycles, and a longer one
+    from navgate.systems.ins_trn.pl import loop_programs as LP
+
+    prog, _ = LP.to_sequence(LP.loop_programs(3, "plain"))
+    seg = prog.segments["alt_corr"]
+    free = modulo_schedule(seg, LoopUnits(mul=3, add=3, read_ports=3))
+    one = modulo_schedule(seg, LoopUnits(mul=3, add=3, read_ports=3, result_ports=1))
+    lands = [one.ready[op.dst] for op in seg.ops if op.kind not in ("load", "neg")]
+    assert len(lands) == len(set(lands)) and one.cycles > free.cycles

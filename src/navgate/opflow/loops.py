@@ -469,6 +469,9 @@ class LoopUnits:
     load_latency: int = LOAD_LATENCY
     #: register stages between the operand multiplexers and every unit's input (0 or 1)
     operand_stage: int = 0
+    #: unit results that may land in one cycle (a register file's write ports; 0: no
+    #: limit, as the lane machines' delay lines): a what-if of the fast engine's brief
+    result_ports: int = 0
 
     def latency(self, kind: str) -> int:
         if kind == "load":
@@ -524,8 +527,13 @@ def modulo_schedule(nest: LoopNest, units: LoopUnits = LoopUnits(),
         if count < 1:
             raise LoopError(f"{nest.name}: no {res[0]} resource for {op.dst}")
         uses[res] = uses.get(res, 0) + units.occupancy(op.kind)
+        if units.result_ports and op.kind != "load":
+            uses[("result",)] = uses.get(("result",), 0) + 1
     caps = {res: _resource(next(o for o in nest.ops if o.kind != "neg"
-                                and _resource(o, units)[0] == res), units)[1] for res in uses}
+                                and _resource(o, units)[0] == res), units)[1]
+            for res in uses if res != ("result",)}
+    if ("result",) in uses:
+        caps[("result",)] = units.result_ports
     for st in nest.stores:
         uses[("write", st.array)] = uses.get(("write", st.array), 0) + 1
         caps[("write", st.array)] = 1
@@ -557,16 +565,26 @@ def _place(nest, units, ii, accs):
     time, resource, ready = {}, {}, {}
     busy: set = set()  # (resource, instance, cycle mod II)
 
-    def take(res, count, earliest, occ=1):
+    def take(res, count, earliest, occ=1, land=None):
+        """The first cycle from ``earliest`` with an instance of ``res`` free for ``occ``
+        cycles (and, with ``land``, a result port free ``land`` cycles later)."""
         if ii is None:
             return earliest, 0
         if occ > ii:
             return None
         for t in range(earliest, earliest + ii):
+            port = None
+            if land is not None:
+                port = next((("result", p, (t + land) % ii) for p in range(units.result_ports)
+                             if ("result", p, (t + land) % ii) not in busy), None)
+                if port is None:
+                    continue
             for inst in range(count):
                 cells = {(res, inst, (t + j) % ii) for j in range(occ)}
                 if not cells & busy:
                     busy.update(cells)
+                    if port is not None:
+                        busy.add(port)
                     return t, inst
         return None
 
@@ -587,7 +605,8 @@ def _place(nest, units, ii, accs):
             resource[op.dst] = None
             continue
         res, count = _resource(op, units)
-        got = take(res, count, earliest, units.occupancy(op.kind))
+        land = units.latency(op.kind) if units.result_ports and op.kind != "load" else None
+        got = take(res, count, earliest, units.occupancy(op.kind), land)
         if got is None:
             return None
         time[op.dst], inst = got
@@ -709,10 +728,17 @@ def _list_place(nest, units, accs):
             occ = units.occupancy(op.kind)
             inst = next((i for i in range(count) if not any(
                 (res, i, cycle + j) in busy for j in range(occ))), None)
-            if inst is None:
+            port = None
+            if units.result_ports and op.kind != "load":
+                land = cycle + units.latency(op.kind)
+                port = next((("result", p, land) for p in range(units.result_ports)
+                             if ("result", p, land) not in busy), None)
+            if inst is None or (units.result_ports and op.kind != "load" and port is None):
                 later.append((cycle + 1, h, k))
                 continue
             busy.update((res, inst, cycle + j) for j in range(occ))
+            if port is not None:
+                busy.add(port)
             time[op.dst] = cycle
             resource[op.dst] = (res, inst)
             ready[op.dst] = cycle + units.latency(op.kind)
