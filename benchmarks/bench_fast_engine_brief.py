@@ -4,7 +4,9 @@ of the values in the 3-lane sequence-machine schedules that meet the cycle targe
 propagate 913, merged updates 205 / 337 cycles), and the register-file traffic they imply
 when only values that live at most ``W`` cycles pass from unit to unit (forwarding or
 short delay lines) and the others go through a register file; and the cycles of the same
-programs when every unit result goes through a register file with P write ports.
+programs when every unit result goes through a register file with P write ports; and
+first the critical paths of the fp32 engine's programs with o extra cycles for every
+operation that waits on another.
 
     python benchmarks/bench_fast_engine_brief.py [--lanes 3] [--json out.json]
 
@@ -55,7 +57,8 @@ def lives(sch) -> list:
         for x in map(root, op.srcs):
             if x in accs:
                 a = accs[x]
-                readers[root(a.update)].append(sch.time[op.dst] + a.distance * sch.ii)
+                if nest.iterations > 1:  # (a straight line reads only the init)
+                    readers[root(a.update)].append(sch.time[op.dst] + a.distance * sch.ii)
                 if not a.init.startswith("c:"):
                     readers[root(a.init)].append(sch.time[op.dst])
             elif not x.startswith("c:"):
@@ -98,12 +101,48 @@ def traffic(schedules: list, window: int) -> dict:
     return worst
 
 
+def critical_paths(overheads=(0, 1, 2, 3)) -> dict:
+    """entry -> (operations, {o: the critical path with ``o`` extra cycles for every
+    operation that waits on another}) of the fp32 engine's programs (the updates' gate and
+    apply fused), with no resource limit: the units' latencies of navgate.gateware.fp32."""
+    from navgate.gateware.fp32 import Fp32Add, Fp32Compare, Fp32DivIter, Fp32Mul, Fp32SqrtIter
+    from navgate.systems.ins_trn.pl import fp32_program as fp
+
+    lat = {"add": Fp32Add.LATENCY, "sub": Fp32Add.LATENCY, "mul": Fp32Mul.LATENCY,
+           "div": Fp32DivIter.LATENCY, "sqrt": Fp32SqrtIter.LATENCY,
+           "lt": Fp32Compare.LATENCY, "le": Fp32Compare.LATENCY}
+    progs = fp.programs()
+    entries = {"propagate": progs["propagate"],
+               "alt_apply": L.fuse_programs(progs["alt_gate"], progs["alt_apply"], "alt"),
+               "trn_apply": L.fuse_programs(progs["trn_gate"], progs["trn_apply"], "trn")}
+    out = {}
+    for name, prog in entries.items():
+        paths = {}
+        for o in overheads:
+            ready: dict = {}
+            for op in prog.ops:
+                start = max([ready.get(x, 0) for x in op.srcs] + [0])
+                # a sign flip costs nothing; a conversion of an input word one cycle
+                ready[op.dst] = start if op.kind == "neg" else start + lat.get(op.kind, 1) + o
+            paths[o] = max(ready.values(), default=0)
+        out[name] = (len(prog.ops), paths)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--lanes", type=int, default=3)
     ap.add_argument("--json", default="bench_fast_engine_brief.json")
     args = ap.parse_args()
     summary: dict = {"lanes": args.lanes, "entries": {}}
+    print("critical paths of the fp32 engine's programs, o extra cycles a dependent operation:")
+    cps = critical_paths()
+    print(f"{'entry':10s} {'ops':>6s} " + " ".join(f"{'o=' + str(o):>6s}" for o in range(4)))
+    for name, (ops, paths) in cps.items():
+        print(f"{name:10s} {ops:6d} " + " ".join(f"{paths[o]:6d}" for o in range(4)))
+    summary["critical_paths"] = {k: {"ops": v[0], **{str(o): c for o, c in v[1].items()}}
+                                 for k, v in cps.items()}
+    print()
     cache: dict = {}
     bins = " ".join(f"{'<=' + str(b):>6s}" for b in LIFE_BINS)
     print(f"{'entry':10s} {'variant':7s} {'cycles':>6s} {'values':>7s}  {bins} "

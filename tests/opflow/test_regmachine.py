@@ -570,11 +570,12 @@ def test_modulo_schedule_respects_the_machine():
         assert c == blk.cycles, name
 
 
-def test_pipeline_long_recurrence_and_fallback_to_the_plain_block():
+def test_pipeline_long_recurrence_and_a_small_register_file():
     """A recurrence of sixteen dependent additions: the II search goes up to the plain
     block's cycles (it once stopped far below and refused the nest), and the pipeline is
-    never slower than the plain block. The dot nest in a register file too small for the
-    overlapping iterations' temporaries compiles as the plain block (which fits)."""
+    never slower than the plain block. The dot nest in a register file too small for its
+    fastest pipeline's temporaries: the search keeps a slower pipeline that fits (once the
+    whole pipeline was dropped for the plain block, and before that the compile failed)."""
     ops = [LOp("x", "load", ("A",), Addr(None, (1,)))]
     prev = "acc"
     for i in range(16):
@@ -595,7 +596,17 @@ def test_pipeline_long_recurrence_and_fallback_to_the_plain_block():
 
     dot = _dot_nest(4)
     prog = SequenceProgram("dot", dict(dot.arrays), {"dot": dot}, {"run": ("dot",)})
-    small = RM.compile_program(prog).registers
-    assert RM.compile_program(prog, overlap=True).registers > small
+    plain = RM.compile_program(prog)
+    small = plain.registers
+    free = RM.compile_program(prog, overlap=True)
+    assert free.registers > small
+    # the II search keeps the cheapest pipeline whose registers fit: a longer II here
     rp = RM.compile_program(prog, overlap=True, max_registers=small)
-    assert not rp.blocks["dot"].overlapped and rp.registers == small
+    assert rp.blocks["dot"].overlapped and rp.registers == small
+    assert free.cycles("run") < rp.cycles("run") < plain.cycles("run")
+    mem = {"A": np.float32([1.5, -2.0, 3.25, 1e20, -1e20, 7.0]),
+           "B": np.float32([2.0, 0.5, -1.0, 1e20, 3.0, -0.125]), "Y": np.zeros(4, np.float32)}
+    got, _ = RM.run_register_program(rp, mem, "run")
+    assert mismatches(prog, run_sequence(prog, mem, "run"), got) == {}
+    with pytest.raises(LoopError, match="registers"):
+        RM.compile_program(prog, overlap=True, max_registers=small - 1)

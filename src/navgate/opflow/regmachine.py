@@ -275,7 +275,7 @@ def _positive_cycle(n: int, edges) -> bool:
     """Whether the constraints t_b >= t_a + d (``edges`` (a, b, d)) have a cycle of
     positive total delay, i.e. no solution at all (Bellman-Ford on the longest path)."""
     dist = [0] * n
-    for _ in range(n):
+    for _ in range(max(n, 1)):
         changed = False
         for a, b, d in edges:
             if dist[a] + d > dist[b]:
@@ -716,7 +716,8 @@ class _Compiler:
         registers. II starts at the resource bound and grows while a longer II can still
         give a cheaper block ((trips + stages - 1) x II + tail) and stay under ``bound``
         cycles a run; each II is placed by :meth:`_modulo_place` (placement with
-        eviction, then compaction), and the cheapest block is kept. Returns (offsets, II,
+        eviction, then compaction), and the cheapest block whose registers fit the
+        machine is kept. Returns (offsets, II,
         stages, depth) with depth the offset after the last write lands; LoopError when
         no II under the bound fits."""
         n = len(items)
@@ -783,8 +784,11 @@ class _Compiler:
                         for k in range(n))
             stages = max(t) // ii + 1
             cost = (trips + stages - 1) * ii + max(0, depth - stages * ii)
-            if best is None or cost < best[0]:
-                best = (cost, t, ii, stages, depth)
+            if best is not None and cost >= best[0]:
+                continue
+            if self.allocate_modulo(items, t, fixed, ii)[1] > self.max_registers:
+                continue  # a cheaper block the register file cannot hold
+            best = (cost, t, ii, stages, depth)
         if best is not None:
             return best[1:]
         raise LoopError(f"{sname}: no modulo schedule found")
