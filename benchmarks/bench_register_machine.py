@@ -52,7 +52,7 @@ def main() -> None:
     print(f"\n{'block':12s} {'iters':>6s} {'kernel':>6s} {'rows':>5s} {'issues':>6s} "
           f"{'II/cycles':>9s} {'stages':>6s} {'tail':>4s} {'total':>7s}")
     for b in rp.blocks.values():
-        total = b.trips * b.cycles + b.tail
+        total = b.run_cycles
         summary["blocks"][b.name] = {"iterations": b.valid_trips, "kernel_runs": b.trips,
                                      "rows": len(b.rows), "issues": b.ops, "cycles": b.cycles,
                                      "stages": b.stages, "tail": b.tail, "total": total,

@@ -194,6 +194,12 @@ def _dot_nest(distance: int) -> LoopNest:
                     [Store("Y", Addr("dest", (1,)), "s", Cond("table", "last"))])
 
 
+def _dot_memories() -> dict:
+    """The dot nest's words: mixed signs and magnitudes, products that overflow."""
+    return {"A": np.float32([1.5, -2.0, 3.25, 1e20, -1e20, 7.0]),
+            "B": np.float32([2.0, 0.5, -1.0, 1e20, 3.0, -0.125]), "Y": np.zeros(4, np.float32)}
+
+
 def test_chains_are_serialised_and_exact():
     nest = _dot_nest(4)
     perm = RM.serialize_chains(nest)
@@ -201,8 +207,7 @@ def test_chains_are_serialised_and_exact():
     assert [int(x) for x in perm] == [0, 4, 8, 1, 5, 9, 2, 6, 10, 3, 7, 11]
     prog = SequenceProgram("dot", dict(nest.arrays), {"dot": nest}, {"run": ("dot",)})
     rp = RM.compile_program(prog)
-    mem = {"A": np.float32([1.5, -2.0, 3.25, 1e20, -1e20, 7.0]),
-           "B": np.float32([2.0, 0.5, -1.0, 1e20, 3.0, -0.125]), "Y": np.zeros(4, np.float32)}
+    mem = _dot_memories()
     got, _ = RM.run_register_program(rp, mem, "run")
     assert mismatches(prog, run_sequence(prog, mem, "run"), got) == {}
     (hw, cycles), = RM.simulate_register_machine(rp, mem, ["run"])
@@ -217,8 +222,7 @@ def test_unrolled_copies_exact_and_faster():
     do not match the accumulators' distance, are refused."""
     nest = _dot_nest(4)
     prog = SequenceProgram("dot", dict(nest.arrays), {"dot": nest}, {"run": ("dot",)})
-    mem = {"A": np.float32([1.5, -2.0, 3.25, 1e20, -1e20, 7.0]),
-           "B": np.float32([2.0, 0.5, -1.0, 1e20, 3.0, -0.125]), "Y": np.zeros(4, np.float32)}
+    mem = _dot_memories()
     serial = RM.compile_program(prog)
     rp = RM.compile_program(prog, unroll={"dot": 4})
     assert rp.blocks["dot"].trips == 3 and rp.blocks["dot"].step == 4
@@ -519,8 +523,7 @@ def test_overlapped_dot_nest_prologue_epilogue_and_faster():
     arrays = {**nest.arrays, "W": 4}
     prog = SequenceProgram("dot", arrays, {"dot": nest, "tail": tail},
                            {"run": ("dot", "tail")})
-    mem = {"A": np.float32([1.5, -2.0, 3.25, 1e20, -1e20, 7.0]),
-           "B": np.float32([2.0, 0.5, -1.0, 1e20, 3.0, -0.125]), "Y": np.zeros(4, np.float32),
+    mem = {**_dot_memories(),
            "W": np.zeros(4, np.float32)}
     plain = RM.compile_program(prog)
     rp = RM.compile_program(prog, overlap=True)
@@ -604,8 +607,7 @@ def test_pipeline_long_recurrence_and_a_small_register_file():
     rp = RM.compile_program(prog, overlap=True, max_registers=small)
     assert rp.blocks["dot"].overlapped and rp.registers == small
     assert free.cycles("run") < rp.cycles("run") < plain.cycles("run")
-    mem = {"A": np.float32([1.5, -2.0, 3.25, 1e20, -1e20, 7.0]),
-           "B": np.float32([2.0, 0.5, -1.0, 1e20, 3.0, -0.125]), "Y": np.zeros(4, np.float32)}
+    mem = _dot_memories()
     got, _ = RM.run_register_program(rp, mem, "run")
     assert mismatches(prog, run_sequence(prog, mem, "run"), got) == {}
     with pytest.raises(LoopError, match="registers"):

@@ -575,8 +575,7 @@ def _place(nest, units, ii, accs):
         for t in range(earliest, earliest + ii):
             port = None
             if land is not None:
-                port = next((("result", p, (t + land) % ii) for p in range(units.result_ports)
-                             if ("result", p, (t + land) % ii) not in busy), None)
+                port = _free_port(busy, units.result_ports, (t + land) % ii)
                 if port is None:
                     continue
             for inst in range(count):
@@ -630,6 +629,12 @@ def _place(nest, units, ii, accs):
                 if a.name in op.srcs and ready[a.update] - a.distance * ii > time[op.dst]:
                     return None
     return time, resource, ready, depth
+
+
+def _free_port(busy: set, ports: int, cycle: int):
+    """A result port free in ``cycle`` (``("result", port, cycle)``), or None."""
+    return next((("result", p, cycle) for p in range(ports)
+                 if ("result", p, cycle) not in busy), None)
 
 
 def _sources(op, accs):
@@ -728,12 +733,10 @@ def _list_place(nest, units, accs):
             occ = units.occupancy(op.kind)
             inst = next((i for i in range(count) if not any(
                 (res, i, cycle + j) in busy for j in range(occ))), None)
-            port = None
-            if units.result_ports and op.kind != "load":
-                land = cycle + units.latency(op.kind)
-                port = next((("result", p, land) for p in range(units.result_ports)
-                             if ("result", p, land) not in busy), None)
-            if inst is None or (units.result_ports and op.kind != "load" and port is None):
+            needs_port = units.result_ports and op.kind != "load"
+            port = (_free_port(busy, units.result_ports, cycle + units.latency(op.kind))
+                    if needs_port else None)
+            if inst is None or (needs_port and port is None):
                 later.append((cycle + 1, h, k))
                 continue
             busy.update((res, inst, cycle + j) for j in range(occ))

@@ -200,6 +200,11 @@ class Block:
     stages: int = 1  #: an overlapped block's stages (iterations in flight)
     overlapped: bool = False  #: software-pipelined (writes may land in later iterations)
 
+    @property
+    def run_cycles(self) -> int:
+        """Cycles of one run of the block: its kernel ``trips`` times, then the tail."""
+        return self.trips * self.cycles + self.tail
+
     def __post_init__(self):
         if self.kernel_rows is None:
             self.kernel_rows = len(self.rows)
@@ -228,8 +233,7 @@ class RegisterProgram:
 
     def cycles(self, entry: str) -> int:
         """Cycles from the start cycle to ``done`` (exact; the machine's)."""
-        return 2 + sum(self.blocks[b].trips * self.blocks[b].cycles + self.blocks[b].tail
-                       for b in self.entries[entry])
+        return 2 + sum(self.blocks[b].run_cycles for b in self.entries[entry])
 
     def host_address(self, array: str, word: int) -> int:
         """The machine's host-port address of ``array[word]`` (:class:`RegisterMachine`)."""
@@ -316,8 +320,12 @@ def _lives(items, issue, fixed):
         for s in it.srcs:
             last_read[s] = max(last_read.get(s, -1), issue[k])
     return [(issue[k] + write_delay(it.kind), last_read.get(it.dst), it.dst)
-            for k, it in enumerate(items)
-            if it.dst is not None and it.fixed_dst is None and it.dst not in fixed]
+            for k, it in enumerate(items) if _temporary(it, fixed)]
+
+
+def _temporary(it, fixed) -> bool:
+    """Whether ``it`` writes a temporary (not a fixed register)."""
+    return it.dst is not None and it.fixed_dst is None and it.dst not in fixed
 
 
 # ------------------------------------------------------------------ chains
@@ -701,7 +709,7 @@ class _Compiler:
 
     # -- an overlapped block: modulo schedule
     def modulo_schedule(self, sname: str, items: list, fixed: dict, trips: int,
-                        bound: int | None = None):
+                        bound: int):
         """Software-pipeline a nest's block iteration (iterative modulo scheduling, Rau
         1994, in its simplest greedy form): one block iteration starts every II cycles;
         an item's offset ``t`` puts it in kernel row ``t mod II`` and stage ``t // II``.
@@ -717,9 +725,8 @@ class _Compiler:
         give a cheaper block ((trips + stages - 1) x II + tail) and stay under ``bound``
         cycles a run; each II is placed by :meth:`_modulo_place` (placement with
         eviction, then compaction), and the cheapest block whose registers fit the
-        machine is kept. Returns (offsets, II,
-        stages, depth) with depth the offset after the last write lands; LoopError when
-        no II under the bound fits."""
+        machine is kept. Returns (offsets, II, stages, depth) with depth the offset after
+        the last write lands; LoopError when no II under the bound fits."""
         n = len(items)
         wd = [None if it.kind == "store" else write_delay(it.kind) for it in items]
         preds, _, height = _dependences(items, store_height=STORE_WRITE + 1)
@@ -742,13 +749,8 @@ class _Compiler:
                     if w != w2:
                         carried.append((w, w2, wd[w] + 1 - wd[w2]))  # WAW
         # a temporary lives at most II cycles: its reader k at most II after it lands
-        lifetime = []
-        for k, it in enumerate(items):
-            for j, d in it.after:
-                pj = items[j]
-                if d is None and pj.dst is not None and pj.fixed_dst is None \
-                        and pj.dst not in fixed:
-                    lifetime.append((k, j, wd[j]))
+        lifetime = [(k, j, wd[j]) for k, it in enumerate(items) for j, d in it.after
+                    if d is None and _temporary(items[j], fixed)]
         writes = sum(w is not None for w in wd)
         mii = max(n, writes, 1)
         for u in INTERVAL:
@@ -757,9 +759,8 @@ class _Compiler:
         intra = [(j, k, d) for k in range(n) for j, d in preds[k]]
         best = None
         tried_orders = False
-        limit = bound if bound is not None else (trips + 1) * (mii + 4 * n + 64)
-        for ii in range(mii, limit // max(trips - 1, 1) + 2):
-            if (trips - 1) * ii >= min(limit, best[0] if best else limit):
+        for ii in range(mii, bound // max(trips - 1, 1) + 2):
+            if (trips - 1) * ii >= min(bound, best[0] if best else bound):
                 break  # no longer II can beat the best block found, or the bound
             edges = (intra + [(a, b, lat - ii) for a, b, lat in carried]
                      + [(k, j, -w - ii) for k, j, w in lifetime])
@@ -769,8 +770,8 @@ class _Compiler:
             # the heights perturbed too (seeded: the program is the same on every run)
             # until one fits
             rnd = random.Random(ii)
-            tries, first_feasible = (1, False) if tried_orders else (ORDER_TRIES, True)
-            tried_orders = tried_orders or first_feasible
+            tries = 1 if tried_orders else ORDER_TRIES
+            tried_orders = True
             for trial in range(tries):
                 h = height if trial == 0 else [x + 3 * rnd.random() for x in height]
                 t = self._modulo_place(items, ii, wd, h, 40 * n + 100, edges)
@@ -823,6 +824,14 @@ class _Compiler:
         last = [None] * n
         held: dict = {}  # resource -> item
         todo = set(range(n))
+
+        def unplace(j):
+            for r in occ[j]:
+                held.pop(r, None)
+            occ[j] = []
+            t[j] = None
+            todo.add(j)
+
         while todo:
             if budget <= 0:
                 return None
@@ -832,8 +841,8 @@ class _Compiler:
             for a, d in into[k]:
                 if t[a] is not None and a != k:
                     est = max(est, t[a] + d)
-            if last[k] is not None:
-                est = max(est, last[k] + 1) if last[k] >= est else est
+            if last[k] is not None and last[k] >= est:  # placed there before: move on
+                est = last[k] + 1
             choice = None
             for c in range(est, est + ii):
                 if all(r not in held for r in resources(k, c)):
@@ -843,19 +852,10 @@ class _Compiler:
                 choice = est
             for r in resources(k, choice):
                 if r in held:  # evict
-                    j = held[r]
-                    for rr in occ[j]:
-                        held.pop(rr, None)
-                    occ[j] = []
-                    t[j] = None
-                    todo.add(j)
+                    unplace(held[r])
             for b, d in outof[k]:
                 if b != k and t[b] is not None and t[b] < choice + d:
-                    for rr in occ[b]:
-                        held.pop(rr, None)
-                    occ[b] = []
-                    t[b] = None
-                    todo.add(b)
+                    unplace(b)
             t[k] = last[k] = choice
             occ[k] = resources(k, choice)
             for r in occ[k]:
@@ -941,13 +941,12 @@ class _Compiler:
         items, fixed, n_it, step = lowered
         plain, top = self.plain_block(sname, items, fixed, n_it, step)
         if n_it > 1 and sname in self.overlap:
-            try:
+            try:  # the pipeline's registers fit (modulo_schedule keeps only such)
                 piped, p_top = self.overlapped_block(sname, items, fixed, n_it, step,
-                                                     plain.trips * plain.cycles)
+                                                     plain.run_cycles)
             except LoopError:
                 piped = None
-            if piped is not None and p_top <= self.max_registers and (
-                    piped.trips * piped.cycles + piped.tail < plain.trips * plain.cycles):
+            if piped is not None and piped.run_cycles < plain.run_cycles:
                 plain, top = piped, p_top
         if top > self.max_registers:
             raise LoopError(f"{sname}: needs {top} registers; the machine has "
@@ -959,20 +958,7 @@ class _Compiler:
         """The block whose iterations do not overlap, and the registers it uses."""
         issue, length = self.schedule(sname, items)
         reg_of, top = self.allocate(items, issue, fixed)
-        by_cycle = {issue[k]: k for k in range(len(items))}
-        rows: list = []
-        c = 0
-        while c < length:
-            if c in by_cycle:
-                it = items[by_cycle[c]]
-                rows.append(self.row(it, reg_of))
-                c += 1
-                continue
-            k = c
-            while k < length and k not in by_cycle and k - c < (1 << COUNT_BITS) - 1:
-                k += 1
-            rows.append(Row("nop", count=k - c))
-            c = k
+        rows = self.rows(items, {issue[k]: k for k in range(len(items))}, length, reg_of)
         return Block(sname, n_it, rows, length, len(items), step), top
 
     def overlapped_block(self, sname, items, fixed, n_it, step,
@@ -983,22 +969,8 @@ class _Compiler:
         then a nop for the drain of the last iteration's writes."""
         issue, ii, stages, depth = self.modulo_schedule(sname, items, fixed, n_it, bound)
         reg_of, top = self.allocate_modulo(items, issue, fixed, ii)
-        by_slot = {issue[k] % ii: k for k in range(len(items))}
-        rows: list = []
-        c = 0
-        while c < ii:
-            if c in by_slot:
-                k = by_slot[c]
-                row = self.row(items[k], reg_of)
-                row.back = (issue[k] // ii) * step
-                rows.append(row)
-                c += 1
-                continue
-            e = c
-            while e < ii and e not in by_slot:
-                e += 1
-            rows.append(Row("nop", count=e - c))
-            c = e
+        rows = self.rows(items, {issue[k] % ii: k for k in range(len(items))}, ii, reg_of,
+                         back=lambda k: (issue[k] // ii) * step)
         kernel_rows = len(rows)
         tail = max(0, depth - stages * ii)
         if tail:
@@ -1006,6 +978,26 @@ class _Compiler:
         return Block(sname, n_it + stages - 1, rows, ii, len(items), step,
                      kernel_rows=kernel_rows, tail=tail, valid_trips=n_it, stages=stages,
                      overlapped=True), top
+
+    def rows(self, items, at: dict, length: int, reg_of: dict, back=None) -> list:
+        """The rows of ``length`` cycles: the item ``at[c]`` in cycle c (its ``back`` from
+        ``back(item index)``), each idle run one ``nop``."""
+        rows: list = []
+        c = 0
+        while c < length:
+            if c in at:
+                row = self.row(items[at[c]], reg_of)
+                if back is not None:
+                    row.back = back(at[c])
+                rows.append(row)
+                c += 1
+                continue
+            k = c
+            while k < length and k not in at and k - c < (1 << COUNT_BITS) - 1:
+                k += 1
+            rows.append(Row("nop", count=k - c))
+            c = k
+        return rows
 
     def row(self, it: _Item, reg_of: dict) -> Row:
         tb = self.put_table(it.table[0]) + it.table[1] if it.table is not None else 0
