@@ -194,6 +194,16 @@ def _dot_nest(distance: int) -> LoopNest:
                     [Store("Y", Addr("dest", (1,)), "s", Cond("table", "last"))])
 
 
+def assert_model_and_machine(prog, rp, mem, entry: str = "run") -> None:
+    """The instruction-level model and the machine in Amaranth's simulator run ``entry``
+    as run_sequence does, the machine in the program's cycles."""
+    ref = run_sequence(prog, mem, entry)
+    got, _ = RM.run_register_program(rp, mem, entry)
+    assert mismatches(prog, ref, got) == {}
+    (hw, cycles), = RM.simulate_register_machine(rp, mem, [entry])
+    assert mismatches(prog, ref, hw) == {} and cycles == rp.cycles(entry)
+
+
 def _dot_memories() -> dict:
     """The dot nest's words: mixed signs and magnitudes, products that overflow."""
     return {"A": np.float32([1.5, -2.0, 3.25, 1e20, -1e20, 7.0]),
@@ -228,11 +238,7 @@ def test_unrolled_copies_exact_and_faster():
     assert rp.blocks["dot"].trips == 3 and rp.blocks["dot"].step == 4
     assert len(rp.table) <= len(serial.table)  # the copies share the tables
     assert rp.cycles("run") < serial.cycles("run")
-    ref = run_sequence(prog, mem, "run")
-    got, _ = RM.run_register_program(rp, mem, "run")
-    assert mismatches(prog, ref, got) == {}
-    (hw, cycles), = RM.simulate_register_machine(rp, mem, ["run"])
-    assert mismatches(prog, ref, hw) == {} and cycles == rp.cycles("run")
+    assert_model_and_machine(prog, rp, mem)
     with pytest.raises(LoopError, match="divide"):
         RM.compile_program(prog, unroll={"dot": 5})
     with pytest.raises(LoopError, match="distance"):
@@ -534,11 +540,7 @@ def test_overlapped_dot_nest_prologue_epilogue_and_faster():
         == blk.cycles
     assert {r.back for r in blk.rows} == set(range(blk.stages))
     assert rp.cycles("run") < plain.cycles("run")
-    ref = run_sequence(prog, mem, "run")
-    got, _ = RM.run_register_program(rp, mem, "run")
-    assert mismatches(prog, ref, got) == {}
-    (hw, cycles), = RM.simulate_register_machine(rp, mem, ["run"])
-    assert mismatches(prog, ref, hw) == {} and cycles == rp.cycles("run")
+    assert_model_and_machine(prog, rp, mem)
     with pytest.raises(LoopError, match="overlap names unknown"):
         RM.compile_program(prog, overlap=["nope"])
 
