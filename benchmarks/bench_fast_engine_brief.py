@@ -8,7 +8,7 @@ programs when every unit result goes through a register file with P write ports;
 first the critical paths of the fp32 engine's programs with o extra cycles for every
 operation that waits on another.
 
-    python benchmarks/bench_fast_engine_brief.py [--lanes 3] [--json out.json]
+    python benchmarks/bench_fast_engine_brief.py [--lanes 3] [--synth] [--json out.json]
 
 Counted per entry over its segments' schedules (:func:`navgate.opflow.sequence.
 schedule_sequence`, ``registered``, every array readable by every lane): a value's life is
@@ -101,6 +101,152 @@ def traffic(schedules: list, window: int) -> dict:
     return worst
 
 
+def banks(schedules: list) -> dict:
+    """The register file the schedules would need with one bank per producer (each unit
+    instance, each memory read port: one write port each, so writes never conflict) and,
+    where the schedules keep lanes as clusters (``units.transfers``), one transfer bank per
+    lane for the values sent to it: per bank the most values live at once and the most
+    distinct values read in one cycle (a transfer reads its value's bank too), and per
+    operand point (unit instance and operand, a store's data, a lane's transfer input) the
+    banks it reads. A read in the cycle the value lands takes it from the unit or the bus (a
+    bypass) and reads no bank. Values as :func:`lives` (a sign flip is its source); nests
+    folded modulo II."""
+    live_most: collections.Counter = collections.Counter()
+    read_most: collections.Counter = collections.Counter()
+    point_banks: dict = collections.defaultdict(set)
+    bank_points: dict = collections.defaultdict(set)
+    reads = bypassed = 0
+    for sch in schedules:
+        nest = sch.nest
+        lanes = sch.units.lanes if sch.units.transfers else 0
+        period = sch.ii if nest.iterations > 1 else sch.depth + 1
+        alias = {op.dst: op.srcs[0] for op in nest.ops if op.kind == "neg"}
+
+        def root(v, alias=alias):
+            while v in alias:
+                v = alias[v]
+            return v
+
+        bank = {}
+        for op in nest.ops:
+            if op.kind != "neg":
+                res, inst = sch.resource[op.dst]
+                bank[op.dst] = ("load" if res[0] == "read" else res[0],
+                                inst % lanes if lanes and res[0] == "read" else inst)
+
+        def lane_of(b):
+            return b[1] if b[0] in ("mul", "add", "load", "xfer") else 0
+
+        accs = {a.name: a for a in nest.accs}
+        uses = []  # (value, transfer key, read offset, operand point, its lane or None)
+        for op in nest.ops:
+            if op.kind in ("neg", "load"):
+                continue
+            res, inst = sch.resource[op.dst]
+            lane = inst if res[0] in ("mul", "add") else 0
+            for pos, x in enumerate(map(root, op.srcs)):
+                point = (res[0], inst, pos)
+                if x in accs:
+                    a = accs[x]
+                    if nest.iterations > 1:
+                        uses.append((root(a.update), a.name,
+                                     sch.time[op.dst] + a.distance * sch.ii, point, lane))
+                    if not a.init.startswith("c:"):
+                        uses.append((root(a.init), root(a.init), sch.time[op.dst], point,
+                                     lane))
+                elif not x.startswith("c:"):
+                    uses.append((x, x, sch.time[op.dst], point, lane))
+        for k, st in enumerate(nest.stores):
+            uses.append((root(st.src), None, sch.time[("store", k)], ("store", 0, 0), None))
+        copies = []  # (bank, value, ready, read offset, operand point)
+        for v, key, t, point, lane in uses:
+            home = bank[v]
+            if lanes and lane is not None and lane != lane_of(home):
+                x = sch.transfers[(key, lane)]
+                copies.append((("xfer", lane), v, x + 1, t, point))
+                copies.append((home, v, sch.ready[v], x, ("bus", lane, 0)))
+            else:
+                copies.append((home, v, sch.ready[v], t, point))
+        live, rd = collections.defaultdict(collections.Counter), collections.defaultdict(
+            lambda: collections.defaultdict(set))
+        last: dict = {}
+        for b, v, r, t, point in copies:
+            reads += nest.iterations
+            if t == r:
+                bypassed += nest.iterations
+                continue
+            point_banks[point].add(b)
+            bank_points[b].add(point)
+            rd[b][t % period].add(v)
+            last[(b, v)] = (r, max(last.get((b, v), (r, t))[1], t))
+        for (b, _), (r, t) in last.items():
+            for c in range(r, t):
+                live[b][c % period] += 1
+        for b, c in live.items():
+            live_most[b] = max(live_most[b], max(c.values()))
+        for b, c in rd.items():
+            read_most[b] = max(read_most[b], max(len(x) for x in c.values()))
+    return {"banks": {f"{b[0]}{b[1]}": {"live": live_most[b], "reads": read_most[b],
+                                        "points": len(bank_points[b])}
+                      for b in sorted(set(live_most) | set(read_most))},
+            "points": {f"{p[0]}{p[1]}.{p[2]}": len(b) for p, b in sorted(point_banks.items())},
+            "reads": reads, "bypassed": bypassed}
+
+
+def bank_cost(depth: int, reads: int) -> dict:
+    """LUT RAM of one bank of ``depth`` 32-bit words, one write port and ``reads``
+    combinational read ports (outputs registered), as Yosys ``synth_xilinx`` maps Amaranth
+    memories of that shape (pieces of at most 64 words and a multiplexer per read port):
+    cells and LUT sites (4 a RAM32M or RAM64M)."""
+    from amaranth.back import verilog
+    from amaranth.hdl import Array, Module
+    from amaranth.lib import wiring
+    from amaranth.lib.memory import Memory
+    from amaranth.lib.wiring import In, Out
+
+    from navgate.hw.synth import xc7_summary
+
+    bits = max(1, (depth - 1).bit_length())
+
+    class Bank(wiring.Component):
+        def __init__(self):
+            sig = {"we": In(1), "waddr": In(bits), "wdata": In(32)}
+            for r in range(reads):
+                sig[f"raddr{r}"] = In(bits)
+                sig[f"rdata{r}"] = Out(32)
+            super().__init__(sig)
+
+        def elaborate(self, platform):
+            m = Module()
+            # pieces of at most 64 words (Yosys would put a deeper memory with registered
+            # reads in block RAM), the read port's word chosen by its upper address bits
+            pieces = max(1, depth // 64)
+            low = bits - (pieces - 1).bit_length()
+            data = [[] for _ in range(reads)]
+            for k in range(pieces):
+                mem = Memory(shape=32, depth=depth // pieces, init=[])
+                m.submodules[f"mem{k}"] = mem
+                w = mem.write_port()
+                m.d.comb += [w.en.eq(self.we & (self.waddr[low:] == k) if pieces > 1
+                                     else self.we),
+                             w.addr.eq(self.waddr[:low]), w.data.eq(self.wdata)]
+                for r in range(reads):
+                    p = mem.read_port(domain="comb")
+                    m.d.comb += p.addr.eq(getattr(self, f"raddr{r}")[:low])
+                    data[r].append(p.data)
+            for r in range(reads):
+                addr = getattr(self, f"raddr{r}")
+                m.d.sync += getattr(self, f"rdata{r}").eq(
+                    Array(data[r])[addr[low:]] if pieces > 1 else data[r][0])
+            return m
+
+    row = xc7_summary(verilog.convert(Bank(), name="bank", emit_src=False), "bank")
+    cells = row["memory_cells"]
+    return {"lut": row["lut"], "cells": cells,
+            "lut_ram": 4 * sum(v for k, v in cells.items() if k in ("RAM32M", "RAM64M")),
+            "other_ram": {k: v for k, v in cells.items() if k not in ("RAM32M", "RAM64M")}}
+
+
 def critical_paths(overheads=(0, 1, 2, 3)) -> dict:
     """entry -> (operations, {o: the critical path with ``o`` extra cycles for every
     operation that waits on another}) of the fp32 engine's programs (the updates' gate and
@@ -133,6 +279,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--lanes", type=int, default=3)
     ap.add_argument("--json", default="bench_fast_engine_brief.json")
+    ap.add_argument("--synth", action="store_true",
+                    help="synthesise the register-file banks the schedules need (minutes)")
     args = ap.parse_args()
     summary: dict = {"lanes": args.lanes, "entries": {}}
     print("critical paths of the fp32 engine's programs, o extra cycles a dependent operation:")
@@ -196,6 +344,68 @@ def main() -> None:
             got[entry] = sched.cycles(entry)
         summary["result_ports"][str(ports)] = got
         print(f"{ports if ports else 'any':>3} " + " ".join(f"{got[e]:10d}" for e in ENTRIES))
+    # lanes as clusters (each lane reads what it made; transfers between lanes), and the
+    # ops moved as late as their reads allow: the cycles
+    print("\nlanes as clusters, T transfers into a lane a cycle (one cycle long); the "
+          "propagation's chained sums over 27 (the default) or 30 tracks; ops as placed or "
+          "as late as their reads allow (cycles):")
+    print(f"{'T':>2s} {'tracks':>6s} {'late':>5s} " + " ".join(f"{e:>10s}" for e in ENTRIES))
+    summary["clusters"] = []
+    progs30 = L.to_sequence(L.loop_programs(args.lanes, "fused", tracks=30))[0]
+    for transfers, tracks, late in ((1, 27, ""), (2, 27, ""), (1, 30, ""), (2, 30, ""),
+                                    (1, 30, "all")):
+        got = {}
+        for entry, variant in ENTRIES.items():
+            prog = progs30 if entry == "propagate" and tracks == 30 else cache[variant][0]
+            sched = schedule_sequence(prog, args.lanes, read_ports=max(2, args.lanes),
+                                      transfers=transfers, late=late)
+            got[entry] = sched.cycles(entry)
+        summary["clusters"].append({"transfers": transfers, "tracks": tracks,
+                                    "late": late or "no", **got})
+        print(f"{transfers:2d} {tracks:6d} {late or 'no':>5s} "
+              + " ".join(f"{got[e]:10d}" for e in ENTRIES))
+    # the register file those schedules need, one bank per producer (no write conflicts)
+    designs = {"lane machine": {}, "clusters": {"transfers": 1, "late": "all"}}
+    summary["banks"] = {}
+    shapes: dict = {}
+    for design, opts in designs.items():
+        print(f"\n{design}{' (T = 1, 30 tracks, ops late)' if opts else ''}: one register-"
+              "file bank per producer (unit instance, read port; a lane's transfers): "
+              "most values live / most distinct values read a cycle / operand points reading "
+              "it; the most banks a point reads:")
+        summary["banks"][design] = {}
+        for entry, variant in ENTRIES.items():
+            prog = progs30 if entry == "propagate" and opts else cache[variant][0]
+            sched = (schedule_sequence(prog, args.lanes, read_ports=max(2, args.lanes), **opts)
+                     if opts else cache[variant][1])
+            b = banks([sched.schedules[n] for n in prog.entries[entry]])
+            summary["banks"][design][entry] = b
+            print(f"  {entry}: {b['reads']} reads, {b['bypassed']} in the cycle the value "
+                  f"lands (a bypass); a point reads at most {max(b['points'].values())} banks")
+            print("    " + "  ".join(f"{k} {v['live']}/{v['reads']}/{v['points']}"
+                                     for k, v in b["banks"].items()))
+            for k, v in b["banks"].items():
+                shape = (max(32, 1 << max(0, v["live"] - 1).bit_length()), max(1, v["reads"]))
+                old = shapes.setdefault(design, {}).get(k, (0, 0))
+                shapes[design][k] = (max(old[0], shape[0]), max(old[1], shape[1]))
+    if args.synth:
+        costs: dict = {}
+        summary["bank_lut_sites"] = {}
+        for design, banked in shapes.items():
+            print(f"\n{design}: those banks in LUT RAM (depth: the most live over the "
+                  "entries, to a power of two >= 32; read ports: the most reads), Yosys "
+                  "synth_xilinx:")
+            total = 0
+            for k, (depth, reads) in sorted(banked.items()):
+                if (depth, reads) not in costs:
+                    costs[(depth, reads)] = bank_cost(depth, reads)
+                c = costs[(depth, reads)]
+                total += c["lut_ram"] + c["lut"]
+                print(f"  {k:6s} {depth:4d} x 32, {reads} read ports: {c['lut_ram']:4d} LUT as "
+                      f"RAM + {c['lut']:3d} LUT {c['cells']}")
+            print(f"  all banks: {total} LUT sites (the operand multiplexers not counted)")
+            summary["bank_lut_sites"][design] = total
+        summary["bank_costs"] = {f"{d}x{r}": c for (d, r), c in costs.items()}
     Path(args.json).write_text(json.dumps(summary, indent=1))
     print(f"\nwrote {args.json}")
 

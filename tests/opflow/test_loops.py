@@ -13,6 +13,7 @@ from navgate.opflow import loop_kernels as K
 from navgate.opflow.execute import run_bittrue
 from navgate.opflow.ir import const_name
 from navgate.opflow.loops import (
+    TRANSFER_LATENCY,
     Acc,
     Addr,
     Cond,
@@ -22,6 +23,7 @@ from navgate.opflow.loops import (
     LOp,
     Store,
     check_nest,
+    lane_plan,
     modulo_schedule,
     run_nest,
     unroll,
@@ -90,7 +92,10 @@ def _check_schedule(s):
     nest, ii = s.nest, s.ii
     accs = nest.acc_names()
     seen = set()
-    for key, (res, inst) in s.resource.items():
+    for key, got in s.resource.items():
+        if got is None:  # a sign flip: no unit
+            continue
+        res, inst = got
         slot = (res, inst, s.time[key] % ii)
         assert slot not in seen, slot
         seen.add(slot)
@@ -233,3 +238,167 @@ def test_result_ports_limit_the_results_landing_in_a_cycle(loop_data):
     one = modulo_schedule(seg, LoopUnits(mul=3, add=3, read_ports=3, result_ports=1))
     lands = [one.ready[op.dst] for op in seg.ops if op.kind not in ("load", "neg")]
     assert len(lands) == len(set(lands)) and one.cycles > free.cycles
+
+
+def _check_lanes(s):
+    """The rules of lanes as clusters (``LoopUnits.transfers``): every op on an instance of
+    its planned lane; every operand made in another lane sent there by a transfer that
+    issues once the value is ready and lands by the read (an accumulator's update by the
+    read ``distance`` iterations on); at most ``transfers`` transfers into a lane a cycle
+    (modulo II)."""
+    nest, ii, units = s.nest, s.ii, s.units
+    plan = lane_plan(nest, units)
+    alias = {op.dst: op.srcs[0] for op in nest.ops if op.kind == "neg"}
+
+    def root(x):
+        while x in alias:
+            x = alias[x]
+        return x
+
+    accs = nest.acc_names()
+    for op in nest.ops:
+        if op.kind == "neg":
+            continue
+        res, inst = s.resource[op.dst]
+        assert inst % units.lanes == plan[op.dst], op
+        if op.kind == "load":
+            continue
+        for x in op.srcs:
+            if x.startswith("c:"):
+                continue
+            reads = []
+            if x in accs:
+                a = accs[x]
+                if not a.init.startswith("c:"):
+                    reads.append((root(a.init), root(a.init), s.time[op.dst]))
+                if nest.iterations > 1:
+                    reads.append((root(a.update), a.name, s.time[op.dst] + a.distance * ii))
+            else:
+                reads.append((root(x), root(x), s.time[op.dst]))
+            for v, key, t in reads:
+                if plan[v] == plan[op.dst]:
+                    continue
+                sent = s.transfers[(key, plan[op.dst])]
+                assert s.ready[v] <= sent and sent + TRANSFER_LATENCY <= t, (op, v)
+    into: dict = {}
+    for (_, lane), t in s.transfers.items():
+        into[(lane, t % ii)] = into.get((lane, t % ii), 0) + 1
+    assert max(into.values(), default=0) <= units.transfers
+
+
+def test_lanes_as_clusters_send_every_operand_of_another_lane(loop_data):
+    """The what-if of the fast engine's brief (``LoopUnits.transfers``): each lane reads the
+    values it made; one of another lane crosses on a transfer one cycle long, at most
+    ``transfers`` into a lane a cycle. Seed 000's chained sums (three products a term, the
+    adds chained across the lanes) need their interleave to cover the three transfers: over
+    27 sums (the adder's 9 cycles x 3) the recurrence bound becomes 2, over 30 it stays 1."""
+    from navgate.systems.ins_trn.pl import loop_programs as LP
+
+    units = LoopUnits(mul=3, add=3, read_ports=3, load_latency=2, operand_stage=1)
+    clustered = LoopUnits(mul=3, add=3, read_ports=3, load_latency=2, operand_stage=1,
+                          transfers=1)
+    for tracks, free_ii, lanes_ii in ((None, 1, 2), (30, 1, 1)):
+        prog, _ = LP.to_sequence(LP.loop_programs(3, "fused", tracks=tracks))
+        nest = prog.segments["cov_M"]
+        assert nest.accs[0].distance == (tracks or 27)
+        assert modulo_schedule(nest, units).ii == free_ii
+        s = modulo_schedule(nest, clustered)
+        assert (s.ii, s.rec_mii) == (lanes_ii, lanes_ii)
+        _check_schedule(s)
+        _check_lanes(s)
+        # the adds chain across the three lanes: s0 -> s1 -> s2 -> the next term's s0
+        assert len(s.transfers) == 3
+    # the straight lines of an update and the kernels, one and two transfers a lane
+    prog, _ = LP.to_sequence(LP.loop_programs(3, "plain"))
+    nests = [prog.segments["alt_corr"]] + kernels(loop_data.rows, loop_data.cols)
+    for nest in nests:
+        for transfers in (1, 2):
+            s = modulo_schedule(nest, LoopUnits(mul=3, add=3, read_ports=3,
+                                                transfers=transfers))
+            _check_schedule(s)
+            _check_lanes(s)
+    s = modulo_schedule(prog.segments["alt_corr"], clustered)
+    assert s.transfers and s.cycles > modulo_schedule(prog.segments["alt_corr"], units).cycles
+    with pytest.raises(LoopError, match="as many multipliers"):
+        modulo_schedule(K.dense_matvec(3, 5), LoopUnits(mul=1, add=2, transfers=1))
+
+
+@pytest.mark.parametrize("late", ["loads", "all"])
+def test_late_ops_keep_the_cycles_and_shorten_the_lives(loop_data, late):
+    """``LoopUnits.late``: the loads (or every op) move as late as their values' reads, the
+    stores of a load's array and their units allow; stores and transfers stay, so the cycles
+    and every rule of the schedule hold; each moved op is as late as it can be (one cycle
+    later breaks a read, a store's order or its unit's slot)."""
+    from navgate.systems.ins_trn.pl import loop_programs as LP
+
+    prog, _ = LP.to_sequence(LP.loop_programs(3, "fused", tracks=30))
+    nests = [prog.segments[n] for n in ("prop_head", "cov_M", "prop_tail")]
+    nests += kernels(loop_data.rows, loop_data.cols)
+    moved = 0
+
+    def reads_of(s):
+        """value -> the offsets at which it is read (its readers, through sign flips and
+        accumulators, its stores and its transfers)."""
+        alias = {op.dst: op.srcs[0] for op in s.nest.ops if op.kind == "neg"}
+        accs = s.nest.acc_names()
+
+        def root(x):
+            while x in alias:
+                x = alias[x]
+            return x
+
+        out: dict = {}
+        for op in s.nest.ops:
+            if op.kind in ("load", "neg"):
+                continue
+            for x in op.srcs:
+                if x in accs:
+                    a = accs[x]
+                    out.setdefault(root(a.init), []).append(s.time[op.dst])
+                    if s.nest.iterations > 1:
+                        out.setdefault(root(a.update), []).append(
+                            s.time[op.dst] + a.distance * s.ii)
+                else:
+                    out.setdefault(root(x), []).append(s.time[op.dst])
+        for k, st in enumerate(s.nest.stores):
+            out.setdefault(root(st.src), []).append(s.time[("store", k)])
+        for (v, _), t in s.transfers.items():
+            out.setdefault(root(accs[v].update) if v in accs else v, []).append(t)
+        return out
+
+    for nest in nests:
+        for transfers in (0, 1):
+            base = dict(mul=3, add=3, read_ports=3, load_latency=2, operand_stage=1,
+                        transfers=transfers)
+            early = modulo_schedule(nest, LoopUnits(**base))
+            s = modulo_schedule(nest, LoopUnits(**base, late=late))
+            assert (s.ii, s.cycles, s.transfers) == (early.ii, early.cycles, early.transfers)
+            _check_schedule(s)
+            if transfers:
+                _check_lanes(s)
+            reads_at = reads_of(s)
+            taken = {(s.resource[o.dst], (s.time[o.dst] + j) % s.ii)
+                     for o in nest.ops if o.kind != "neg"
+                     for j in range(s.units.occupancy(o.kind))}
+            for op in nest.ops:
+                if op.kind == "neg" or (late == "loads" and op.kind != "load"):
+                    if op.kind != "neg":
+                        assert s.time[op.dst] == early.time[op.dst]
+                    continue
+                assert s.time[op.dst] >= early.time[op.dst]
+                moved += s.time[op.dst] - early.time[op.dst]
+                stores = [s.time[("store", k)] for k, st in enumerate(nest.stores)
+                          if op.kind == "load" and st.array == op.srcs[0]
+                          and not (st.addr.table is None and op.addr.table is None
+                                   and not any(st.addr.strides) and not any(op.addr.strides)
+                                   and st.addr.offset != op.addr.offset)]
+                assert all(s.time[op.dst] < t for t in stores)
+                t = s.time[op.dst] + 1
+                occ = s.units.occupancy(op.kind)
+                mine = {(s.resource[op.dst], (s.time[op.dst] + j) % s.ii) for j in range(occ)}
+                reads = reads_at.get(op.dst, [])
+                assert (not reads or any(t + s.units.latency(op.kind) > r for r in reads)
+                        or any(t >= u for u in stores)
+                        or any((s.resource[op.dst], (t + j) % s.ii) in taken - mine
+                               for j in range(occ))), (nest.name, op)
+    assert moved > 0  # the mechanization's words and products made early and read late

@@ -73,6 +73,12 @@ and a load the stores of its array that wait for it; stores then take their arra
 port in the order their words are ready. Of that schedule and the greedy topological
 placement the shorter is kept (the critical path has won on every client segment measured so
 far; the clients' documents give the figures).
+
+What-ifs of the fast engine's brief (docs/opflow-register-machine.md section 7; no machine
+here runs them): :attr:`LoopUnits.result_ports` (unit results landing per cycle),
+:attr:`LoopUnits.transfers` (lanes as clusters: an op reads what its lane made, a value of
+another lane crosses on a transfer, the lanes planned by :func:`lane_plan`) and
+:attr:`LoopUnits.late` (ops moved as late as their values' reads allow, the cycles kept).
 """
 
 from __future__ import annotations
@@ -90,7 +96,8 @@ from navgate.opflow.ir import Op, Program, const_value
 
 __all__ = ["Addr", "Cond", "LOp", "Acc", "Store", "LoopNest", "LoopError", "check_nest",
            "iteration_indices", "addresses", "flags", "run_nest", "unroll", "LoopUnits",
-           "LoopSchedule", "modulo_schedule", "ADDR_READY", "LOAD_LATENCY", "LOOP_KINDS",
+           "LoopSchedule", "modulo_schedule", "lane_plan", "ADDR_READY", "LOAD_LATENCY",
+           "TRANSFER_LATENCY", "LOOP_KINDS",
            "UNARY", "UNIT_OF"]
 
 LOOP_KINDS = ("load", "add", "sub", "mul", "div", "sqrt", "neg", "lt", "le")
@@ -103,6 +110,9 @@ UNIT_OF = {"load": "read", "add": "add", "sub": "add", "mul": "mul", "div": "div
 ADDR_READY = 1
 #: a load's word is ready one cycle after its address is presented (synchronous read)
 LOAD_LATENCY = 1
+#: a value sent to another lane (:attr:`LoopUnits.transfers`) is readable there this many
+#: cycles after its transfer issues
+TRANSFER_LATENCY = 1
 
 
 class LoopError(ValueError):
@@ -472,6 +482,23 @@ class LoopUnits:
     #: unit results that may land in one cycle (a register file's write ports; 0: no
     #: limit, as the lane machines' delay lines): a what-if of the fast engine's brief
     result_ports: int = 0
+    #: lanes as clusters, a what-if of the fast engine's brief (0: none, every unit reads
+    #: every value): lane ``i`` holds mul and add ``i`` and read port ``i`` of every array
+    #: (``i`` modulo the lanes), lane 0 the divider, the square root and the comparator; an
+    #: op reads the values its own lane made (and constants, and the stores read any lane);
+    #: a value of another lane crosses first: each lane takes at most ``transfers`` values
+    #: a cycle from the others (the write ports of its transfer bank), each ready there the
+    #: cycle after (:data:`TRANSFER_LATENCY`); which lane runs an op is chosen before
+    #: placement (:func:`lane_plan`)
+    transfers: int = 0
+    #: a what-if too: after placement the loads (``"loads"``) or every op (``"all"``) move
+    #: as late as their values' reads, the stores of a load's array and their units allow
+    #: (:func:`_late`): the same cycles, shorter lives ("" or False: as placed)
+    late: str = ""
+
+    @property
+    def lanes(self) -> int:
+        return max(self.mul, self.add)
 
     def latency(self, kind: str) -> int:
         if kind == "load":
@@ -499,6 +526,10 @@ class LoopSchedule:
     resource: dict  #: op dst / ("store", k) -> (resource, instance)
     ready: dict  #: op dst -> offset its value is ready
     depth: int  #: offset after an iteration's last store or result
+    #: with ``units.transfers``: (value, lane) -> the offset its transfer to ``lane`` issues
+    #: (ready there one cycle later); an accumulator's update read in the next iteration is
+    #: keyed by the accumulator's name
+    transfers: dict = field(default_factory=dict)
 
     @property
     def cycles(self) -> int:
@@ -546,30 +577,235 @@ def modulo_schedule(nest: LoopNest, units: LoopUnits = LoopUnits(),
     limit = max_ii or sum(units.latency(op.kind) + units.occupancy(op.kind)
                           for op in nest.ops) + len(nest.stores) + 8
     if nest.iterations == 1:  # straight line: one placement without wrap-around, II = depth
-        time, resource, ready, depth = min(_list_place(nest, units, accs),
-                                           _place(nest, units, limit + 1, accs),
-                                           key=lambda got: got[3])
-        return LoopSchedule(nest, units, depth, res_mii, rec_mii, time, resource, ready, depth)
+        got = [g for g in (_list_place(nest, units, accs), _place(nest, units, 2 * limit, accs))
+               if g is not None]
+        time, resource, ready, depth, sent = min(got, key=lambda g: g[3])
+        if units.late:
+            _late(nest, units, None, time, resource, ready, sent, units.late == "loads")
+        return LoopSchedule(nest, units, depth, res_mii, rec_mii, time, resource, ready, depth,
+                            sent)
     for ii in range(start, limit + 1):
         got = _place(nest, units, ii, accs)
         if got is None:
             continue
-        time, resource, ready, depth = got
-        return LoopSchedule(nest, units, ii, res_mii, rec_mii, time, resource, ready, depth)
+        time, resource, ready, depth, sent = got
+        if units.late:
+            _late(nest, units, ii, time, resource, ready, sent, units.late == "loads")
+        return LoopSchedule(nest, units, ii, res_mii, rec_mii, time, resource, ready, depth,
+                            sent)
     raise LoopError(f"{nest.name}: no schedule with II <= {limit}")
+
+
+def _apart(a: Addr, b: Addr) -> bool:
+    """Two addresses that are the same in every iteration and differ (a load need not
+    precede a store of its array to another word)."""
+    return (a.table is None and b.table is None and not any(a.strides) and not any(b.strides)
+            and a.offset != b.offset)
+
+
+def _late(nest, units, ii, time, resource, ready, sent, loads_only):
+    """Move ops (last first, the loads alone when ``loads_only``) to the latest cycle at
+    which their value is still ready for every read of it (its readers, an accumulator's
+    reads of it, its stores, its transfers), a load one cycle before every store to its
+    array that may write its word (any store of the array but one to another constant
+    address), on the op's own unit instance free then for its occupancy (modulo ``ii``;
+    None: a straight line); passes until nothing moves. Stores and transfers keep their
+    cycles, so the schedule keeps its cycles and its rules; the values' lives shrink where
+    an op made its value early. In place."""
+    alias = {op.dst: op.srcs[0] for op in nest.ops if op.kind == "neg"}
+
+    def root(x):
+        while x in alias:
+            x = alias[x]
+        return x
+
+    period = ii or 1 << 30
+    movable = [op for op in reversed(nest.ops) if op.kind == "load" or (
+        not loads_only and op.kind != "neg" and not units.result_ports)]
+    busy = {(resource[op.dst][0], resource[op.dst][1], (time[op.dst] + j) % period)
+            for op in nest.ops if op.kind != "neg" for j in range(units.occupancy(op.kind))}
+    accs = nest.acc_names()
+    sites: dict = {}  # value -> (key in time or None, offset added): where it is read
+
+    def read(x, key, extra=0):
+        sites.setdefault(root(x), []).append((key, extra))
+
+    for op in nest.ops:
+        if op.kind in ("load", "neg"):
+            continue
+        for x in op.srcs:
+            if x in accs:
+                a = accs[x]
+                if not a.init.startswith("c:"):
+                    read(a.init, op.dst)
+                if ii is not None:
+                    read(a.update, op.dst, a.distance * ii)
+            elif not x.startswith("c:"):
+                read(x, op.dst)
+    for k, st in enumerate(nest.stores):
+        read(st.src, ("store", k))
+    for (key, _), t in sent.items():
+        read(accs[key].update if key in accs else key, None, t)
+
+    moved = True
+    while moved:  # until nothing moves (a slot or a reader a later op left frees an earlier)
+        moved = False
+        for op in movable:
+            if op.dst not in sites:
+                continue
+            deadline = min((time[key] if key is not None else 0) + extra
+                           for key, extra in sites[op.dst])
+            latency, occ = units.latency(op.kind), units.occupancy(op.kind)
+            res, inst = resource[op.dst]
+            last = max(time[op.dst], deadline - latency)
+            if op.kind == "load":
+                for k, st in enumerate(nest.stores):
+                    if st.array == op.srcs[0] and not _apart(op.addr, st.addr):
+                        last = min(last, time[("store", k)] - 1)
+            mine = {(res, inst, (time[op.dst] + j) % period) for j in range(occ)}
+            busy -= mine
+            t = next(t for t in range(last, time[op.dst] - 1, -1) if t == time[op.dst] or not (
+                {(res, inst, (t + j) % period) for j in range(occ)} & busy))
+            busy |= {(res, inst, (t + j) % period) for j in range(occ)}
+            moved |= t != time[op.dst]
+            time[op.dst], ready[op.dst] = t, t + latency
+    for o in nest.ops:  # a sign flip's value is its source's
+        if o.kind == "neg":
+            time[o.dst] = ready[o.dst] = ready[o.srcs[0]]
+
+
+def lane_plan(nest: LoopNest, units: LoopUnits) -> dict:
+    """The lane of every op for :attr:`LoopUnits.transfers` (op dst -> lane; a sign flip
+    takes its source's). Ops in program order, each to the lane that made most of its
+    operands (the fewest transfers; an accumulator counts as its init), ties to the lane
+    with the fewest ops of its unit so far, then the lowest; the divider's, the square
+    root's and the comparator's ops to lane 0. Then each load to the lane of most of its
+    readers (ties: the fewest loads so far, then the lowest)."""
+    lanes = units.lanes
+    if units.mul != lanes or units.add != lanes or units.read_ports < lanes:
+        raise LoopError(f"{nest.name}: lanes as clusters need as many multipliers, adders and "
+                        f"at least as many read ports as lanes ({units})")
+    accs = nest.acc_names()
+    alias = {op.dst: op.srcs[0] for op in nest.ops if op.kind == "neg"}
+
+    def root(x):
+        while x in alias:
+            x = alias[x]
+        if x in accs:
+            x = accs[x].init
+        return None if x.startswith("c:") else x
+
+    lane: dict = {}
+    count: dict = {}
+    readers: dict = {}  # load -> lane -> readers
+    for op in nest.ops:
+        if op.kind in ("load", "neg"):
+            continue
+        unit = UNIT_OF[op.kind]
+        srcs = [x for x in map(root, op.srcs) if x is not None]
+        if unit in ("mul", "add"):
+            made = [lane.get(x) for x in srcs]
+            choice = min(range(lanes), key=lambda k: (
+                sum(m is not None and m != k for m in made), count.get((unit, k), 0), k))
+        else:
+            choice = 0
+        lane[op.dst] = choice
+        count[(unit, choice)] = count.get((unit, choice), 0) + 1
+        for x in srcs:
+            if x not in lane:  # a load, planned below
+                readers.setdefault(x, {})
+                readers[x][choice] = readers[x].get(choice, 0) + 1
+    for op in nest.ops:
+        if op.kind == "load":
+            r = readers.get(op.dst, {})
+            choice = min(range(lanes), key=lambda k: (-r.get(k, 0), count.get(("load", k), 0),
+                                                      k))
+            lane[op.dst] = choice
+            count[("load", choice)] = count.get(("load", choice), 0) + 1
+    for op in nest.ops:
+        if op.kind == "neg":
+            x = op.srcs[0]
+            while x in alias:
+                x = alias[x]
+            if x in lane:
+                lane[op.dst] = lane[x]
+    return lane
+
+
+class _Lanes:
+    """The lane plan of a placement and its transfers (:attr:`LoopUnits.transfers` into
+    each lane a cycle, modulo ``ii``; ``ii`` None: no resource limits, a transfer costs only
+    its latency)."""
+
+    def __init__(self, nest, units, ii, busy):
+        self.units, self.ii, self.busy = units, ii, busy
+        self.plan = lane_plan(nest, units)
+        self.alias = {op.dst: op.srcs[0] for op in nest.ops if op.kind == "neg"}
+        self.accs = nest.acc_names()
+        self.sent: dict = {}  # (value, lane) -> transfer offset
+
+    def home(self, x):
+        while x in self.alias:
+            x = self.alias[x]
+        return self.plan[x]
+
+    def allowed(self, dst, count):
+        lane = self.plan[dst]
+        return [i for i in range(count) if i % self.units.lanes == lane]
+
+    def send(self, key, value_ready, lane, latest=None):
+        """Reserve a bus for ``key`` (a value, or an accumulator's name) to ``lane`` from
+        ``value_ready`` (until ``latest`` when given): the offset it is ready there, or
+        None when no bus is free."""
+        if (key, lane) in self.sent:
+            return self.sent[(key, lane)] + TRANSFER_LATENCY
+        last = value_ready + (self.ii - 1 if self.ii else 0)
+        if latest is not None:
+            last = min(last, latest)
+        for t in range(value_ready, last + 1):
+            if self.ii is None:
+                self.sent[(key, lane)] = t
+                return t + TRANSFER_LATENCY
+            bus = next((("bus", lane, b, t % self.ii) for b in range(self.units.transfers)
+                        if ("bus", lane, b, t % self.ii) not in self.busy), None)
+            if bus is not None:
+                self.busy.add(bus)
+                self.sent[(key, lane)] = t
+                return t + TRANSFER_LATENCY
+        return None
+
+    def operands(self, op, ready):
+        """(value, its ready offset) of every operand ``op`` reads from another lane."""
+        out = []
+        if op.kind == "load":
+            return out
+        for x in op.srcs:
+            if x.startswith("c:"):
+                continue
+            if x in self.accs:
+                x = self.accs[x].init
+                if x.startswith("c:"):
+                    continue
+            while x in self.alias:
+                x = self.alias[x]
+            if self.plan[x] != self.plan[op.dst]:
+                out.append((x, ready[x]))
+        return out
 
 
 def _place(nest, units, ii, accs):
     """Greedy placement at one II (None: unlimited resources); (time, resource, ready,
-    depth) or None when it does not fit."""
+    depth, transfers) or None when it does not fit."""
     time, resource, ready = {}, {}, {}
     busy: set = set()  # (resource, instance, cycle mod II)
+    lanes = _Lanes(nest, units, ii, busy) if units.transfers else None
 
-    def take(res, count, earliest, occ=1, land=None):
-        """The first cycle from ``earliest`` with an instance of ``res`` free for ``occ``
-        cycles (and, with ``land``, a result port free ``land`` cycles later)."""
+    def take(res, count, earliest, occ=1, land=None, insts=None):
+        """The first cycle from ``earliest`` with an instance of ``res`` (of ``insts``
+        when given) free for ``occ`` cycles (and, with ``land``, a result port free
+        ``land`` cycles later)."""
         if ii is None:
-            return earliest, 0
+            return earliest, (insts or [0])[0]
         if occ > ii:
             return None
         for t in range(earliest, earliest + ii):
@@ -578,7 +814,7 @@ def _place(nest, units, ii, accs):
                 port = _free_port(busy, units.result_ports, (t + land) % ii)
                 if port is None:
                     continue
-            for inst in range(count):
+            for inst in (range(count) if insts is None else insts):
                 cells = {(res, inst, (t + j) % ii) for j in range(occ)}
                 if not cells & busy:
                     busy.update(cells)
@@ -605,7 +841,15 @@ def _place(nest, units, ii, accs):
             continue
         res, count = _resource(op, units)
         land = units.latency(op.kind) if units.result_ports and op.kind != "load" else None
-        got = take(res, count, earliest, units.occupancy(op.kind), land)
+        insts = None
+        if lanes is not None:
+            insts = lanes.allowed(op.dst, count)
+            for x, r in lanes.operands(op, ready):
+                arrive = lanes.send(x, r, lanes.plan[op.dst])
+                if arrive is None:
+                    return None
+                earliest = max(earliest, arrive)
+        got = take(res, count, earliest, units.occupancy(op.kind), land, insts)
         if got is None:
             return None
         time[op.dst], inst = got
@@ -626,9 +870,19 @@ def _place(nest, units, ii, accs):
     if ii is not None:
         for a in nest.accs:
             for op in nest.ops:
-                if a.name in op.srcs and ready[a.update] - a.distance * ii > time[op.dst]:
+                if a.name not in op.srcs:
+                    continue
+                latest = time[op.dst] + a.distance * ii  # the update's read, next iteration
+                if lanes is not None and lanes.home(a.update) != lanes.plan[op.dst]:
+                    got = lanes.send(a.name, ready[a.update], lanes.plan[op.dst],
+                                     latest - TRANSFER_LATENCY)
+                    if got is None:
+                        return None
+                    if got > latest:  # sent already for another reader, too late for this
+                        return None
+                elif ready[a.update] > latest:
                     return None
-    return time, resource, ready, depth
+    return time, resource, ready, depth, (lanes.sent if lanes is not None else {})
 
 
 def _free_port(busy: set, ports: int, cycle: int):
@@ -696,6 +950,8 @@ def _list_place(nest, units, accs):
     earliest = [ADDR_READY] * len(ops)
     queue: list = []  # (earliest, -height, index) of ops whose sources are placed
     placed = 0
+    # transfers on absolute cycles (an II past any straight line's length)
+    lanes = _Lanes(nest, units, 1 << 30, busy) if units.transfers else None
 
     def release(k):
         """``k`` has every source placed: a neg is placed at once, others queued."""
@@ -707,6 +963,9 @@ def _list_place(nest, units, accs):
             placed += 1
             done(k)
         else:
+            if lanes is not None:  # operands of other lanes sent as soon as a bus is free
+                for x, r in lanes.operands(op, ready):
+                    earliest[k] = max(earliest[k], lanes.send(x, r, lanes.plan[op.dst]))
             heapq.heappush(queue, (earliest[k], -height[k], k))
 
     def done(k):
@@ -731,7 +990,8 @@ def _list_place(nest, units, accs):
             op = ops[k]
             res, count = _resource(op, units)
             occ = units.occupancy(op.kind)
-            inst = next((i for i in range(count) if not any(
+            insts = range(count) if lanes is None else lanes.allowed(op.dst, count)
+            inst = next((i for i in insts if not any(
                 (res, i, cycle + j) in busy for j in range(occ))), None)
             needs_port = units.result_ports and op.kind != "load"
             port = (_free_port(busy, units.result_ports, cycle + units.latency(op.kind))
@@ -768,4 +1028,4 @@ def _list_place(nest, units, accs):
         time[("store", k)] = t
         resource[("store", k)] = (("write", st.array), 0)
         depth = max(depth, t + 1)
-    return time, resource, ready, depth
+    return time, resource, ready, depth, (lanes.sent if lanes is not None else {})

@@ -172,20 +172,25 @@ class SequenceSchedule:
 
 
 def schedule_sequence(prog: SequenceProgram, lanes: int = 1, read_ports: int = 2,
-                      registered: bool = True, result_ports: int = 0) -> SequenceSchedule:
+                      registered: bool = True, result_ports: int = 0,
+                      transfers: int = 0, late: str = "") -> SequenceSchedule:
     """Modulo-schedule every segment on ``lanes`` multipliers and adders (module docstring);
     ``registered``: memory words registered after the read (load latency 2) and one register
     stage between the operand multiplexers and the units (every unit one cycle longer), which
     keep block-RAM outputs and multiplexers off the units' first stages. ``result_ports``
     (a what-if, not this machine's: its delay lines take every result): at most that many
     unit results land in a cycle, as a register file's write ports would allow (0: no
-    limit)."""
+    limit). ``transfers`` (a what-if too): the lanes as clusters with that many buses
+    between them (:attr:`~navgate.opflow.loops.LoopUnits.transfers`; 0: no clusters);
+    ``late`` (a what-if): ``"loads"`` or ``"all"`` ops as late as their reads allow
+    (:attr:`~navgate.opflow.loops.LoopUnits.late`)."""
     if type(lanes) is not int or not 1 <= lanes <= MAX_LANES:
         raise LoopError(f"lanes must be an integer from 1 to {MAX_LANES}, got {lanes!r}")
     check_sequence(prog)
     units = LoopUnits(mul=lanes, add=lanes, read_ports=read_ports,
                       load_latency=2 if registered else 1, operand_stage=int(registered),
-                      result_ports=result_ports)
+                      result_ports=result_ports, transfers=transfers,
+                      late=late)
     return SequenceSchedule(prog, lanes, units,
                             {n: modulo_schedule(nest, units) for n, nest in
                              prog.segments.items()})

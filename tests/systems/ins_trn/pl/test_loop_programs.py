@@ -31,11 +31,11 @@ def ref():
 _state = random_program_state
 
 
-def _compare(ref, key, state, inputs, lanes=L.DEFAULT_LANES, variant="fused"):
+def _compare(ref, key, state, inputs, lanes=L.DEFAULT_LANES, variant="fused", tracks=None):
     for n, v in state.items():
         ref.set(n, v)
     want_out = ref.run(key, **inputs)
-    got, out = L.run_program(L.loop_programs(lanes, variant)[key], state, inputs)
+    got, out = L.run_program(L.loop_programs(lanes, variant, tracks)[key], state, inputs)
     bad = [n for n in fp.STATE_REGS if float_to_bits(got[n]) != float_to_bits(ref.get(n))]
     assert not bad, f"{key}: {len(bad)} registers differ, first {bad[:4]}"
     assert set(want_out) <= set(out)
@@ -60,6 +60,15 @@ def test_bits_on_other_lane_counts_and_variants(ref, lanes, variant):
     for key in KEYS:
         for _ in range(4):
             _compare(ref, key, *_state(rng, key), lanes=lanes, variant=variant)
+
+
+def test_bits_with_more_tracks(ref):
+    """The propagation's chained sums over 30 tracks (the fast engine's brief: room for
+    three transfers between lanes in each sum's recurrence): the same bits."""
+    rng = np.random.default_rng(30)
+    for _ in range(4):
+        _compare(ref, "propagate", *_state(rng, "propagate"), tracks=30)
+    _compare(ref, "propagate", *_directed(rng, "propagate", "huge_tiny"), tracks=30)
 
 
 @pytest.mark.parametrize("variant", ["plain", "merged"])
