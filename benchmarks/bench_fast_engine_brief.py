@@ -109,13 +109,17 @@ def banks(schedules: list) -> dict:
     distinct values read in one cycle (a transfer reads its value's bank too), and per
     operand point (unit instance and operand, a store's data, a lane's transfer input) the
     banks it reads. A read in the cycle the value lands takes it from the unit or the bus (a
-    bypass) and reads no bank. Values as :func:`lives` (a sign flip is its source); nests
-    folded modulo II."""
+    bypass) and reads no bank. With clusters, also the writes a cycle into each lane's banks
+    taken as one (the values a bank holds: read after the cycle they land), the most and
+    the mean. Values as :func:`lives` (a sign flip is its source); nests folded modulo
+    II."""
     live_most: collections.Counter = collections.Counter()
     read_most: collections.Counter = collections.Counter()
     point_banks: dict = collections.defaultdict(set)
     bank_points: dict = collections.defaultdict(set)
-    reads = bypassed = 0
+    lane_most: collections.Counter = collections.Counter()
+    lane_total: collections.Counter = collections.Counter()
+    reads = bypassed = cycles = 0
     for sch in schedules:
         nest = sch.nest
         lanes = sch.units.lanes if sch.units.transfers else 0
@@ -179,9 +183,18 @@ def banks(schedules: list) -> dict:
             bank_points[b].add(point)
             rd[b][t % period].add(v)
             last[(b, v)] = (r, max(last.get((b, v), (r, t))[1], t))
+        lane_writes: collections.Counter = collections.Counter()
         for (b, _), (r, t) in last.items():
             for c in range(r, t):
                 live[b][c % period] += 1
+            if lanes:  # the banks of a lane as one: its writes a cycle (without the loaded
+                # words too, which could be read from memory again instead)
+                for with_loads in ((True,) if b[0] == "load" else (True, False)):
+                    lane_writes[(lane_of(b), with_loads, r % period)] += 1
+                    lane_total[(lane_of(b), with_loads)] += nest.iterations
+        for (lane, with_loads, _), n in lane_writes.items():
+            lane_most[(lane, with_loads)] = max(lane_most[(lane, with_loads)], n)
+        cycles += sch.cycles
         for b, c in live.items():
             live_most[b] = max(live_most[b], max(c.values()))
         for b, c in rd.items():
@@ -190,6 +203,9 @@ def banks(schedules: list) -> dict:
                                         "points": len(bank_points[b])}
                       for b in sorted(set(live_most) | set(read_most))},
             "points": {f"{p[0]}{p[1]}.{p[2]}": len(b) for p, b in sorted(point_banks.items())},
+            "lane_writes": {f"{k[0]}{' with loads' if k[1] else ''}": {
+                "most": lane_most[k], "mean": round(lane_total[k] / max(1, cycles), 2)}
+                for k in sorted(lane_most)},
             "reads": reads, "bypassed": bypassed}
 
 
@@ -384,6 +400,9 @@ def main() -> None:
                   f"lands (a bypass); a point reads at most {max(b['points'].values())} banks")
             print("    " + "  ".join(f"{k} {v['live']}/{v['reads']}/{v['points']}"
                                      for k, v in b["banks"].items()))
+            if b["lane_writes"]:
+                print("    writes a cycle into a lane's banks, most / mean: " + "  ".join(
+                    f"lane {k} {v['most']} / {v['mean']}" for k, v in b["lane_writes"].items()))
             for k, v in b["banks"].items():
                 shape = (max(32, 1 << max(0, v["live"] - 1).bit_length()), max(1, v["reads"]))
                 old = shapes.setdefault(design, {}).get(k, (0, 0))
