@@ -291,6 +291,23 @@ def critical_paths(overheads=(0, 1, 2, 3)) -> dict:
     return out
 
 
+def program_text(lanes: int) -> dict:
+    """variant -> (the operations and stores of its program text, every segment once;
+    {entry: cycles on the lane machine}): what an instruction store would hold against what
+    the text buys, for the variants of :func:`navgate.systems.ins_trn.pl.loop_programs.
+    loop_programs` (``plain``: nests for every vector part; ``fused``: long straight lines
+    around the propagation's nests and the Joseph nests; ``merged``: each update one
+    straight line)."""
+    out = {}
+    for variant in L.VARIANTS:
+        prog, _ = L.to_sequence(L.loop_programs(lanes, variant))
+        sched = schedule_sequence(prog, lanes, read_ports=max(2, lanes))
+        text = sum(len([o for o in nest.ops if o.kind != "neg"]) + len(nest.stores)
+                   for nest in prog.segments.values())
+        out[variant] = (text, {e: sched.cycles(e) for e in ENTRIES})
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--lanes", type=int, default=3)
@@ -306,6 +323,13 @@ def main() -> None:
         print(f"{name:10s} {ops:6d} " + " ".join(f"{paths[o]:6d}" for o in range(4)))
     summary["critical_paths"] = {k: {"ops": v[0], **{str(o): c for o, c in v[1].items()}}
                                  for k, v in cps.items()}
+    print("\nprogram text (operations and stores, every segment once) and the cycles it buys "
+          "on the lane machine:")
+    print(f"{'variant':8s} {'text':>6s} " + " ".join(f"{e:>10s}" for e in ENTRIES))
+    summary["program_text"] = {}
+    for variant, (text, cycles) in program_text(args.lanes).items():
+        summary["program_text"][variant] = {"text": text, **cycles}
+        print(f"{variant:8s} {text:6d} " + " ".join(f"{cycles[e]:10d}" for e in ENTRIES))
     print()
     cache: dict = {}
     bins = " ".join(f"{'<=' + str(b):>6s}" for b in LIFE_BINS)
