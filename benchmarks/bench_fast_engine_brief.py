@@ -308,6 +308,25 @@ def program_text(lanes: int) -> dict:
     return out
 
 
+def beside(lanes: int) -> dict:
+    """entry -> cycles of the ``plain`` update with its Joseph nest and its correction side
+    by side (:func:`navgate.opflow.loops.schedule_beside`), against one after the other."""
+    from navgate.opflow.loops import schedule_beside
+
+    prog, _ = L.to_sequence(L.loop_programs(lanes, "plain"))
+    sched = schedule_sequence(prog, lanes, read_ports=max(2, lanes))
+    out = {}
+    for entry, pre in (("alt_apply", "alt"), ("trn_apply", "trn")):
+        nest, line = prog.segments[f"{pre}_joseph"], prog.segments[f"{pre}_corr"]
+        looped, straight, both = schedule_beside(nest, line, sched.units)
+        before = sum(sched.schedules[n].cycles for n in prog.entries[entry]
+                     if n not in (nest.name, line.name))
+        out[entry] = {"nest": looped.cycles, "line_alone": sched.schedules[line.name].cycles,
+                      "line": straight.depth, "both": both, "plain": sched.cycles(entry),
+                      "entry": before + both + 1}
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--lanes", type=int, default=3)
@@ -330,6 +349,14 @@ def main() -> None:
     for variant, (text, cycles) in program_text(args.lanes).items():
         summary["program_text"][variant] = {"text": text, **cycles}
         print(f"{variant:8s} {text:6d} " + " ".join(f"{cycles[e]:10d}" for e in ENTRIES))
+    print("\nthe plain updates with the Joseph nest and the correction side by side "
+          "(schedule_beside: the correction in the slots the nest leaves):")
+    summary["beside"] = {}
+    for entry, got in beside(args.lanes).items():
+        summary["beside"][entry] = got
+        print(f"  {entry}: nest {got['nest']} + correction alone {got['line_alone']} -> "
+              f"beside {got['both']} (the correction {got['line']}); the entry "
+              f"{got['plain']} -> {got['entry']}")
     print()
     cache: dict = {}
     bins = " ".join(f"{'<=' + str(b):>6s}" for b in LIFE_BINS)

@@ -26,6 +26,7 @@ from navgate.opflow.loops import (
     lane_plan,
     modulo_schedule,
     run_nest,
+    schedule_beside,
     unroll,
 )
 
@@ -402,3 +403,35 @@ def test_late_ops_keep_the_cycles_and_shorten_the_lives(loop_data, late):
                         or any((s.resource[op.dst], (t + j) % s.ii) in taken - mine
                                for j in range(occ))), (nest.name, op)
     assert moved > 0  # the mechanization's words and products made early and read late
+
+
+def test_a_nest_beside_a_straight_line_takes_only_free_slots():
+    """``schedule_beside`` (a what-if of the fast engine's brief): the line's ops and
+    stores take no slot the nest's iterations hold, keep their rules, and the pair ends
+    when the later ends; arrays must be disjoint. The altitude update's Joseph nest keeps
+    every adder busy (II 1 on three lanes), so its correction stretches."""
+    from navgate.systems.ins_trn.pl import loop_programs as LP
+
+    prog, _ = LP.to_sequence(LP.loop_programs(3, "plain"))
+    units = LoopUnits(mul=3, add=3, read_ports=3, load_latency=2, operand_stage=1)
+    nest, line = prog.segments["alt_joseph"], prog.segments["alt_corr"]
+    looped, straight, cycles = schedule_beside(nest, line, units)
+    alone = modulo_schedule(line, units)
+    assert looped.ii == 1 and cycles == max(looped.cycles, straight.depth)
+    assert straight.depth > alone.depth
+    _check_schedule(straight)
+    kinds = {op.dst: op.kind for op in nest.ops}
+    held = {(got, k * looped.ii + looped.time[key] + j)
+            for key, got in looped.resource.items() if got is not None
+            for k in range(nest.iterations)
+            for j in range(units.occupancy(kinds.get(key, "store")))}
+    line_kinds = {op.dst: op.kind for op in line.ops}
+    for key, got in straight.resource.items():
+        if got is not None:
+            occ = units.occupancy(line_kinds.get(key, "store"))
+            assert all((got, straight.time[key] + j) not in held for j in range(occ)), key
+    with pytest.raises(LoopError, match="share arrays"):
+        schedule_beside(nest, LoopNest("x", (), {"P": 128},
+                                       ops=[LOp("a", "load", ("P",), Addr())]), units)
+    with pytest.raises(LoopError, match="a loop nest beside a straight line"):
+        schedule_beside(line, nest, units)

@@ -78,7 +78,8 @@ What-ifs of the fast engine's brief (docs/opflow-register-machine.md section 7; 
 here runs them): :attr:`LoopUnits.result_ports` (unit results landing per cycle),
 :attr:`LoopUnits.transfers` (lanes as clusters: an op reads what its lane made, a value of
 another lane crosses on a transfer, the lanes planned by :func:`lane_plan`) and
-:attr:`LoopUnits.late` (ops moved as late as their values' reads allow, the cycles kept).
+:attr:`LoopUnits.late` (ops moved as late as their values' reads allow, the cycles kept) and
+:func:`schedule_beside` (a straight line in the slots a loop nest leaves free).
 """
 
 from __future__ import annotations
@@ -96,9 +97,8 @@ from navgate.opflow.ir import Op, Program, const_value
 
 __all__ = ["Addr", "Cond", "LOp", "Acc", "Store", "LoopNest", "LoopError", "check_nest",
            "iteration_indices", "addresses", "flags", "run_nest", "unroll", "LoopUnits",
-           "LoopSchedule", "modulo_schedule", "lane_plan", "ADDR_READY", "LOAD_LATENCY",
-           "TRANSFER_LATENCY", "LOOP_KINDS",
-           "UNARY", "UNIT_OF"]
+           "LoopSchedule", "modulo_schedule", "lane_plan", "schedule_beside", "ADDR_READY",
+           "LOAD_LATENCY", "TRANSFER_LATENCY", "LOOP_KINDS", "UNARY", "UNIT_OF"]
 
 LOOP_KINDS = ("load", "add", "sub", "mul", "div", "sqrt", "neg", "lt", "le")
 #: kinds with one float source (the others but ``load`` take two)
@@ -908,7 +908,32 @@ def _sources(op, accs):
     return out
 
 
-def _list_place(nest, units, accs):
+def schedule_beside(nest: LoopNest, line: LoopNest, units: LoopUnits = LoopUnits()) -> tuple:
+    """A what-if of the fast engine's brief: the straight line ``line`` list-scheduled in
+    the slots the loop nest ``nest`` (modulo-scheduled first, from cycle 0) leaves free, as
+    a machine with a second sequencer would run them side by side. They must touch
+    disjoint arrays (:class:`LoopError` otherwise). Returns (the nest's schedule, the
+    line's schedule, the cycles of both: the later of their ends)."""
+    if nest.iterations == 1 or line.iterations != 1:
+        raise LoopError(f"{nest.name} beside {line.name}: a loop nest beside a straight line")
+    if units.transfers or units.result_ports:
+        raise LoopError("schedule_beside takes neither transfers nor result ports")
+    shared = set(nest.arrays) & set(line.arrays)
+    if shared:
+        raise LoopError(f"{nest.name} and {line.name} share arrays {sorted(shared)}")
+    looped = modulo_schedule(nest, units)
+    kinds = {op.dst: op.kind for op in nest.ops}
+    taken = {(got[0], got[1], k * looped.ii + looped.time[key] + j)
+             for key, got in looped.resource.items() if got is not None
+             for k in range(nest.iterations)
+             for j in range(units.occupancy(kinds[key]) if key in kinds else 1)}
+    time, resource, ready, depth, _ = _list_place(line, units, line.acc_names(), taken)
+    # (the line's bounds are not computed: ResMII and RecMII 1)
+    straight = LoopSchedule(line, units, depth, 1, 1, time, resource, ready, depth)
+    return looped, straight, max(looped.cycles, depth)
+
+
+def _list_place(nest, units, accs, taken=()):
     """A straight-line segment list-scheduled cycle by cycle with critical-path priority
     (the longest latency path from an op to the end of the segment first, ties in program
     order; as :mod:`navgate.opflow.schedule`), under the rules of :func:`_place`: units and
@@ -945,7 +970,7 @@ def _list_place(nest, units, accs):
             tail = max(tail, 1 + last_store[op.srcs[0]] - units.latency("load"))
         height[k] = units.latency(op.kind) + tail
     time, resource, ready = {}, {}, {}
-    busy: set = set()  # (resource, instance, cycle)
+    busy: set = set(taken)  # (resource, instance, cycle); ``taken``: another's slots
     waiting = [len(ps) for ps in preds]
     earliest = [ADDR_READY] * len(ops)
     queue: list = []  # (earliest, -height, index) of ops whose sources are placed
