@@ -119,6 +119,45 @@ def test_absent_service_means_ins_only_and_counted(scenario):
     assert all(f["reason"] == UNAVAILABLE for f in run_.fixes)
 
 
+def test_a_link_that_corrupts_every_frame_costs_fixes_not_the_flight(scenario):
+    """A service that is there but hears only corrupted frames never completes the hello:
+    like an absent one (and no longer an error that ended the flight), the flight goes on
+    INS-only after one timeout, counted (``absent_at_start``; the service counts the bad
+    frames)."""
+    pi = ServiceThread(scenario[0])
+    try:
+        faults = FaultInjector(seed=3, flip_rate=1.0)
+        started = time.monotonic()
+        with TrnLink(pi.spec, timeout_s=0.3, retries=0, faults=faults) as link:
+            opened = time.monotonic() - started
+            run_ = fly_over(scenario, link)
+            stats = link.stats()
+    finally:
+        pi.stop()
+    assert opened < 5.0  # one timeout (0.3 s) and the reads' granularity
+    assert stats["absent_at_start"] == 1 and pi.service.counters["bad_frames"] > 0
+    assert stats["replies"] == 0 and stats["unavailable"] == stats["requests"] > 5
+    assert not applied(run_) and np.all(np.isfinite(run_.nav))
+
+
+def test_a_spawned_service_that_never_says_hello_is_not_started_again(scenario, monkeypatch):
+    """``spawn`` over a link that corrupts every frame: the child gets its start-up time
+    once, then the flight goes on INS-only without starting it again (each new child would
+    wait as long again)."""
+    from navgate.systems.ins_trn.ps import trn_link
+
+    monkeypatch.setattr(trn_link, "SPAWN_HELLO_TIMEOUT_S", 3.0)
+    with TrnLink("spawn", timeout_s=0.3, faults=FaultInjector(seed=4, flip_rate=1.0),
+                 heartbeat_s=0.2) as link:
+        child = link.child.pid
+        run_ = fly_over(scenario, link)
+        stats = link.stats()
+        assert link.child.pid == child
+    assert stats["absent_at_start"] == 1 and stats["reconnects"] == 0
+    assert stats["replies"] == 0 and stats["unavailable"] == stats["requests"] > 5
+    assert not applied(run_)
+
+
 def test_service_killed_and_restarted_mid_flight(scenario):
     dem = scenario[0]
     port = free_port()

@@ -116,6 +116,9 @@ class TrnLink:
         self._last_sent = time.monotonic()
         self.heartbeat_s = float(heartbeat_s)
         self._heartbeat_thread = None
+        #: a spawned service whose hello never completed (every frame corrupted): starting
+        #: it again would not help, so it stays unavailable for the rest of the flight
+        self._spawn_gave_up = False
         self._open(first=True)
         if self.heartbeat_s > 0:
             self._heartbeat_thread = threading.Thread(target=self._heartbeats, daemon=True,
@@ -125,6 +128,9 @@ class TrnLink:
     # -- opening ----------------------------------------------------------------------------
     def _open(self, first: bool = False) -> None:
         kind = self.kind[0]
+        if kind == "spawn" and self._spawn_gave_up:
+            self.link = None
+            return
         try:
             if kind == "tcp":
                 self.link = connect_tcp(self.kind[1], self.kind[2], timeout=self.timeout_s,
@@ -187,9 +193,11 @@ class TrnLink:
             if self.child is not None and self.child.poll() is not None:
                 break
         if first:
-            self.close()
-            raise LinkError(f"the TRN service at {self.spec} did not answer hello within "
-                            f"{timeout:g} s")
+            # there, but no hello completed (silent, or every frame corrupted): as an absent
+            # service, the flight goes on INS-only, counted, and the link is tried again (a
+            # spawned one is not: it is our own child, and it had its start-up time)
+            self.counters["absent_at_start"] = 1
+        self._spawn_gave_up = self.kind[0] == "spawn"
         self._drop()
 
     def _drop(self) -> None:
@@ -259,7 +267,8 @@ class TrnLink:
     def _reconnect(self) -> None:
         """Open the link again (a spawned service: start a new one once the old has gone)."""
         self._last_sent = time.monotonic()  # one attempt per heartbeat period
-        if self.kind[0] == "spawn" and self.child is not None and self.child.poll() is None:
+        if self.kind[0] == "spawn" and (self._spawn_gave_up or (
+                self.child is not None and self.child.poll() is None)):
             return
         self.counters["reconnects"] += 1
         try:
@@ -280,8 +289,8 @@ class TrnLink:
             if attempt:
                 self.counters["retries"] += 1
             if self.link is None:
-                if self.kind[0] == "spawn" and self.child is not None \
-                        and self.child.poll() is None:
+                if self.kind[0] == "spawn" and (self._spawn_gave_up or (
+                        self.child is not None and self.child.poll() is None)):
                     break
                 self.counters["reconnects"] += 1
                 self._open()
