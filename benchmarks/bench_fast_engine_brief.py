@@ -432,17 +432,19 @@ def main() -> None:
         print(f"{transfers:2d} {tracks:6d} {late or 'no':>5s} "
               + " ".join(f"{got[e]:10d}" for e in ENTRIES))
     # the register file those schedules need, one bank per producer (no write conflicts)
-    designs = {"lane machine": {}, "clusters": {"transfers": 1, "late": "all"}}
+    designs = {"lane machine": {}, "lane machine, ops late": {"late": "all"},
+               "clusters": {"transfers": 1, "late": "all"}}
     summary["banks"] = {}
     shapes: dict = {}
     for design, opts in designs.items():
-        print(f"\n{design}{' (T = 1, 30 tracks, ops late)' if opts else ''}: one register-"
+        clustered = bool(opts.get("transfers"))
+        print(f"\n{design}{' (T = 1, 30 tracks, ops late)' if clustered else ''}: one register-"
               "file bank per producer (unit instance, read port; a lane's transfers): "
               "most values live / most distinct values read a cycle / operand points reading "
               "it; the most banks a point reads:")
         summary["banks"][design] = {}
         for entry, variant in ENTRIES.items():
-            prog = progs30 if entry == "propagate" and opts else cache[variant][0]
+            prog = progs30 if entry == "propagate" and clustered else cache[variant][0]
             sched = (schedule_sequence(prog, args.lanes, read_ports=max(2, args.lanes), **opts)
                      if opts else cache[variant][1])
             b = banks([sched.schedules[n] for n in prog.entries[entry]])

@@ -264,18 +264,18 @@ def _check_lanes(s):
         assert inst % units.lanes == plan[op.dst], op
         if op.kind == "load":
             continue
-        for x in op.srcs:
+        for x in map(root, op.srcs):  # (through a sign flip)
             if x.startswith("c:"):
                 continue
             reads = []
             if x in accs:
                 a = accs[x]
-                if not a.init.startswith("c:"):
+                if not root(a.init).startswith("c:"):
                     reads.append((root(a.init), root(a.init), s.time[op.dst]))
                 if nest.iterations > 1:
                     reads.append((root(a.update), a.name, s.time[op.dst] + a.distance * ii))
             else:
-                reads.append((root(x), root(x), s.time[op.dst]))
+                reads.append((x, x, s.time[op.dst]))
             for v, key, t in reads:
                 if plan[v] == plan[op.dst]:
                     continue
@@ -381,8 +381,10 @@ def test_late_ops_keep_the_cycles_and_shorten_the_lives(loop_data, late):
             taken = {(s.resource[o.dst], (s.time[o.dst] + j) % s.ii)
                      for o in nest.ops if o.kind != "neg"
                      for j in range(s.units.occupancy(o.kind))}
+            updates = {a.update for a in nest.accs}
             for op in nest.ops:
-                if op.kind == "neg" or (late == "loads" and op.kind != "load"):
+                if op.kind == "neg" or (late == "loads" and op.kind != "load") or (
+                        op.dst in updates):  # an accumulator's update stays
                     if op.kind != "neg":
                         assert s.time[op.dst] == early.time[op.dst]
                     continue
@@ -435,3 +437,38 @@ def test_a_nest_beside_a_straight_line_takes_only_free_slots():
                                        ops=[LOp("a", "load", ("P",), Addr())]), units)
     with pytest.raises(LoopError, match="a loop nest beside a straight line"):
         schedule_beside(line, nest, units)
+
+
+def test_sign_flips_of_accumulators_and_constants_and_a_dead_recurrence():
+    """The what-ifs on the corners the seed programs do not reach: a sign flip of an
+    accumulator (read through it, its update's lane), a sign flip of a constant, and an
+    accumulator read by nothing but itself beside a divider (its update stays: moving it
+    would pull its own next read later without end)."""
+    zero = const_name(0.0)
+    negacc = LoopNest("negacc", (4,), {"a": 4, "o": 4}, {},
+                      [LOp("x", "load", ("a",), Addr(None, (1,))), LOp("n", "neg", ("acc",)),
+                       LOp("s", "add", ("n", "x"))],
+                      [Acc("acc", zero, "s", Cond("first", 0))],
+                      [Store("o", Addr(None, (1,)), "s")])
+    negc = LoopNest("negc", (), {"a": 4}, {},
+                    [LOp("x", "load", ("a",), Addr(None, (), 0)),
+                     LOp("m", "neg", (const_name(2.0),)), LOp("s", "mul", ("m", "x"))],
+                    [], [Store("a", Addr(None, (), 1), "s")])
+    dead = LoopNest("dead", (4,), {"a": 4, "o": 4}, {},
+                    [LOp("x", "load", ("a",), Addr(None, (1,))), LOp("s", "add", ("acc", "x")),
+                     LOp("y", "div", ("x", "x"))],
+                    [Acc("acc", zero, "s", Cond("first", 0))],
+                    [Store("o", Addr(None, (1,)), "y")])
+    for nest in (negacc, negc, dead):
+        base = modulo_schedule(nest, LoopUnits(mul=3, add=3, read_ports=3))
+        for extra in ({"transfers": 1}, {"late": "loads"}, {"late": "all"},
+                      {"transfers": 1, "late": "all"}):
+            s = modulo_schedule(nest, LoopUnits(mul=3, add=3, read_ports=3, **extra))
+            _check_schedule(s)
+            if "transfers" in extra:
+                _check_lanes(s)
+            else:
+                assert (s.ii, s.cycles) == (base.ii, base.cycles)
+            assert max(s.ready.values()) <= s.depth
+    with pytest.raises(LoopError, match="late must be"):
+        modulo_schedule(dead, LoopUnits(late="everything"))

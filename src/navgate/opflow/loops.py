@@ -549,6 +549,8 @@ def modulo_schedule(nest: LoopNest, units: LoopUnits = LoopUnits(),
     """Modulo-schedule the nest's body (module docstring); raises :class:`LoopError` when no
     II up to ``max_ii`` (default: the sum of every op's latency + 8) fits."""
     check_nest(nest)
+    if units.late not in ("", "loads", "all"):
+        raise LoopError(f"late must be '', 'loads' or 'all', got {units.late!r}")
     accs = nest.acc_names()
     uses: dict = {}
     for op in nest.ops:
@@ -611,17 +613,15 @@ def _late(nest, units, ii, time, resource, ready, sent, loads_only):
     address), on the op's own unit instance free then for its occupancy (modulo ``ii``;
     None: a straight line); passes until nothing moves. Stores and transfers keep their
     cycles, so the schedule keeps its cycles and its rules; the values' lives shrink where
-    an op made its value early. In place."""
-    alias = {op.dst: op.srcs[0] for op in nest.ops if op.kind == "neg"}
-
-    def root(x):
-        while x in alias:
-            x = alias[x]
-        return x
-
+    an op made its value early. An accumulator's update stays (its next iteration's read
+    would pull it, and its reader with it, later and later); with ``units.result_ports``
+    only the loads move (a result's landing is a port's). In place."""
+    root = _flipped(nest)
     period = ii or 1 << 30
+    updates = {root(a.update) for a in nest.accs}
     movable = [op for op in reversed(nest.ops) if op.kind == "load" or (
-        not loads_only and op.kind != "neg" and not units.result_ports)]
+        not loads_only and op.kind != "neg" and not units.result_ports
+        and op.dst not in updates)]
     busy = {(resource[op.dst][0], resource[op.dst][1], (time[op.dst] + j) % period)
             for op in nest.ops if op.kind != "neg" for j in range(units.occupancy(op.kind))}
     accs = nest.acc_names()
@@ -633,10 +633,10 @@ def _late(nest, units, ii, time, resource, ready, sent, loads_only):
     for op in nest.ops:
         if op.kind in ("load", "neg"):
             continue
-        for x in op.srcs:
+        for x in map(root, op.srcs):  # (through a sign flip, its source is read)
             if x in accs:
                 a = accs[x]
-                if not a.init.startswith("c:"):
+                if not root(a.init).startswith("c:"):
                     read(a.init, op.dst)
                 if ii is not None:
                     read(a.update, op.dst, a.distance * ii)
@@ -669,9 +669,37 @@ def _late(nest, units, ii, time, resource, ready, sent, loads_only):
             busy |= {(res, inst, (t + j) % period) for j in range(occ)}
             moved |= t != time[op.dst]
             time[op.dst], ready[op.dst] = t, t + latency
-    for o in nest.ops:  # a sign flip's value is its source's
-        if o.kind == "neg":
+    for o in nest.ops:  # a sign flip's value is its source's (one of a constant or an
+        if o.kind == "neg" and o.srcs[0] in ready:  # accumulator stays as placed)
             time[o.dst] = ready[o.dst] = ready[o.srcs[0]]
+
+
+def _flipped(nest: LoopNest):
+    """A function: a name -> what it reads through sign flips (a temporary, an
+    accumulator's name or a constant)."""
+    alias = {op.dst: op.srcs[0] for op in nest.ops if op.kind == "neg"}
+
+    def root(x):
+        while x in alias:
+            x = alias[x]
+        return x
+
+    return root
+
+
+def _value_of(nest: LoopNest):
+    """A function: an operand -> the temporary it reads through sign flips and an
+    accumulator (its init: a straight line's, or a reset iteration's), None for a
+    constant."""
+    flipped, accs = _flipped(nest), nest.acc_names()
+
+    def value(x):
+        x = flipped(x)
+        while x in accs:
+            x = flipped(accs[x].init)
+        return None if x.startswith("c:") else x
+
+    return value
 
 
 def lane_plan(nest: LoopNest, units: LoopUnits) -> dict:
@@ -686,15 +714,7 @@ def lane_plan(nest: LoopNest, units: LoopUnits) -> dict:
         raise LoopError(f"{nest.name}: lanes as clusters need as many multipliers, adders and "
                         f"at least as many read ports as lanes ({units})")
     accs = nest.acc_names()
-    alias = {op.dst: op.srcs[0] for op in nest.ops if op.kind == "neg"}
-
-    def root(x):
-        while x in alias:
-            x = alias[x]
-        if x in accs:
-            x = accs[x].init
-        return None if x.startswith("c:") else x
-
+    flipped, root = _flipped(nest), _value_of(nest)
     lane: dict = {}
     count: dict = {}
     readers: dict = {}  # load -> lane -> readers
@@ -722,13 +742,12 @@ def lane_plan(nest: LoopNest, units: LoopUnits) -> dict:
                                                       k))
             lane[op.dst] = choice
             count[("load", choice)] = count.get(("load", choice), 0) + 1
-    for op in nest.ops:
+    for op in nest.ops:  # a sign flip: its source's lane (an accumulator's: its update's)
         if op.kind == "neg":
-            x = op.srcs[0]
-            while x in alias:
-                x = alias[x]
-            if x in lane:
-                lane[op.dst] = lane[x]
+            x = flipped(op.srcs[0])
+            if x in accs:
+                x = flipped(accs[x].update)
+            lane[op.dst] = lane.get(x, 0)
     return lane
 
 
@@ -740,14 +759,19 @@ class _Lanes:
     def __init__(self, nest, units, ii, busy):
         self.units, self.ii, self.busy = units, ii, busy
         self.plan = lane_plan(nest, units)
-        self.alias = {op.dst: op.srcs[0] for op in nest.ops if op.kind == "neg"}
+        self.flipped, self.value = _flipped(nest), _value_of(nest)
         self.accs = nest.acc_names()
         self.sent: dict = {}  # (value, lane) -> transfer offset
 
     def home(self, x):
-        while x in self.alias:
-            x = self.alias[x]
-        return self.plan[x]
+        """The lane that holds ``x`` (an accumulator's value, read through a sign flip as
+        another's update: its update's lane)."""
+        seen = set()
+        x = self.flipped(x)
+        while x in self.accs and x not in seen:
+            seen.add(x)
+            x = self.flipped(self.accs[x].update)
+        return self.plan.get(x, 0)
 
     def allowed(self, dst, count):
         lane = self.plan[dst]
@@ -775,20 +799,15 @@ class _Lanes:
         return None
 
     def operands(self, op, ready):
-        """(value, its ready offset) of every operand ``op`` reads from another lane."""
+        """(value, its ready offset) of every operand ``op`` reads from another lane (an
+        accumulator as its init; its update, read iterations later, is checked after
+        placement)."""
         out = []
         if op.kind == "load":
             return out
         for x in op.srcs:
-            if x.startswith("c:"):
-                continue
-            if x in self.accs:
-                x = self.accs[x].init
-                if x.startswith("c:"):
-                    continue
-            while x in self.alias:
-                x = self.alias[x]
-            if self.plan[x] != self.plan[op.dst]:
+            x = self.value(x)
+            if x is not None and self.plan[x] != self.plan[op.dst]:
                 out.append((x, ready[x]))
         return out
 
@@ -868,10 +887,14 @@ def _place(nest, units, ii, accs):
         resource[("store", k)] = (("write", st.array), inst)
         depth = max(depth, time[("store", k)] + 1)
     if ii is not None:
+        flipped = _flipped(nest)
         for a in nest.accs:
             for op in nest.ops:
-                if a.name not in op.srcs:
+                if lanes is None and a.name not in op.srcs:
                     continue
+                if lanes is not None and (op.kind == "neg" or all(
+                        flipped(x) != a.name for x in op.srcs)):
+                    continue  # (with lanes the reader of a sign flip of it reads it)
                 latest = time[op.dst] + a.distance * ii  # the update's read, next iteration
                 if lanes is not None and lanes.home(a.update) != lanes.plan[op.dst]:
                     got = lanes.send(a.name, ready[a.update], lanes.plan[op.dst],
@@ -939,7 +962,8 @@ def _list_place(nest, units, accs, taken=()):
     order; as :mod:`navgate.opflow.schedule`), under the rules of :func:`_place`: units and
     read ports per cycle, the iterative units blocked for their interval, operands at their
     ready offsets, addresses and flags from ``ADDR_READY``, a store after every load of its
-    array, one write port per array. Returns (time, resource, ready, depth)."""
+    array, one write port per array; ``taken``: (resource, instance, cycle) slots another
+    schedule holds. Returns (time, resource, ready, depth, transfers)."""
     ops = nest.ops
     by_dst = {op.dst: k for k, op in enumerate(ops)}
     preds = [[by_dst[x] for x in _sources(op, accs)] for op in ops]
