@@ -128,3 +128,15 @@ def test_replay_summary_has_fly_fix_rejection_reasons(flight, tmp_path, navgate_
     reasons = s["trn_aided"]["fix_rejection_reasons"]
     assert sum(reasons.values()) == s["trn_aided"]["fixes_rejected"]
     assert s["truth"]["coverage"] == 1.0
+
+
+def test_the_final_state_is_stamped_at_its_own_time(flight, tmp_path, navgate_run):
+    """A log ending one IMU sample short of a log boundary: the last row holds the state at
+    4.9975 s; it was stamped 4.9 s and scored against the 4.9 s truth."""
+    log, _ = flight
+    lines = log.read_text().splitlines()
+    last = max(i for i, ln in enumerate(lines) if ln.startswith("I,"))
+    s, rows, _, _ = _replay(navgate_run, _write(tmp_path, lines[:last]), tmp_path / "r")
+    _no_duplicate_times(rows)
+    assert float(rows[-1]["t_s"]) == pytest.approx(4.9975, abs=1e-12)
+    assert s["truth"]["unscored_intervals_s"] == [[pytest.approx(4.9975), pytest.approx(4.9975)]]
