@@ -421,6 +421,8 @@ class Navigator:
             self._nav.pop(), self._sigma.pop(), self._p_ne.pop()
             self._log()
         t_log = self.t0 + np.arange(n_log) * self.log_every * self.dt
+        if self.samples % self.log_every:  # the last row is the final state: stamped so
+            t_log[-1] = self.t0 + self.samples * self.dt
         rejected = dict(e.rejected)
         if self.baro_invalid:
             rejected["baro invalid sample"] = self.baro_invalid

@@ -29,16 +29,34 @@ def _tangent(result):
     return LocalTangent(*result.dem.center, 0.0)
 
 
+def truth_rows(result) -> np.ndarray:
+    """Per solution row, the truth row it is scored against, -1 where none: a replay's
+    matched truth records (``result.truth_index``), else fly's sampling (every
+    ``log_every``-th truth sample, the last one for the final row)."""
+    idx = getattr(result, "truth_index", None)
+    if idx is not None:
+        return np.asarray(idx, np.int64)
+    n = next(iter(result.runs.values())).t.size
+    return np.minimum(np.arange(n) * result.log_every, len(result.data.truth) - 1)
+
+
 def write_trajectory_csv(result, path: Path) -> Path:
+    """One row a solution; a solution without truth (a replay's log with gaps) has its
+    solution time as ``t_s`` and ``nan`` truth and error columns."""
     truth = result.data.truth
     tan = _tangent(result)
-    idx = np.minimum(np.arange(next(iter(result.runs.values())).t.size) * result.log_every,
-                     len(truth) - 1)
-    tn, te = tan.to_ned(truth.lat[idx], truth.lon[idx])
+    idx = truth_rows(result)
+    has = idx >= 0
+    j = np.where(has, idx, 0)
+
+    def at(values):
+        return np.where(has, np.asarray(values)[j], np.nan)
+
+    tn, te = tan.to_ned(at(truth.lat), at(truth.lon))
     cols = {
-        "t_s": truth.t[idx],
-        "truth_lat_deg": np.degrees(truth.lat[idx]), "truth_lon_deg": np.degrees(truth.lon[idx]),
-        "truth_h_m": truth.h[idx], "truth_north_m": tn, "truth_east_m": te,
+        "t_s": np.where(has, truth.t[j], next(iter(result.runs.values())).t),
+        "truth_lat_deg": np.degrees(at(truth.lat)), "truth_lon_deg": np.degrees(at(truth.lon)),
+        "truth_h_m": at(truth.h), "truth_north_m": tn, "truth_east_m": te,
     }
     for name, run in result.runs.items():
         n, e = tan.to_ned(run.nav[:, 0], run.nav[:, 1])
