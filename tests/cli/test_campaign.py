@@ -21,6 +21,12 @@ def navgate(*args, cwd=None):
     (["--workers", "0"], "--workers"),
     (["--duration", "-1"], "--duration"),
     (["--dem", "/nonexistent/dem.tif"], "not found"),
+    (["--duration", "0.001"], "--duration 0.001 s is too short"),
+    (["--scheduler", "bogus"], "--scheduler 'bogus' is not a scheduler address"),
+    (["--scheduler", "tcp://host:port"], "--scheduler"),
+    (["--scheduler", "tcp://host:99999"], "--scheduler"),
+    (["--scheduler", "foo://host:8786"], "unknown protocol"),
+    (["--scheduler", " "], "--scheduler must not be empty"),
 ])
 def test_bad_options_one_line_error(tmp_path, capsys, args, needle):
     from navgate.cli import main
