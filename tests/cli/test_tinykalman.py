@@ -121,6 +121,20 @@ def test_decode_file_resynchronises_and_counts(tmp_path, capsys):
     assert rows[1].split(",")[2:4] == ["100", "-200"]
 
 
+@pytest.mark.parametrize("data", [b"", bytes(range(256)) * 4, b"\x00" * 1000])
+def test_decode_without_a_packet_is_an_error_and_writes_nothing(data, tmp_path, capsys):
+    f = tmp_path / "cap.bin"
+    f.write_bytes(data)
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / "roll_pitch.csv").write_text("earlier results\n")
+    code, _, err = run_cli(["decode", f, "--out", out], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"no TinyKalman packet in {len(data)} bytes" in err
+    assert sorted(p.name for p in out.iterdir()) == ["roll_pitch.csv"]
+    assert (out / "roll_pitch.csv").read_text() == "earlier results\n"
+
+
 def test_decode_serial_with_pyserial(tmp_path, capsys, monkeypatch):
     stream = b"\x00" + b"".join(tk.encode_packet(k, -k) for k in range(5))
 

@@ -279,6 +279,10 @@ def decode(file, port, baud, seconds, out, quiet):
         if port is not None:
             (staging.dir / "capture.bin").write_bytes(data)
         angles, st = _decode_into(staging.dir, data)
+        if not angles:  # nothing decoded: an error, and nothing is committed
+            raise CliError(f"{source}: no TinyKalman packet in {len(data)} bytes "
+                           f"({st.skipped_bytes} skipped, {st.trailing_bytes} trailing); "
+                           "nothing written")
         summary = {"source": source, "bytes": len(data), "packets": st.packets,
                    "skipped_bytes": st.skipped_bytes, "trailing_bytes": st.trailing_bytes}
         write_summary(staging.dir, summary)
