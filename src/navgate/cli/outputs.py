@@ -317,6 +317,9 @@ def check_writable_file(path: str | Path) -> Path:
     _regular_or_absent(p)
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
+        for ancestor in (parent, *parent.parents):  # the first one that exists says why
+            if ancestor.exists() and not ancestor.is_dir():
+                raise CliError(f"cannot write {p}: {ancestor} is not a directory")
         raise CliError(f"cannot write {p}: directory {parent} does not exist")
     if p.exists() and not os.access(p, os.W_OK):
         raise CliError(f"cannot write {p}: permission denied")
