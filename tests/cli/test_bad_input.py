@@ -368,11 +368,20 @@ def test_ahrs_output_file_errors(tmp_path, capsys):
         assert_one_line(err, code, 2, needle)
 
 
+def test_fly_record_under_a_file_says_it_is_not_a_directory(tmp_path, capsys):
+    (tmp_path / "afile").write_text("x")
+    code, _, err = run(["fly", "--duration", 2, "--no-trn", "--record",
+                        tmp_path / "afile" / "x.log", "--out", tmp_path / "o"], capsys)
+    assert_one_line(err, code, 2, f"{tmp_path / 'afile'} is not a directory")
+
+
 def test_report_out_is_checked_before_synthesis(tmp_path, capsys):
     start = time.perf_counter()
     for bad, needle in (("/proc/x.md", "cannot write"),
                         (tmp_path / "missing" / "r.md", "does not exist"),
-                        (tmp_path, "is a directory")):
+                        (tmp_path, "is a directory"),
+                        (tmp_path / "afile" / "r.md", "afile is not a directory")):
+        (tmp_path / "afile").write_text("x")
         code, _, err = run(["report", "--out", bad], capsys)
         assert_one_line(err, code, 2, needle)
     assert time.perf_counter() - start < 10  # no synthesis started (one block takes ~30 s)

@@ -110,3 +110,12 @@ def test_report_says_per_block_whether_it_came_from_the_cache(root, navgate_run,
     assert code == 0, err
     assert calls[2:] == ["fixed_mul"]
     assert "Synthesised in this run: 1 of 2 blocks: fixed_mul." in third
+
+
+def test_info_refuses_a_cache_root_that_is_a_file(tmp_path, monkeypatch, navgate_run):
+    monkeypatch.setenv("NAVGATE_CACHE_DIR", str(tmp_path / "afile"))
+    monkeypatch.delenv("NAVGATE_VERILATOR_CACHE", raising=False)
+    (tmp_path / "afile").write_text("x")
+    for args in (["cache", "info"], ["cache", "info", "--json"]):
+        code, _, err = navgate_run(args)
+        assert code == 2 and "afile is not a directory" in navgate_run.one_line(err)

@@ -21,6 +21,12 @@ def navgate(*args, cwd=None):
     (["--workers", "0"], "--workers"),
     (["--duration", "-1"], "--duration"),
     (["--dem", "/nonexistent/dem.tif"], "not found"),
+    (["--duration", "0.001"], "--duration 0.001 s is too short"),
+    (["--scheduler", "bogus"], "--scheduler 'bogus' is not a scheduler address"),
+    (["--scheduler", "tcp://host:port"], "--scheduler"),
+    (["--scheduler", "tcp://host:99999"], "--scheduler"),
+    (["--scheduler", "foo://host:8786"], "unknown protocol"),
+    (["--scheduler", " "], "--scheduler must not be empty"),
 ])
 def test_bad_options_one_line_error(tmp_path, capsys, args, needle):
     from navgate.cli import main
@@ -103,3 +109,19 @@ def test_dask_shutdown_warnings_are_silenced_then_restored():
         logging.getLogger().removeHandler(handler)
     assert seen == ["a real failure", "after the shutdown"]
     assert nanny.level == before
+
+
+def test_results_csv_leaves_a_missing_time_to_first_fix_empty(tmp_path):
+    """A run without a fix has no time to first fix: an empty field, never a literal nan."""
+    import csv
+    import math
+    import types
+
+    from navgate.systems.ins_trn.ps.campaign import RESULT_FIELDS, write_results_csv
+
+    rows = [{k: 1.5 for k in RESULT_FIELDS}, {k: 2.5 for k in RESULT_FIELDS}]
+    rows[1]["time_to_first_fix_s"] = math.nan
+    path = write_results_csv(types.SimpleNamespace(rows=rows), tmp_path / "results.csv")
+    read = list(csv.DictReader(path.open()))
+    assert read[0]["time_to_first_fix_s"] == "1.5" and read[1]["time_to_first_fix_s"] == ""
+    assert "nan" not in path.read_text().lower()

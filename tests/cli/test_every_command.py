@@ -79,6 +79,13 @@ class Case:
     writes: str | None = None
 
 
+def _packets() -> bytes:
+    """A few TinyKalman UART packets (decode refuses a capture without one)."""
+    from navgate.systems.tinykalman.model import encode_packet
+
+    return b"".join(encode_packet(k, -k) for k in range(3))
+
+
 def _imu_csv(path: Path, n: int = 200, hz: float = 100.0) -> Path:
     t = np.arange(n) / hz
     cols = [t, np.zeros((n, 3)), np.tile([0.0, 0.0, -G0], (n, 1))]
@@ -146,7 +153,7 @@ def make_case(path: tuple, d: Path) -> Case:
                     "mpu6500_words.csv")
     if name == "tinykalman decode":
         capture = d / "uart.bin"
-        capture.write_bytes(bytes(range(256)))
+        capture.write_bytes(bytes(range(256)) + _packets())
         return Case(["tinykalman", "decode", capture, "--quiet"], {"--out": "dir"}, [capture],
                     "roll_pitch.csv")
     if name == "tiles split":
@@ -335,7 +342,7 @@ def make_run(name: str, d: Path, monkeypatch) -> Run:
                    "mpu6500_words.csv", "roll_pitch.csv")
     if name == "tinykalman decode":
         capture = d / "uart.bin"
-        capture.write_bytes(bytes(range(256)))
+        capture.write_bytes(bytes(range(256)) + _packets())
         return Run(["tinykalman", "decode", capture, "--quiet"], "dir",
                    ["roll_pitch.csv", "summary.json"], "roll_pitch.csv", "summary.json")
     if name == "tiles split":

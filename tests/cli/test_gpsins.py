@@ -101,6 +101,7 @@ def test_seed_filter_stays_available(tmp_path, capsys):
     (["--smoother", "rts", "--filter", "seed"], "needs --filter full"),
     (["--lag", 5], "--lag applies to --smoother fixed-lag"),
     (["--smoother", "fixed-lag", "--lag", 0.5], "--lag must be between"),
+    (["--smoother", "fixed-lag", "--lag", 1.5], "--lag must be a whole number of GPS periods"),
     (["--smoother", "fixed-lag", "--lag", "nan"], "finite"),
     (["--smoother", "forward"], "--smoother"),
     (["--duration", 100], "at least 250 s"),

@@ -48,6 +48,8 @@ def test_verilator_engine_counts_zero_mismatches(tmp_path, capsys):
 @pytest.mark.parametrize("args, message", [
     (["--frames", 5], "--frames"),
     (["--n", 40], "word length"),
+    (["--n", 33], "--n: the word length must be in [9, 32], got 33"),
+    (["--n", 8], "--n: the word length must be in [9, 32], got 8"),
     (["--n", 20, "--frac", 16], "holds values only up to"),
     (["--seed", -1], "--seed"),
 ])
@@ -56,3 +58,29 @@ def test_bad_options_fail_cleanly(tmp_path, capsys, args, message):
     assert code == 2
     assert message in err
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("n", [30, 31, 32])
+def test_word_lengths_up_to_32_run_as_the_help_says(n, tmp_path, capsys):
+    """The model runs N up to 32 (tests/systems/kf2x2/test_model.py); --help says so."""
+    code, _, err = run_cli(["--n", n, "--frames", 40, "--out", tmp_path / "w", "--quiet"],
+                           capsys)
+    assert code == 0, err
+    assert json.loads((tmp_path / "w" / "summary.json").read_text())["n"] == n
+    code, out, _ = run_cli(["--help"], capsys)
+    assert code == 0 and "Word length N (9..32)" in out
+
+
+def test_an_overflowing_run_commits_nothing(tmp_path, capsys):
+    out = tmp_path / "run"
+    code, _, err = run_cli(["--frames", 200, "--out", out, "--quiet"], capsys)
+    assert code == 0, err
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert sorted(before) == ["frames.csv", "rlc.png", "summary.json"]
+    code, _, err = run_cli(["--n", 9, "--frac", 3, "--frames", 200, "--out", out, "--quiet"],
+                           capsys)
+    assert code == 2 and "overflows in" in err and "nothing written" in err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    code, _, err = run_cli(["--n", 9, "--frac", 3, "--frames", 200, "--out", tmp_path / "new",
+                            "--quiet"], capsys)
+    assert code == 2 and not (tmp_path / "new").exists()

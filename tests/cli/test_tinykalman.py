@@ -121,6 +121,20 @@ def test_decode_file_resynchronises_and_counts(tmp_path, capsys):
     assert rows[1].split(",")[2:4] == ["100", "-200"]
 
 
+@pytest.mark.parametrize("data", [b"", bytes(range(256)) * 4, b"\x00" * 1000])
+def test_decode_without_a_packet_is_an_error_and_writes_nothing(data, tmp_path, capsys):
+    f = tmp_path / "cap.bin"
+    f.write_bytes(data)
+    out = tmp_path / "d"
+    out.mkdir()
+    (out / "roll_pitch.csv").write_text("earlier results\n")
+    code, _, err = run_cli(["decode", f, "--out", out], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"no TinyKalman packet in {len(data)} bytes" in err
+    assert sorted(p.name for p in out.iterdir()) == ["roll_pitch.csv"]
+    assert (out / "roll_pitch.csv").read_text() == "earlier results\n"
+
+
 def test_decode_serial_with_pyserial(tmp_path, capsys, monkeypatch):
     stream = b"\x00" + b"".join(tk.encode_packet(k, -k) for k in range(5))
 
@@ -160,6 +174,10 @@ def test_decode_serial_with_pyserial(tmp_path, capsys, monkeypatch):
     (["/nonexistent/log.csv"], "No such file"),
     (["log.csv", "--engine", "fpga"], "Invalid value"),
     (["log.csv", "--engine", "rtl", "--variant", "bitwise"], "Invalid value"),
+    (["log.csv", "--variant", "serial"], "--variant chooses the gateware run of --engine rtl"),
+    (["log.csv", "--engine", "model", "--sim", "amaranth"], "--sim chooses the gateware run"),
+    (["log.csv", "--engine", "model", "--sim", "verilator", "--variant", "parallel"],
+     "--sim and --variant choose the gateware run"),
 ])
 def test_bad_input_is_one_line(args, text, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
@@ -188,3 +206,25 @@ def test_dropped_rows_are_counted_in_the_summary(tmp_path, capsys):
     s = json.loads((tmp_path / "o" / "summary.json").read_text())
     assert (s["samples"], s["skipped_rows"], s["implausible_rows"]) == (38, 1, 1)
     assert "1 / 1" in out
+
+
+def test_time_gaps_are_counted_and_reported(tmp_path, capsys):
+    """Steps over 5 sample periods (the reference ahrs's gaps) are counted: the chip assumes
+    one fixed period and integrates across them."""
+    log = tmp_path / "imu.csv"
+    write_log(log, plain=True)
+    lines = log.read_text().splitlines()
+    for k, row in enumerate(lines[1:], 1):  # 0.5 s missing after sample 20, 0.1 s after 30
+        t, rest = row.split(",", 1)
+        shift = 0.5 * (k > 20) + 0.1 * (k > 30)
+        lines[k] = f"{float(t) + shift:.9g},{rest}"
+    log.write_text("\n".join(lines) + "\n")
+    code, out, err = run_cli(["run", log, "--out", tmp_path / "o"], capsys)
+    assert code == 0, err
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["time_gaps"] == 2 and s["largest_time_gap_s"] == pytest.approx(0.51)
+    assert "time gaps" in out and "2 time gaps" in err
+    write_log(log, plain=True)
+    code, out, err = run_cli(["run", log, "--out", tmp_path / "p"], capsys)
+    s = json.loads((tmp_path / "p" / "summary.json").read_text())
+    assert code == 0 and s["time_gaps"] == 0 and "largest_time_gap_s" not in s

@@ -270,3 +270,47 @@ def test_tile_options_need_a_tile_directory(tmp_path, navgate_run):
     code, _, err = navgate_run(["fly", "--tile-cache-mb", "1", "--duration", "5",
                                 "--out", tmp_path])
     assert code == 2 and "tile directory" in navgate_run.one_line(err)
+
+
+def test_a_new_split_replaces_the_directory_tiles_as_a_whole(tmp_path, navgate_run):
+    out = tmp_path / "T"
+    assert navgate_run(["tiles", "split", "default", "--into", "3x3", "--out", out])[0] == 0
+    (out / "notes.txt").write_text("mine")  # not a tile: left alone
+    code, _, err = navgate_run(["tiles", "split", "default", "--into", "2x2", "--out", out])
+    assert code == 0, err
+    assert sorted(p.name for p in out.iterdir()) == [
+        "notes.txt", "tile_r0_c0.tif", "tile_r0_c1.tif", "tile_r1_c0.tif", "tile_r1_c1.tif",
+        "tiles.json"]
+    info = json.loads((out / "tiles.json").read_text())
+    assert info["tile_count"] == 4 and info["directory"] == str(out)
+    code, _, err = navgate_run(["tiles", "info", out])
+    assert code == 0, err
+    # a failed split leaves the directory exactly as it was
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    code, _, err = navgate_run(["tiles", "split", "default", "--into", "200x200", "--out", out])
+    assert code == 2
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    # a tile of the directory that is the DEM being split is not removed
+    code, _, err = navgate_run(["tiles", "split", out / "tile_r1_c1.tif", "--into", "1x1",
+                                "--out", out])
+    assert code == 2 and "tile_r1_c1.tif is the input" in navgate_run.one_line(err)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_disagreeing_overlaps_say_what_differs_a_void_included(tmp_path):
+    res = 1 / 1200
+    h = np.arange(100, dtype=float).reshape(10, 10) + 300.0
+    write_tile(tmp_path / "a.tif", h[:, :6], -84.0, 36.5, res)
+    other = h[:, 5:].copy()
+    other[3, 0] = -9999.0  # void in b, a height in a
+    write_tile(tmp_path / "b.tif", other, -84.0 + 5 * res, 36.5, res)
+    with pytest.raises(DemError) as caught:
+        TileStore(tmp_path).void_fraction()
+    message = str(caught.value)
+    assert "differ at 1 shared posts" in message and "void in one tile" in message
+    assert "0 m" not in message
+    other[3, 0] = h[3, 5] + 7.0
+    other[4, 0] = -9999.0
+    write_tile(tmp_path / "b.tif", other, -84.0 + 5 * res, 36.5, res)
+    with pytest.raises(DemError, match=r"largest height difference 7 m; 1 of them void"):
+        TileStore(tmp_path).void_fraction()

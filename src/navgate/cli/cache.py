@@ -41,6 +41,10 @@ def info(as_json):
 
     root = store.cache_root()
     kinds = store.info()
+    for path in (root, *(k.path for k in kinds)):  # a file there is no cache: never "0 entries"
+        if path.exists() and not path.is_dir():
+            raise CliError(f"cache directory {path} is not a directory (check "
+                           f"${store.ENV_ROOT})")
     if as_json:
         click.echo(json.dumps({
             "root": str(root),

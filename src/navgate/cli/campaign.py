@@ -84,6 +84,14 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
         if r not in RANGER_PRESETS:
             raise CliError(f"--ranger: unknown preset {r!r}; choose from "
                            f"{', '.join(RANGER_PRESETS)}")
+    # the flight's own checks (a duration too short for the scenario), as fly makes them
+    for r in rangers:
+        try:
+            FlightConfig(duration_s=duration, ranger=r)
+        except ValueError as error:
+            raise CliError(str(error).replace("duration_s", "--duration")) from None
+    if scheduler is not None:
+        _check_scheduler(scheduler)
     dems = tuple(dict.fromkeys(dems)) or ("default",)
     n_planned = len(seed_list) * len(dems) * len(trns) * len(rangers)
     if n_planned > MAX_RUNS:
@@ -141,6 +149,26 @@ def campaign(seeds, dems, trns, rangers, duration, workers, scheduler, out, quie
     bad = non_finite_keys(summary)
     if bad:
         raise CliError(f"the campaign produced non-finite results ({', '.join(bad[:4])})")
+
+
+def _check_scheduler(address: str) -> None:
+    """One line for a scheduler address Dask could not parse: [tcp|tls|ws|wss://]HOST:PORT."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+
+    shape = "[tcp://]HOST:PORT, e.g. tcp://10.0.0.5:8786"
+    if not address.strip():
+        raise CliError(f"--scheduler must not be empty; give {shape}")
+    try:
+        scheme, location = parse_address(address)
+        if scheme not in ("tcp", "tls", "ws", "wss"):
+            raise ValueError(f"unknown protocol {scheme!r}")
+        host, port = parse_host_port(location)
+    except (ValueError, TypeError) as error:
+        raise CliError(f"--scheduler {address!r} is not a scheduler address ({error}); give "
+                       f"{shape}") from None
+    if not host or not 0 < port < 65536:
+        raise CliError(f"--scheduler {address!r} is not a scheduler address (host "
+                       f"{host!r}, port {port}); give {shape}")
 
 
 #: the table's width when stdout is not a terminal (a file, a pipe): rich wraps the headers

@@ -106,6 +106,12 @@ def gpsins(duration, seed, out, outage_start, outage_length, rate_hz, gyro_noise
     cfg = scenario.GpsInsConfig(duration_s=duration, seed=seed, outage_start_s=outage_start,
                                 outage_s=outage_length, rate_hz=rate_hz, filter=filter_kind,
                                 smoother=smoother, lag_s=lag_s)
+    epochs = lag_s * cfg.gps_rate_hz
+    if smoother == "fixed-lag" and abs(epochs - round(epochs)) > 1e-9 * max(1.0, epochs):
+        period = 1.0 / cfg.gps_rate_hz
+        raise CliError(f"--lag must be a whole number of GPS periods ({period:g} s), got "
+                       f"{lag_s:g} s (the smoother lags by whole GPS epochs: "
+                       f"{math.floor(epochs) * period:g} or {math.ceil(epochs) * period:g} s)")
     cfg = scenario.config_for_imu(cfg, imu)
     if gyro_noise is not None:
         cfg = scenario.with_gyro_noise(cfg, gyro_noise)

@@ -20,9 +20,12 @@ import numpy as np
 
 from navgate.cli.console import consoles
 from navgate.cli.errors import CliError
-from navgate.cli.outputs import atomic_output_dir, default_out_dir, out_option
+from navgate.cli.outputs import atomic_output_dir, check_out_dir, default_out_dir, out_option
 from navgate.cli.summary import write_summary
 
+#: the word lengths the filter runs at: 9 (the 8-bit divider seed table needs N >= 9) to 32
+#: (the model's reciprocal runs in Python integers beyond int64; tested at N = 30 and 32)
+N_MIN, N_MAX = 9, 32
 SIGMA_PROCESS = 0.1
 SIGMA_MEAS = 1.0
 
@@ -60,7 +63,8 @@ def _plot(path: Path, sc, x_fix, x_flt, r_fix, step_frame) -> None:
 
 @click.command()
 @click.option("--frames", type=int, default=4000, show_default=True, help="Frames to run.")
-@click.option("--n", "n", type=int, default=20, show_default=True, help="Word length N (9..29).")
+@click.option("--n", "n", type=int, default=20, show_default=True,
+              help=f"Word length N ({N_MIN}..{N_MAX}).")
 @click.option("--frac", type=int, default=10, show_default=True,
               help="Fraction bits FRAC (1..N-2; the demo needs N-1-FRAC >= 5 integer bits).")
 @click.option("--engine", type=click.Choice(["model", "amaranth", "verilator"]),
@@ -97,6 +101,9 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out, accept_overflow, quiet):
         raise CliError(f"--frames must be between 10 and 100000, got {frames}")
     if seed < 0:
         raise CliError(f"--seed must be non-negative, got {seed}")
+    check_out_dir(out)  # before the run: the outputs are written only after it
+    if not N_MIN <= n <= N_MAX:
+        raise CliError(f"--n: the word length must be in [{N_MIN}, {N_MAX}], got {n}")
     try:
         params = KfParams(n=n, frac=frac)
     except ValueError as error:
@@ -166,16 +173,6 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out, accept_overflow, quiet):
     }
     overflow = summary["overflow_frames"]
     summary["overflow_accepted"] = bool(overflow and accept_overflow)
-    with atomic_output_dir(out) as stage:
-        write_summary(stage, summary)
-        with open(stage / "frames.csv", "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(["frame", "v_true", "i_true", "v_meas", "i_meas", "v_fixed", "i_fixed",
-                        "v_float", "i_float", "R00_fixed", "R11_fixed"])
-            for k in range(frames):
-                w.writerow([k, *(f"{v:.6f}" for v in (*sc.x[k], *sc.z[k], *x_fix[k],
-                                                       *fl["x"][k], *r_fix[k]))])
-        _plot(stage / "rlc.png", sc, x_fix, fl["x"], r_fix, step)
     table = Table(title=f"kf2x2 Q({n}, {frac}), {frames} frames, engine {engine}")
     table.add_column("quantity")
     table.add_column("v_C")
@@ -195,10 +192,21 @@ def kf2x2(frames, n, frac, engine, adapt_q, seed, out, accept_overflow, quiet):
     if mismatches is not None:
         table_console.print(f"gateware ({engine}): {mismatches} mismatching frames of {frames}, "
                       "34 cycles each")
-    console.print(f"wrote summary.json, frames.csv, rlc.png in {out}", highlight=False)
+    # a failed run commits nothing (earlier results in --out stay as they were)
     if overflow and not accept_overflow:
         raise CliError(f"Q({n}, {frac}) overflows in {overflow} of {frames} frames (RMS error "
                        f"{max(summary['rms_error_fixed']):.3g}); use a longer word or fewer "
-                       "fraction bits, or --accept-overflow")
+                       "fraction bits, or --accept-overflow; nothing written")
     if mismatches:
-        raise CliError(f"{mismatches} frames differ from the bit-true model")
+        raise CliError(f"{mismatches} frames differ from the bit-true model; nothing written")
+    with atomic_output_dir(out) as stage:
+        write_summary(stage, summary)
+        with open(stage / "frames.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["frame", "v_true", "i_true", "v_meas", "i_meas", "v_fixed", "i_fixed",
+                        "v_float", "i_float", "R00_fixed", "R11_fixed"])
+            for k in range(frames):
+                w.writerow([k, *(f"{v:.6f}" for v in (*sc.x[k], *sc.z[k], *x_fix[k],
+                                                       *fl["x"][k], *r_fix[k]))])
+        _plot(stage / "rlc.png", sc, x_fix, fl["x"], r_fix, step)
+    console.print(f"wrote summary.json, frames.csv, rlc.png in {out}", highlight=False)

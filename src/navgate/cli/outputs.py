@@ -20,7 +20,7 @@ import shutil
 import signal
 import tempfile
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 import click
@@ -193,10 +193,27 @@ def _check_destination(dest: Path, inputs: list) -> None:
     check_not_input(dest, inputs)
 
 
+def _stale_files(out: Path | None, replaces: Callable[[Path], bool] | None,
+                 produced: dict[Path, Path], inputs: list) -> list[Path]:
+    """The files of ``out`` that ``replaces`` selects and this run does not write."""
+    if out is None or replaces is None or not out.is_dir():
+        return []
+    stale = [p for p in sorted(out.iterdir())
+             if (p.is_symlink() or not p.is_dir()) and replaces(p)
+             and p.resolve() not in produced]
+    for path in stale:
+        for item in inputs:
+            if item is not None and (_same_file(path, Path(item))
+                                     or path.resolve() == Path(item).resolve()):
+                raise CliError(f"cannot replace the contents of {out}: {path.name} is the "
+                               f"input {item}; write to another directory")
+    return stale
+
+
 @contextlib.contextmanager
 def staged_outputs(out: str | Path | None = None, files: Iterable[str | Path] = (),
-                   inputs: Iterable[str | Path | None] = (), names: Iterable[str] = ()
-                   ) -> Iterator[Staging]:
+                   inputs: Iterable[str | Path | None] = (), names: Iterable[str] = (),
+                   replaces: Callable[[Path], bool] | None = None) -> Iterator[Staging]:
     """The one staging path: yield a :class:`Staging`; commit everything on success.
 
     ``out`` is an output directory (its staging directory sits beside it), ``files`` are
@@ -209,8 +226,9 @@ def staged_outputs(out: str | Path | None = None, files: Iterable[str | Path] = 
     the command declares it will write (:func:`check_outputs_early`). Checked before anything
     is moved: no destination is a directory, a device, a FIFO or a symbolic link, none is one
     of ``inputs``, and no two outputs share a path. Files already in ``out`` that this run
-    does not produce are left alone; an extra file the block deleted from its staging path
-    is not committed.
+    does not produce are left alone, except those ``replaces`` selects (a tile directory's
+    tiles: the run replaces them as a whole), which are removed in the same commit; an extra
+    file the block deleted from its staging path is not committed.
     """
     inputs = list(inputs)
     out = Path(out) if out is not None else None
@@ -255,6 +273,7 @@ def staged_outputs(out: str | Path | None = None, files: Iterable[str | Path] = 
             if key in seen:
                 raise CliError(f"two outputs of this run would be written to {dest}")
             seen[key] = dest
+        stale = _stale_files(out, replaces, seen, inputs)
         try:
             for final, path in staged.items():
                 if path.exists():
@@ -265,6 +284,8 @@ def staged_outputs(out: str | Path | None = None, files: Iterable[str | Path] = 
                 for src, dest in moves:
                     dest.parent.mkdir(parents=True, exist_ok=True)
                     os.replace(src, dest)
+                for path in stale:
+                    path.unlink()
         except OSError as error:
             raise CliError(os_error_message(error)) from None
     finally:
@@ -296,6 +317,9 @@ def check_writable_file(path: str | Path) -> Path:
     _regular_or_absent(p)
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
+        for ancestor in (parent, *parent.parents):  # the first one that exists says why
+            if ancestor.exists() and not ancestor.is_dir():
+                raise CliError(f"cannot write {p}: {ancestor} is not a directory")
         raise CliError(f"cannot write {p}: directory {parent} does not exist")
     if p.exists() and not os.access(p, os.W_OK):
         raise CliError(f"cannot write {p}: permission denied")

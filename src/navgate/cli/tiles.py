@@ -26,6 +26,7 @@ from navgate.cli.outputs import (
     check_outputs_early,
     default_out_dir,
     out_option,
+    staged_outputs,
 )
 from navgate.cli.summary import write_summary
 
@@ -68,18 +69,28 @@ def split(dem_path, grid, out, quiet):
     rows, cols = grid
     inputs = [] if dem_path == "default" else [dem_path]
     check_outputs_early(out, ["tiles.json"], inputs)
-    with atomic_output_dir(out, inputs=inputs) as stage:
+    # the new tiles replace the directory's tiles as a whole (tiles of an earlier split that
+    # this one does not write would overlap the new ones); staged: a failed split leaves the
+    # directory as it was
+    with staged_outputs(out, inputs=inputs, replaces=_is_tile) as staging:
+        stage = staging.dir
         try:
             paths = split_dem(dem, rows, cols, stage)
         except ValueError as error:
             raise CliError(str(error)) from None
-        store = TileStore(stage)
-        summary = _describe(store)
+        summary = _describe(TileStore(stage))
+        summary["directory"] = str(out)  # the final directory, not the staging one
         summary["source"] = dem.name
         write_summary(stage, summary, name="tiles.json")
     table_console.print(f"{len(paths)} tiles of {dem.name} ({dem.shape[0]} x {dem.shape[1]} "
                         f"posts) cut {rows} x {cols}, sharing their edge posts")
     console.print(f"wrote {len(paths)} tiles and tiles.json in {out}", highlight=False)
+
+
+def _is_tile(path) -> bool:
+    from navgate.trn.tiles import TILE_SUFFIXES
+
+    return path.suffix.lower() in TILE_SUFFIXES
 
 
 def _describe(store) -> dict:

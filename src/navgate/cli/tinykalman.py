@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import math
 import time
 from pathlib import Path
 
@@ -88,16 +89,26 @@ DECODE_OUTPUTS = ("capture.bin", "roll_pitch.csv", "summary.json")
 @click.option("--limit", type=int, default=None, help="Use only the first N samples.")
 @out_option(default_out_dir("tinykalman"), "Output directory (written atomically).")
 @click.option("--quiet", is_flag=True, help="No table.")
-def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
+@click.pass_context
+def run(ctx, log_csv, engine, sim, variant, axes, limit, out, quiet):
     """Run an IMU log (CSV) through TinyKalman; write words, uart.bin, roll/pitch, summary."""
     from navgate.cli.extras import SIMULATION, require_gateware
+
+    if engine == "model":  # --sim and --variant choose the gateware run: say so, never ignore
+        given = [f"--{name}" for name in ("sim", "variant")
+                 if ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT]
+        if given:
+            raise CliError(f"{' and '.join(given)} choose{'s' if len(given) == 1 else ''} the "
+                           "gateware run of --engine rtl; --engine model runs the integer "
+                           "model only (drop the option or use --engine rtl)")
 
     # the chip's timing comes from its gateware module (Amaranth) even for --engine model
     require_gateware(f"navgate tinykalman --engine {engine}",
                      SIMULATION if engine == "rtl" and sim == "verilator" else ("amaranth",))
     from rich.table import Table
 
-    from navgate.sim.imu_log import LogError, read_imu_csv
+    from navgate.sim.imu_log import LogError, nominal_period, read_imu_csv
+    from navgate.systems.attitude.estimate import GAP_PERIODS
     from navgate.systems.tinykalman.run import words_from_imu
     from navgate.systems.tinykalman.top import timing
 
@@ -113,6 +124,13 @@ def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
         raise CliError(str(error)) from None
     frd = axes == "frd" or (axes == "auto" and log.style != "x-io")
     n = len(log) if limit is None else min(limit, len(log))
+    # the chip assumes one fixed sample period: steps longer than GAP_PERIODS nominal periods
+    # are counted and reported (the reference ahrs restarts its filter at them)
+    steps = np.diff(log.t[:n])
+    nominal = nominal_period(log.t[:n])
+    gap_steps = steps[steps > GAP_PERIODS * nominal] if math.isfinite(nominal) else steps[:0]
+    gaps = int(gap_steps.size)
+    largest_gap = float(gap_steps.max()) if gaps else None
     try:
         words = words_from_imu(log.acc[:n], log.gyro[:n], frd=frd)
     except ValueError as error:
@@ -128,6 +146,7 @@ def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
             "axes": "frd" if frd else "flu",
             "skipped_rows": log.skipped_rows, "implausible_rows": log.implausible_rows,
             "saturated_words": words.saturated,
+            "time_gaps": gaps, "largest_time_gap_s": largest_gap,
             "engine": engine, "uart_bytes": len(stream), "packets": stats.packets,
             "skipped_bytes": stats.skipped_bytes, "trailing_bytes": stats.trailing_bytes,
             "final_roll_deg": deg[-1][0] if deg else None,
@@ -145,6 +164,9 @@ def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
     if log.skipped_rows or log.implausible_rows:  # rows of the log not run (counted)
         table.add_row("rows dropped (non-finite / implausible)",
                       f"{log.skipped_rows} / {log.implausible_rows}")
+    if gaps:
+        table.add_row(f"time gaps (steps over {GAP_PERIODS:g} sample periods; the chip "
+                      "assumes a fixed rate)", f"{gaps} (largest {largest_gap:.3g} s)")
     if deg:
         table.add_row("final roll / pitch (deg)", f"{deg[-1][0]:.2f} / {deg[-1][1]:.2f}")
     if rtl_info:
@@ -152,6 +174,10 @@ def run(log_csv, engine, sim, variant, axes, limit, out, quiet):
         table.add_row("rtl wall time (s)", f"{rtl_info['rtl_seconds']:.1f}")
     table.add_row("wall time (s)", f"{wall:.2f}")
     table_console.print(table)
+    if gaps:
+        console.print(f"note: {gaps} time gaps in the log (largest {largest_gap:.3g} s); the "
+                      "chip integrates every sample over its one fixed period, across the "
+                      "gaps too", highlight=False)
     console.print(f"wrote {out}/mpu6500_words.csv, uart.bin, roll_pitch.csv, summary.json",
                   highlight=False)
     if rtl_info and not rtl_info["equal_to_model"]:
@@ -279,6 +305,10 @@ def decode(file, port, baud, seconds, out, quiet):
         if port is not None:
             (staging.dir / "capture.bin").write_bytes(data)
         angles, st = _decode_into(staging.dir, data)
+        if not angles:  # nothing decoded: an error, and nothing is committed
+            raise CliError(f"{source}: no TinyKalman packet in {len(data)} bytes "
+                           f"({st.skipped_bytes} skipped, {st.trailing_bytes} trailing); "
+                           "nothing written")
         summary = {"source": source, "bytes": len(data), "packets": st.packets,
                    "skipped_bytes": st.skipped_bytes, "trailing_bytes": st.trailing_bytes}
         write_summary(staging.dir, summary)

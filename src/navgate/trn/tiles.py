@@ -81,6 +81,19 @@ class TileInfo:
                 and self.col0 < c_hi and c_lo < self.col0 + self.cols)
 
 
+def _how_they_differ(old: np.ndarray, new: np.ndarray) -> str:
+    """What differs at shared posts that disagree: heights (the largest difference) and
+    posts void (NaN) in one tile but not in the other."""
+    both = np.isfinite(old) & np.isfinite(new)
+    parts = []
+    if both.any():
+        parts.append(f"largest height difference {np.max(np.abs(old[both] - new[both])):.4g} m")
+    void = int((~both).sum())
+    if void:
+        parts.append(f"{void} of them void in one tile and not in the other")
+    return "; ".join(parts)
+
+
 def tile_paths(directory: Path) -> list[Path]:
     return sorted(p for p in directory.iterdir()
                   if p.is_file() and p.suffix.lower() in TILE_SUFFIXES)
@@ -241,13 +254,11 @@ class TileStore:
                     if self.priority == "check":
                         others = [o.path.name for o in tiles if o is not t
                                   and o.overlaps(a0, a1, b0, b1)]
-                        worst = np.nanmax(np.abs(old - new)) if np.isfinite(
-                            old - new).any() else math.nan
                         raise DemError(
                             f"overlapping tiles disagree: {t.path.name} and "
                             f"{', '.join(others)} differ at {int(differ.sum())} shared posts "
-                            f"(largest difference {worst:.4g} m); choose a winner with "
-                            "--tile-priority first|last")
+                            f"({_how_they_differ(old[differ], new[differ])}); choose a "
+                            "winner with --tile-priority first|last")
                     self.priority_posts += int(differ.sum())
             out[dst] = src
             written[dst] = True

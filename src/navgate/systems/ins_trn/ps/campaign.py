@@ -387,13 +387,21 @@ def run_campaign(campaign: Campaign, *, workers: int = 2, scheduler: str | None 
 
 
 # -- report -----------------------------------------------------------------------------------
+def _csv_value(v):
+    """A results.csv field: floats to 6 digits; no value (NaN: a run without a fix has no
+    time to first fix, counted in the summary's runs_without_fix) is an empty field."""
+    if isinstance(v, float):
+        return f"{v:.6g}" if math.isfinite(v) else ""
+    return v
+
+
 def write_results_csv(result: CampaignResult, path: Path) -> Path:
+    """One row a run (:data:`RESULT_FIELDS`); a value that does not exist is left empty."""
     with open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=RESULT_FIELDS, extrasaction="ignore")
         w.writeheader()
         for r in result.rows:
-            w.writerow({k: (f"{r[k]:.6g}" if isinstance(r.get(k), float) else r.get(k, ""))
-                        for k in RESULT_FIELDS})
+            w.writerow({k: _csv_value(r.get(k, "")) for k in RESULT_FIELDS})
     return path
 
 
