@@ -18,6 +18,12 @@ FUSION_CSV = Path(os.environ.get("NAVGATE_FUSION_CSV",
                                  REPO.parent / "shared" / "data" / "fusion_sensor_data.csv"))
 
 
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    """A run without --out writes navgate-out/ahrs/summary.json: keep it out of the tree."""
+    monkeypatch.chdir(tmp_path)
+
+
 def run_cli(args, capsys):
     code = 0
     try:

@@ -12,6 +12,12 @@ from navgate.cli import main
 G0 = 9.80665
 
 
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    """A run without --out writes navgate-out/ahrs/summary.json: keep it out of the tree."""
+    monkeypatch.chdir(tmp_path)
+
+
 def run_cli(args, capsys):
     code = 0
     try:

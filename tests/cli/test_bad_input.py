@@ -543,7 +543,11 @@ def test_ahrs_streaming_equals_in_memory(tmp_path, capsys, monkeypatch):
 
 
 def ahrs_table(tmp_path, capsys, path, *extra):
-    code, out, err = run(["ahrs", path, *extra], capsys)
+    import contextlib
+
+    # without --out, ahrs writes navgate-out/ahrs/summary.json: in tmp_path, not the tree
+    with contextlib.chdir(tmp_path):
+        code, out, err = run(["ahrs", path, *extra], capsys)
     return code, out, err
 
 

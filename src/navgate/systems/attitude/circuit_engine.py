@@ -52,6 +52,8 @@ class CircuitRun:
     seconds: float  #: time in the engine (model or simulation, without the build)
     build_seconds: float = 0.0
     cycles: int = 0  #: simulated clock cycles (rtl)
+    #: (N,) bool, the circuit's ``invalid`` indication of each sample (``invalid`` counts them)
+    invalid_rows: np.ndarray | None = None
 
 
 def circuit_inputs(log: ImuLog, axes: str, kp: float, ki: float):
@@ -94,7 +96,8 @@ def run_circuit(log: ImuLog, engine: str, *, axes: str = "auto", kp: float = 1.0
         bad, sat = int(np.sum(flags[:, 0])), int(np.sum(flags[:, 1]))
         secs = time.perf_counter() - t0
         res = _result(log, axes, _f(out[:, :4]), _f(out[:, 4]), _f(out[:, 5]), _f(out[:, 6]))
-        return CircuitRun(res, params, bad, sat, secs)
+        return CircuitRun(res, params, bad, sat, secs,
+                          invalid_rows=np.asarray(flags[:, 0], dtype=bool))
     from navgate.systems.attitude.native_sim import simulate_native
     from navgate.systems.attitude.rtl_sim import sample_vectors
     from navgate.systems.attitude.top import AttitudeStream
@@ -104,5 +107,6 @@ def run_circuit(log: ImuLog, engine: str, *, axes: str = "auto", kp: float = 1.0
                              design="AttitudeStream", params={})
     q = np.column_stack([_f(o[f"out_q{i}"]) for i in range(4)])
     res = _result(log, axes, q, _f(o["out_pitch"]), _f(o["out_roll"]), _f(o["out_yaw"]))
-    return CircuitRun(res, params, int(np.sum(o["invalid"])), int(np.sum(o["saturated"])),
-                      run.seconds, run.build_seconds, run.cycles)
+    invalid = np.asarray(o["invalid"], dtype=bool)
+    return CircuitRun(res, params, int(np.sum(invalid)), int(np.sum(o["saturated"])),
+                      run.seconds, run.build_seconds, run.cycles, invalid_rows=invalid)
