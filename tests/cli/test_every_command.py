@@ -614,3 +614,16 @@ def test_results_on_stdout_notes_on_stderr(name, tmp_path, navgate_run, monkeypa
         assert set(run.writes) <= {p.name for p in out.iterdir()}
     else:
         assert out.stat().st_size > 0
+
+
+def test_python_dash_m_navgate_is_the_command():
+    """``python -m navgate`` runs the ``navgate`` command (as ``python -m navgate.cli``)."""
+    import subprocess
+    import sys
+
+    from navgate import __version__
+
+    got = subprocess.run([sys.executable, "-m", "navgate", "--version"], capture_output=True,
+                         text=True, timeout=120)
+    assert got.returncode == 0, got.stderr
+    assert __version__ in got.stdout

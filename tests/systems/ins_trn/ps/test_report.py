@@ -88,3 +88,16 @@ def test_errors_plot_explains_ins_only_falls_in_turns(figures, tmp_path):
     notes = [t.get_text() for t in ins_ax.texts]
     assert any("fall in turns" in n and "seed000-navigator.md" in n for n in notes), notes
     assert not trn_ax.texts
+
+
+def test_track_draws_the_truth_once_a_log_row(figures, tmp_path):
+    """The truth track takes one point a log row: fly's truth is per IMU sample (every
+    ``log_every``-th), a replay's truth records are at the log rate (``log_every`` 1; the
+    plot used to take every 40th row of them, one point in 4 s)."""
+    for log_every, points in ((1, 50), (10, 5)):
+        result = _result([])
+        result.log_every = log_every
+        report.plot_track(result, tmp_path / "track.png")
+        main = figures[-1].axes[0]
+        truth = [line for line in main.get_lines() if line.get_label() == "truth"]
+        assert len(truth) == 1 and len(truth[0].get_xdata()) == points

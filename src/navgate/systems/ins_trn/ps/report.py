@@ -40,6 +40,13 @@ def truth_rows(result) -> np.ndarray:
     return np.minimum(np.arange(n) * result.log_every, len(result.data.truth) - 1)
 
 
+def truth_track_rows(result) -> slice:
+    """The truth rows the track plot draws: one a log row (fly's truth is per IMU sample, so
+    every ``log_every``-th; a replay's truth records are at the log rate already, its
+    ``log_every`` 1)."""
+    return slice(None, None, max(1, int(result.log_every)))
+
+
 def write_trajectory_csv(result, path: Path) -> Path:
     """One row a solution; a solution without truth (a replay's log with gaps) has its
     solution time as ``t_s`` and ``nan`` truth and error columns."""
@@ -117,7 +124,8 @@ def plot_track(result, path: Path) -> Path:
     ax.imshow(shade, cmap="gray", extent=extent, origin="upper", alpha=0.35)
     fig.colorbar(terrain, ax=ax, shrink=0.8, label="terrain elevation (m)")
     truth = result.data.truth
-    tn, te = tan.to_ned(truth.lat[::40], truth.lon[::40])
+    rows = truth_track_rows(result)
+    tn, te = tan.to_ned(truth.lat[rows], truth.lon[rows])
     tracks = [(te / 1000, tn / 1000, "k", "truth", 2.0)]
     styles = {"ins_only": ("tab:red", "INS only"), "trn_aided": ("tab:blue", "INS + TRN")}
     for name, run in result.runs.items():
