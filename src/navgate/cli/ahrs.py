@@ -207,17 +207,16 @@ def _circuit_command(input_csv, engine, method, out, kp, ki, axes, gyro_unit, no
         raise CliError(str(error)) from None
     if len(log) < 2:
         raise CliError(f"{input_csv}: need at least two samples")
-    from navgate.sim.imu_log import nominal_period
     from navgate.systems.attitude.circuit_engine import circuit_inputs
-    from navgate.systems.attitude.estimate import GAP_PERIODS
+    from navgate.systems.attitude.estimate import gap_steps
 
     try:  # the checks every engine shares (estimate.check_run), before any message or build
         words, _, _ = circuit_inputs(log, axes, kp, ki)
     except ValueError as error:
         raise CliError(str(error)) from None
-    # the reference engine's gap rule (a step over GAP_PERIODS nominal periods); the circuit
-    # has a fixed T and no restart, so it runs through them: counted and reported only
-    gaps = int(np.sum(np.diff(log.t) > GAP_PERIODS * nominal_period(log.t)))
+    # the reference engine's gaps; the circuit has a fixed T and no restart, so it runs
+    # through them: counted and reported only
+    gaps = int(gap_steps(log.t).size)
     summary_file = summary_path(out)
     files = [p for p in (out, summary_file) if p is not None]
     with staged_outputs(files=files, inputs=[input_csv]) as staging:

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import math
 import time
 from pathlib import Path
 
@@ -107,8 +106,8 @@ def run(ctx, log_csv, engine, sim, variant, axes, limit, out, quiet):
                      SIMULATION if engine == "rtl" and sim == "verilator" else ("amaranth",))
     from rich.table import Table
 
-    from navgate.sim.imu_log import LogError, nominal_period, read_imu_csv
-    from navgate.systems.attitude.estimate import GAP_PERIODS
+    from navgate.sim.imu_log import LogError, read_imu_csv
+    from navgate.systems.attitude.estimate import GAP_PERIODS, gap_steps
     from navgate.systems.tinykalman.run import words_from_imu
     from navgate.systems.tinykalman.top import timing
 
@@ -126,11 +125,9 @@ def run(ctx, log_csv, engine, sim, variant, axes, limit, out, quiet):
     n = len(log) if limit is None else min(limit, len(log))
     # the chip assumes one fixed sample period: steps longer than GAP_PERIODS nominal periods
     # are counted and reported (the reference ahrs restarts its filter at them)
-    steps = np.diff(log.t[:n])
-    nominal = nominal_period(log.t[:n])
-    gap_steps = steps[steps > GAP_PERIODS * nominal] if math.isfinite(nominal) else steps[:0]
-    gaps = int(gap_steps.size)
-    largest_gap = float(gap_steps.max()) if gaps else None
+    gap_sizes = gap_steps(log.t[:n])
+    gaps = int(gap_sizes.size)
+    largest_gap = float(gap_sizes.max()) if gaps else None
     try:
         words = words_from_imu(log.acc[:n], log.gyro[:n], frd=frd)
     except ValueError as error:

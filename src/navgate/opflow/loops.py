@@ -493,7 +493,7 @@ class LoopUnits:
     transfers: int = 0
     #: a what-if too: after placement the loads (``"loads"``) or every op (``"all"``) move
     #: as late as their values' reads, the stores of a load's array and their units allow
-    #: (:func:`_late`): the same cycles, shorter lives ("" or False: as placed)
+    #: (:func:`_late`): the same cycles, shorter lives ("": as placed)
     late: str = ""
 
     @property
@@ -579,11 +579,13 @@ def modulo_schedule(nest: LoopNest, units: LoopUnits = LoopUnits(),
     limit = max_ii or sum(units.latency(op.kind) + units.occupancy(op.kind)
                           for op in nest.ops) + len(nest.stores) + 8
     if nest.iterations == 1:  # straight line: one placement without wrap-around, II = depth
+        # (the greedy placement's "II" only needs to exceed the line's length: twice the
+        # bound leaves room for the transfers' delays)
         got = [g for g in (_list_place(nest, units, accs), _place(nest, units, 2 * limit, accs))
                if g is not None]
         time, resource, ready, depth, sent = min(got, key=lambda g: g[3])
         if units.late:
-            _late(nest, units, None, time, resource, ready, sent, units.late == "loads")
+            _late(nest, units, None, time, resource, ready, sent)
         return LoopSchedule(nest, units, depth, res_mii, rec_mii, time, resource, ready, depth,
                             sent)
     for ii in range(start, limit + 1):
@@ -592,7 +594,7 @@ def modulo_schedule(nest: LoopNest, units: LoopUnits = LoopUnits(),
             continue
         time, resource, ready, depth, sent = got
         if units.late:
-            _late(nest, units, ii, time, resource, ready, sent, units.late == "loads")
+            _late(nest, units, ii, time, resource, ready, sent)
         return LoopSchedule(nest, units, ii, res_mii, rec_mii, time, resource, ready, depth,
                             sent)
     raise LoopError(f"{nest.name}: no schedule with II <= {limit}")
@@ -605,9 +607,9 @@ def _apart(a: Addr, b: Addr) -> bool:
             and a.offset != b.offset)
 
 
-def _late(nest, units, ii, time, resource, ready, sent, loads_only):
-    """Move ops (last first, the loads alone when ``loads_only``) to the latest cycle at
-    which their value is still ready for every read of it (its readers, an accumulator's
+def _late(nest, units, ii, time, resource, ready, sent):
+    """Move ops (last first; the loads alone when ``units.late`` is "loads") to the latest
+    cycle at which their value is still ready for every read of it (its readers, an accumulator's
     reads of it, its stores, its transfers), a load one cycle before every store to its
     array that may write its word (any store of the array but one to another constant
     address), on the op's own unit instance free then for its occupancy (modulo ``ii``;
@@ -620,7 +622,7 @@ def _late(nest, units, ii, time, resource, ready, sent, loads_only):
     period = ii or 1 << 30
     updates = {root(a.update) for a in nest.accs}
     movable = [op for op in reversed(nest.ops) if op.kind == "load" or (
-        not loads_only and op.kind != "neg" and not units.result_ports
+        units.late == "all" and op.kind != "neg" and not units.result_ports
         and op.dst not in updates)]
     busy = {(resource[op.dst][0], resource[op.dst][1], (time[op.dst] + j) % period)
             for op in nest.ops if op.kind != "neg" for j in range(units.occupancy(op.kind))}
@@ -669,8 +671,9 @@ def _late(nest, units, ii, time, resource, ready, sent, loads_only):
             busy |= {(res, inst, (t + j) % period) for j in range(occ)}
             moved |= t != time[op.dst]
             time[op.dst], ready[op.dst] = t, t + latency
-    for o in nest.ops:  # a sign flip's value is its source's (one of a constant or an
-        if o.kind == "neg" and o.srcs[0] in ready:  # accumulator stays as placed)
+    # a sign flip's value is its source's (one of a constant or an accumulator stays)
+    for o in nest.ops:
+        if o.kind == "neg" and o.srcs[0] in ready:
             time[o.dst] = ready[o.dst] = ready[o.srcs[0]]
 
 
@@ -778,9 +781,10 @@ class _Lanes:
         return [i for i in range(count) if i % self.units.lanes == lane]
 
     def send(self, key, value_ready, lane, latest=None):
-        """Reserve a bus for ``key`` (a value, or an accumulator's name) to ``lane`` from
-        ``value_ready`` (until ``latest`` when given): the offset it is ready there, or
-        None when no bus is free."""
+        """Send ``key`` (a value, or an accumulator's name) to ``lane`` on one of the lane's
+        transfer ports, issued from ``value_ready`` (until ``latest`` when given): the
+        offset it is ready there (that of its earlier transfer, if sent already), or None
+        when no port is free."""
         if (key, lane) in self.sent:
             return self.sent[(key, lane)] + TRANSFER_LATENCY
         last = value_ready + (self.ii - 1 if self.ii else 0)
@@ -888,13 +892,17 @@ def _place(nest, units, ii, accs):
         depth = max(depth, time[("store", k)] + 1)
     if ii is not None:
         flipped = _flipped(nest)
+
+        def reads(op, a) -> bool:
+            if lanes is None:  # as ever: a sign flip of it counts as reading it
+                return a.name in op.srcs
+            # with lanes, the op that reads the sign flip reads it, in its own lane
+            return op.kind != "neg" and any(flipped(x) == a.name for x in op.srcs)
+
         for a in nest.accs:
             for op in nest.ops:
-                if lanes is None and a.name not in op.srcs:
+                if not reads(op, a):
                     continue
-                if lanes is not None and (op.kind == "neg" or all(
-                        flipped(x) != a.name for x in op.srcs)):
-                    continue  # (with lanes the reader of a sign flip of it reads it)
                 latest = time[op.dst] + a.distance * ii  # the update's read, next iteration
                 if lanes is not None and lanes.home(a.update) != lanes.plan[op.dst]:
                     got = lanes.send(a.name, ready[a.update], lanes.plan[op.dst],

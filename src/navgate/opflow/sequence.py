@@ -180,8 +180,9 @@ def schedule_sequence(prog: SequenceProgram, lanes: int = 1, read_ports: int = 2
     keep block-RAM outputs and multiplexers off the units' first stages. ``result_ports``
     (a what-if, not this machine's: its delay lines take every result): at most that many
     unit results land in a cycle, as a register file's write ports would allow (0: no
-    limit). ``transfers`` (a what-if too): the lanes as clusters with that many buses
-    between them (:attr:`~navgate.opflow.loops.LoopUnits.transfers`; 0: no clusters);
+    limit). ``transfers`` (a what-if too): the lanes as clusters, each taking that many
+    values a cycle from the others (:attr:`~navgate.opflow.loops.LoopUnits.transfers`;
+    0: no clusters);
     ``late`` (a what-if): ``"loads"`` or ``"all"`` ops as late as their reads allow
     (:attr:`~navgate.opflow.loops.LoopUnits.late`)."""
     if type(lanes) is not int or not 1 <= lanes <= MAX_LANES:

@@ -113,6 +113,17 @@ def check_run(*, method: str, dt: float, kp: float, ki: float, gain: float = 0.0
 GAP_PERIODS = 5.0
 
 
+def gap_steps(t) -> np.ndarray:
+    """The time steps of ``t`` longer than :data:`GAP_PERIODS` nominal periods
+    (:func:`navgate.sim.imu_log.nominal_period`): the gaps at which the reference filter
+    restarts, and which a fixed-rate circuit runs through and counts."""
+    from navgate.sim.imu_log import nominal_period
+
+    steps = np.diff(np.asarray(t, dtype=np.float64))
+    nominal = nominal_period(t)
+    return steps[steps > GAP_PERIODS * nominal] if math.isfinite(nominal) else steps[:0]
+
+
 class AttitudeStream:
     """Run an attitude filter over a log delivered in blocks, carrying the filter state, so
     that any split of the log gives the same bits as the whole log in one call.

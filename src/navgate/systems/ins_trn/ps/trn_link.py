@@ -128,9 +128,6 @@ class TrnLink:
     # -- opening ----------------------------------------------------------------------------
     def _open(self, first: bool = False) -> None:
         kind = self.kind[0]
-        if kind == "spawn" and self._spawn_gave_up:
-            self.link = None
-            return
         try:
             if kind == "tcp":
                 self.link = connect_tcp(self.kind[1], self.kind[2], timeout=self.timeout_s,
@@ -264,11 +261,16 @@ class TrnLink:
             pass
         return False
 
+    def _spawn_stays(self) -> bool:
+        """A spawned service is not started again: its child still runs, or it never
+        completed a hello (:attr:`_spawn_gave_up`)."""
+        return self.kind[0] == "spawn" and (self._spawn_gave_up or (
+            self.child is not None and self.child.poll() is None))
+
     def _reconnect(self) -> None:
         """Open the link again (a spawned service: start a new one once the old has gone)."""
         self._last_sent = time.monotonic()  # one attempt per heartbeat period
-        if self.kind[0] == "spawn" and (self._spawn_gave_up or (
-                self.child is not None and self.child.poll() is None)):
+        if self._spawn_stays():
             return
         self.counters["reconnects"] += 1
         try:
@@ -289,8 +291,7 @@ class TrnLink:
             if attempt:
                 self.counters["retries"] += 1
             if self.link is None:
-                if self.kind[0] == "spawn" and (self._spawn_gave_up or (
-                        self.child is not None and self.child.poll() is None)):
+                if self._spawn_stays():
                     break
                 self.counters["reconnects"] += 1
                 self._open()
