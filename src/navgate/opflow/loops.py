@@ -794,10 +794,11 @@ class _Lanes:
             if self.ii is None:
                 self.sent[(key, lane)] = t
                 return t + TRANSFER_LATENCY
-            bus = next((("bus", lane, b, t % self.ii) for b in range(self.units.transfers)
-                        if ("bus", lane, b, t % self.ii) not in self.busy), None)
-            if bus is not None:
-                self.busy.add(bus)
+            port = next((("transfer", lane, b, t % self.ii)
+                         for b in range(self.units.transfers)
+                         if ("transfer", lane, b, t % self.ii) not in self.busy), None)
+            if port is not None:
+                self.busy.add(port)
                 self.sent[(key, lane)] = t
                 return t + TRANSFER_LATENCY
         return None
